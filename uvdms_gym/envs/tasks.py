@@ -1,0 +1,233 @@
+"""Task definitions: references for circle tracking and object transport (SPEC section 5), NED/SI.
+
+A task is pure data plus a reference function ``reference(t) -> y_ref`` evaluated on any time grid, so
+that controllers can preview the future reference without touching the simulator.
+
+Circle tracking (paper Section 4.1). Both end effectors track circles in the vertical plane normal to the
+vehicle's initial x axis (the NED y-z plane for zero initial yaw), mirror-symmetrically: the right end
+effector is at ``c_r + rho [0, cos(phase), sin(phase)]`` and the left at ``c_l + rho [0, -cos(phase),
+sin(phase)]`` with ``phase = phase0 + 2 pi t / period``, so both move inward (toward the vehicle's
+centre line) together. The tracked output is ``y = [p_left (3); p_right (3)]``. [D] ``period = 10 s``,
+``phase0 = 0`` (start at the outermost point, where Case 1 drives the right arm toward the right frame).
+
+Object transport (paper Section 4.2). The object pose ``y = [x y z phi theta psi]`` moves from the start
+pose to the goal pose through a mid waypoint (the average of the two poses) along a C2 cubic spline with
+zero velocity at both ends (the paper's "polynomial trajectory through waypoints"), then holds.
+[D] ``move_time = 20 s``; the episode covers the move plus a hold.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from uvdms_gym.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG
+
+CIRCLE_CASES: dict[int, dict[str, tuple[float, ...] | float]] = {
+    1: {"left_center": (2.4, -0.25, 3.08), "right_center": (2.4, 0.25, 3.08), "radius": 0.18},
+    2: {"left_center": (2.5, -0.2, 3.1), "right_center": (2.5, 0.2, 3.1), "radius": 0.14},
+}
+"""The paper's two collision cases (Section 4.1), NED metres."""
+
+CIRCLE_VEHICLE_START: tuple[float, ...] = (2.0, 0.0, 3.0, 0.0, 0.0, 0.0)
+"""Initial vehicle pose of the circle tasks, NED m / rad [S4]."""
+
+TRANSPORT_START_DEG: tuple[float, ...] = (2.0, 1.0, 30.0, 0.0, 0.0, 0.0)
+TRANSPORT_GOAL_DEG: tuple[float, ...] = (3.0, 0.5, 28.0, 0.0, 0.0, 90.0)
+"""Object start and goal poses of the transport task, NED m and ZYX Euler degrees [S4]."""
+
+CIRCLE_REACH = 1.2
+"""[D] Feasibility envelope: every circle point must lie within this distance (m) of its arm's base at the
+initial vehicle pose (arm reach 0.944 m plus what the vehicle can move early in the run)."""
+CIRCLE_MIN_GAP = 0.05
+"""[D] Two circles must stay at least two link radii apart (m), or the end effectors would collide."""
+MAX_RADIUS = 0.3
+"""[D] Largest accepted circle radius, m."""
+
+RANDOM_CIRCLE_ENVELOPE: dict[str, tuple[float, float]] = {
+    "x_ahead": (0.35, 0.55),  # centre ahead of the vehicle origin, m
+    "half_gap": (0.18, 0.3),  # |y| of each centre from the vehicle centre line, m
+    "z_below": (0.0, 0.15),  # centre below the vehicle origin, m
+    "radius": (0.1, 0.18),
+}
+"""[D] Envelope of ``case="random"`` circles (relative to the initial vehicle pose), sampled uniformly."""
+
+RANDOM_GOAL_ENVELOPE: dict[str, tuple[float, float]] = {
+    "dx": (-1.5, 1.5),
+    "dy": (-1.5, 1.5),
+    "dz": (-2.0, 2.0),
+    "dyaw_deg": (-90.0, 90.0),
+}
+"""[D] Envelope of ``goal="random"`` transport goals, relative to the start pose, sampled uniformly."""
+
+
+@dataclass(frozen=True)
+class CircleTask:
+    """Circle pair tracked by the two end effectors (see module docstring)."""
+
+    left_center: np.ndarray
+    right_center: np.ndarray
+    radius: float
+    period: float = 10.0
+    phase0: float = 0.0
+    vehicle_start: np.ndarray = field(default_factory=lambda: np.array(CIRCLE_VEHICLE_START))
+    q0: np.ndarray = field(
+        default_factory=lambda: np.radians(np.array(CIRCLE_Q0_LEFT_DEG + CIRCLE_Q0_RIGHT_DEG))
+    )
+
+    def reference(self, t: np.ndarray | float) -> np.ndarray:
+        """End-effector reference ``[p_left; p_right]`` (6) at time ``t``, or ``(N, 6)`` on a grid."""
+        t_arr = np.atleast_1d(np.asarray(t, dtype=float))
+        phase = self.phase0 + 2.0 * math.pi * t_arr / self.period
+        c, s = np.cos(phase), np.sin(phase)
+        zeros = np.zeros_like(c)
+        right = self.right_center + self.radius * np.stack([zeros, c, s], axis=-1)
+        left = self.left_center + self.radius * np.stack([zeros, -c, s], axis=-1)
+        out = np.concatenate([left, right], axis=-1)
+        return out[0] if np.ndim(t) == 0 else out
+
+
+def make_circle_task(
+    case: int | str,
+    rng: np.random.Generator | None = None,
+    *,
+    left_center: tuple[float, float, float] | None = None,
+    right_center: tuple[float, float, float] | None = None,
+    radius: float | None = None,
+    period: float = 10.0,
+    arm_bases_body: tuple[np.ndarray, np.ndarray] | None = None,
+) -> CircleTask:
+    """Build a circle task from a paper case (1, 2), ``"random"`` (needs ``rng``) and explicit overrides.
+
+    Raises:
+        ValueError: unknown case, non-positive or too large radius or period, a centre that is not a finite
+            3-vector, circles out of reach of the arms or too close to each other.
+    """
+    if case in CIRCLE_CASES:
+        spec = CIRCLE_CASES[int(case)]
+        lc, rc, rad = np.array(spec["left_center"]), np.array(spec["right_center"]), float(spec["radius"])
+    elif case == "random":
+        if rng is None:
+            raise ValueError("case='random' needs the environment's seeded generator")
+        env = RANDOM_CIRCLE_ENVELOPE
+        v = np.array(CIRCLE_VEHICLE_START[:3])
+        x = v[0] + rng.uniform(*env["x_ahead"])
+        half = rng.uniform(*env["half_gap"])
+        z = v[2] + rng.uniform(*env["z_below"])
+        lc, rc = np.array([x, v[1] - half, z]), np.array([x, v[1] + half, z])
+        rad = float(rng.uniform(*env["radius"]))
+        rad = min(rad, 0.5 * (2.0 * half - CIRCLE_MIN_GAP) - 1e-3)
+    else:
+        raise ValueError(f"unknown circle case {case!r}: expected 1, 2 or 'random'")
+    if left_center is not None:
+        lc = _vec3(left_center, "left_center")
+    if right_center is not None:
+        rc = _vec3(right_center, "right_center")
+    if radius is not None:
+        rad = float(radius)
+    if not math.isfinite(rad) or rad <= 0.0 or rad > MAX_RADIUS:
+        raise ValueError(f"radius must be in (0, {MAX_RADIUS}] m, got {rad}")
+    if not math.isfinite(period) or period <= 0.0:
+        raise ValueError(f"period must be a positive number of seconds, got {period}")
+    task = CircleTask(lc, rc, rad, float(period))
+    _check_circle_feasible(task, arm_bases_body)
+    return task
+
+
+def _vec3(v, name: str) -> np.ndarray:
+    arr = np.asarray(v, dtype=float)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be a finite 3-vector (NED metres), got {v!r}")
+    return arr
+
+
+def _check_circle_feasible(task: CircleTask, arm_bases_body: tuple[np.ndarray, np.ndarray] | None) -> None:
+    gap = float(np.linalg.norm(task.right_center - task.left_center)) - 2.0 * task.radius
+    if gap < CIRCLE_MIN_GAP:
+        raise ValueError(
+            f"infeasible circles: they come within {gap:.3f} m of each other (need >= {CIRCLE_MIN_GAP} m)"
+        )
+    if task.right_center[1] <= task.left_center[1]:
+        raise ValueError("infeasible circles: the left (port) circle must lie at smaller NED y than the right")
+    if arm_bases_body is None:
+        return
+    v = task.vehicle_start
+    from uvdms_gym.frames import euler_to_rot
+
+    r_nb = euler_to_rot(v[3:])
+    grid = task.reference(np.linspace(0.0, task.period, 64, endpoint=False))
+    for k, side in enumerate(("left", "right")):
+        base = v[:3] + r_nb @ np.asarray(arm_bases_body[k])
+        dist = np.linalg.norm(grid[:, 3 * k : 3 * k + 3] - base, axis=1).max()
+        if dist > CIRCLE_REACH:
+            raise ValueError(
+                f"infeasible circle: the {side} circle reaches {dist:.2f} m from the {side} arm base at the "
+                f"initial vehicle pose (reach envelope {CIRCLE_REACH} m)"
+            )
+
+
+@dataclass(frozen=True)
+class TransportTask:
+    """Object transport along a smooth reference through waypoints (see module docstring)."""
+
+    start: np.ndarray
+    goal: np.ndarray
+    move_time: float = 20.0
+    _spline: CubicSpline = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        mid = 0.5 * (self.start + self.goal)
+        knots = np.array([0.0, 0.5 * self.move_time, self.move_time])
+        spline = CubicSpline(knots, np.stack([self.start, mid, self.goal]), bc_type="clamped", axis=0)
+        object.__setattr__(self, "_spline", spline)
+
+    def reference(self, t: np.ndarray | float) -> np.ndarray:
+        """Object pose reference ``[x y z phi theta psi]`` (6) at ``t`` (held after ``move_time``)."""
+        t_arr = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), 0.0, self.move_time)
+        out = self._spline(t_arr)
+        return out[0] if np.ndim(t) == 0 else out
+
+
+def _pose_deg(v, name: str) -> np.ndarray:
+    arr = np.asarray(v, dtype=float)
+    if arr.shape != (6,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be a finite 6-vector [x y z (m), roll pitch yaw (deg)], got {v!r}")
+    if abs(arr[3]) >= 90.0 or abs(arr[4]) >= 90.0:
+        raise ValueError(f"{name}: roll and pitch must be within (-90, 90) degrees, got {arr[3:5]}")
+    return np.concatenate([arr[:3], np.radians(arr[3:])])
+
+
+def make_transport_task(
+    goal: str = "paper",
+    rng: np.random.Generator | None = None,
+    *,
+    start_pose: tuple[float, ...] | None = None,
+    goal_pose: tuple[float, ...] | None = None,
+    move_time: float = 20.0,
+) -> TransportTask:
+    """Build a transport task. Poses in kwargs are NED metres + ZYX Euler **degrees**.
+
+    Raises:
+        ValueError: unknown goal mode, malformed poses, non-positive move time.
+    """
+    start = _pose_deg(start_pose if start_pose is not None else TRANSPORT_START_DEG, "start_pose")
+    if goal_pose is not None:
+        end = _pose_deg(goal_pose, "goal_pose")
+    elif goal == "paper":
+        end = _pose_deg(TRANSPORT_GOAL_DEG, "goal_pose")
+    elif goal == "random":
+        if rng is None:
+            raise ValueError("goal='random' needs the environment's seeded generator")
+        env = RANDOM_GOAL_ENVELOPE
+        d = np.array([rng.uniform(*env["dx"]), rng.uniform(*env["dy"]), rng.uniform(*env["dz"])])
+        end = start.copy()
+        end[:3] += d
+        end[5] += math.radians(rng.uniform(*env["dyaw_deg"]))
+    else:
+        raise ValueError(f"unknown goal {goal!r}: expected 'paper' or 'random'")
+    if not math.isfinite(move_time) or move_time <= 0.0:
+        raise ValueError(f"move_time must be positive seconds, got {move_time}")
+    return TransportTask(start, end, float(move_time))
