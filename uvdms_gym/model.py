@@ -141,9 +141,13 @@ def build_urdf(params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: 
             kinematic model is built without them; distances are computed analytically).
     """
     v = params.vehicle
-    parts = ['<?xml version="1.0"?>', '<robot name="uvdms">', '<material name="hull"><color rgba="1 0.8 0.1 0.35"/></material>',
-             '<material name="arm"><color rgba="0.3 0.3 0.35 1"/></material>',
-             '<material name="plate"><color rgba="0.6 0.6 0.65 0.8"/></material>']
+    parts = [
+        '<?xml version="1.0"?>',
+        '<robot name="uvdms">',
+        '<material name="hull"><color rgba="1 0.8 0.1 0.35"/></material>',
+        '<material name="arm"><color rgba="0.3 0.3 0.35 1"/></material>',
+        '<material name="plate"><color rgba="0.6 0.6 0.65 0.8"/></material>',
+    ]
     parts.append(
         f'<link name="vehicle">{_inertial(v.mass, v.r_g, v.inertia)}'
         f'<visual><origin xyz="0 0 0" rpy="0 0 0"/><geometry><box size="{_fmt(v.size)}"/></geometry>'
@@ -163,7 +167,9 @@ def build_urdf(params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: 
             f'<visual><origin xyz="0 0 0" rpy="0 0 0"/>{geom}<material name="plate"/></visual>'
             f'<collision><origin xyz="0 0 0" rpy="0 0 0"/>{geom}</collision></link>'
         )
-        parts.append(_fixed(f"plate_{plate.name}_joint", "vehicle", f"plate_{plate.name}", plate.center, rot_to_rpy(rot)))
+        parts.append(
+            _fixed(f"plate_{plate.name}_joint", "vehicle", f"plate_{plate.name}", plate.center, rot_to_rpy(rot))
+        )
     arm = params.arm
     mount_rpy = rot_to_rpy(mount_rotation(params))
     for side in ARM_SIDES:
@@ -180,9 +186,8 @@ def build_urdf(params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: 
                 f'<visual><origin xyz="{_fmt(mid)}" rpy="{_fmt(cap_rpy)}"/>{geom}<material name="arm"/></visual>'
                 f'<collision><origin xyz="{_fmt(mid)}" rpy="{_fmt(cap_rpy)}"/>{geom}</collision>'
             )
-            parts.append(
-                f'<link name="{side}_link{i}">{_inertial(arm.link_mass[i], mid, inertia)}{shape if shapes else ""}</link>'
-            )
+            inertial = _inertial(arm.link_mass[i], mid, inertia)
+            parts.append(f'<link name="{side}_link{i}">{inertial}{shape if shapes else ""}</link>')
             if i == 0:
                 parts.append(_fixed(f"{side}_mount", "vehicle", f"{side}_link0", base, mount_rpy))
             else:

@@ -74,9 +74,7 @@ class CircleTask:
     period: float = 10.0
     phase0: float = 0.0
     vehicle_start: np.ndarray = field(default_factory=lambda: np.array(CIRCLE_VEHICLE_START))
-    q0: np.ndarray = field(
-        default_factory=lambda: np.radians(np.array(CIRCLE_Q0_LEFT_DEG + CIRCLE_Q0_RIGHT_DEG))
-    )
+    q0: np.ndarray = field(default_factory=lambda: np.radians(np.array(CIRCLE_Q0_LEFT_DEG + CIRCLE_Q0_RIGHT_DEG)))
 
     def reference(self, t: np.ndarray | float) -> np.ndarray:
         """End-effector reference ``[p_left; p_right]`` (6) at time ``t``, or ``(N, 6)`` on a grid."""
@@ -147,9 +145,7 @@ def _vec3(v, name: str) -> np.ndarray:
 def _check_circle_feasible(task: CircleTask, arm_bases_body: tuple[np.ndarray, np.ndarray] | None) -> None:
     gap = float(np.linalg.norm(task.right_center - task.left_center)) - 2.0 * task.radius
     if gap < CIRCLE_MIN_GAP:
-        raise ValueError(
-            f"infeasible circles: they come within {gap:.3f} m of each other (need >= {CIRCLE_MIN_GAP} m)"
-        )
+        raise ValueError(f"infeasible circles: they come within {gap:.3f} m of each other (need >= {CIRCLE_MIN_GAP} m)")
     if task.right_center[1] <= task.left_center[1]:
         raise ValueError("infeasible circles: the left (port) circle must lie at smaller NED y than the right")
     if arm_bases_body is None:
