@@ -1,6 +1,32 @@
-"""uvdms-gym: a Gymnasium benchmark for an underwater vehicle-dual-manipulator system (UVDMS)."""
+"""uvdms-gym: a Gymnasium benchmark for an underwater vehicle-dual-manipulator system (UVDMS).
+
+Importing the package registers the environments (entry points are strings, so nothing heavy is imported):
+
+* ``uvdms/CircleTrack-v0``: collision-risk circle tracking (paper Cases 1 and 2, or random circles);
+* ``uvdms/Transport-v0``: transport of a gripped cylinder.
+
+``gymnasium.make("uvdms_gym:uvdms/CircleTrack-v0")`` also works without importing the package first
+(RL Zoo's ``--gym-packages uvdms_gym``).
+"""
+
+from gymnasium.envs.registration import register, registry
 
 from uvdms_gym.params import UVDMSParams
 
 __version__ = "0.1.0"
-__all__ = ["UVDMSParams", "__version__"]
+__all__ = ["ENV_IDS", "UVDMSParams", "__version__"]
+
+ENV_IDS: tuple[str, ...] = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0")
+
+if "uvdms/CircleTrack-v0" not in registry:
+    register(
+        id="uvdms/CircleTrack-v0",
+        entry_point="uvdms_gym.envs.circle:CircleTrackEnv",
+        max_episode_steps=500,
+    )
+if "uvdms/Transport-v0" not in registry:
+    register(
+        id="uvdms/Transport-v0",
+        entry_point="uvdms_gym.envs.transport:TransportEnv",
+        max_episode_steps=600,
+    )

@@ -100,7 +100,9 @@ class ArmParams:
     ``z_0`` = body ``x``: the arm points forward at ``q = 0``; ``x_0`` = body ``z`` (down), so joints 2, 4, 6
     pitch about the body ``-y`` axis at ``q = 0`` and a positive pitch-joint angle swings the arm down.
     Both arms use the same mount orientation (translated copies, not mirror images): then equal joint
-    angles keep a rigidly gripped object consistent, as in the paper's transport run. Mirror-symmetric
+    angles with the roll joints 1, 3, 5 at zero (both arms moving in the vehicle's x-z plane, the end
+    effectors turning only about the object's axis) keep a rigidly gripped object consistent, as in the
+    paper's transport run; in general the closed-chain equality constraint is what holds. Mirror-symmetric
     motion of the two arms negates the roll joints 1, 3, 5 and keeps the pitch joints 2, 4, 6.
     """
     q_min: tuple[float, ...] = _arr(*(math.radians(a) for a in (-170, -120, -170, -120, -170, -120)))

@@ -1,0 +1,368 @@
+"""Common machinery of the UVDMS Gymnasium environments (action, observation, reward, cost, episode end).
+
+Subclasses define the task (reference, tracked output ``y``, initial state). See the class docstrings of
+:class:`~uvdms_gym.envs.circle.CircleTrackEnv` and :class:`~uvdms_gym.envs.transport.TransportEnv` for the
+full description in Gymnasium's sections; this module documents the shared parts.
+
+Observation (float32, 80 values, each scaled to order 1 and clipped to [-10, 10]):
+
+==========  ====  =====================================================================================
+slice       size  content
+==========  ====  =====================================================================================
+0:18        18    reference preview: ``y_ref(t + h) - y`` at ``h`` in :data:`PREVIEW_TIMES`, in the body frame
+                  (circle: left and right end-effector position errors; transport: object position error
+                  and orientation error as a rotation vector), divided by :data:`POS_SCALE` m / 1 rad
+18:20       2     vehicle roll and pitch, rad
+20:26       6     vehicle body velocity ``nu`` divided by its limits ``zeta_max[:6]``
+26:50       24    joint angles as ``sin q`` (12) then ``cos q`` (12)
+50:62       12    joint rates divided by their limits ``zeta_max[6:]``
+62:80       18    the 18 clearances of SPEC section 4 (rows as in ``docs/ARCHITECTURE.md``), as
+                  ``(clip(d, 0, 0.3) - d1) / (d2 - d1)``
+==========  ====  =====================================================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+
+from uvdms_gym.distances import compute_distances, velocity_damper
+from uvdms_gym.envs.lowlevel import VelocityLoop
+from uvdms_gym.frames import rot_error
+from uvdms_gym.kinematics import KinematicModel
+from uvdms_gym.nominal import NominalDynamics
+from uvdms_gym.params import UVDMSParams
+from uvdms_gym.sim import PhysicsError, UVDMSSim
+
+PREVIEW_TIMES: tuple[float, ...] = (0.0, 0.4, 0.8)
+"""Reference preview horizon of the observation, s."""
+POS_SCALE = 0.5
+"""Position errors in the observation are divided by this, m."""
+OBS_CLIP = 10.0
+D1, D2 = 0.05, 0.12
+"""Collision-zone and anti-collision-zone thresholds of SPEC section 4, m."""
+CLEARANCE_CLIP = 0.3
+OBS_DIM = 80
+ACTION_DIM = 18
+PHYSICS_ERROR_REWARD = -100.0
+"""Reward of the step on which the physics blew up (the episode then terminates)."""
+
+
+class UVDMSEnv(gym.Env):
+    """Base class: one simulator, one kinematic model, a task; see the module docstring.
+
+    Subclasses implement :meth:`_build_task`, :meth:`_initial_state`, :meth:`_output` and
+    :meth:`_errors` and set :attr:`with_object`.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
+    with_object: ClassVar[bool] = False
+
+    def __init__(
+        self,
+        *,
+        action_mode: str = "velocity",
+        control_dt: float = 0.04,
+        physics_dt: float = 0.01,
+        hydro_randomization: float = 0.0,
+        terminate_on_contact: bool = True,
+        track_weight: float = 1.0,
+        orientation_weight: float = 0.3,
+        effort_weight: float = 0.01,
+        proximity_weight: float = 0.1,
+        contact_weight: float = 10.0,
+        max_tracking_error: float = 2.0,
+        render_mode: str | None = None,
+        render_width: int = 320,
+        render_height: int = 240,
+        params: UVDMSParams | None = None,
+    ) -> None:
+        if action_mode not in ("velocity", "torque"):
+            raise ValueError(f"action_mode must be 'velocity' or 'torque', got {action_mode!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if not (physics_dt > 0 and control_dt > 0):
+            raise ValueError(f"control_dt and physics_dt must be positive, got {control_dt}, {physics_dt}")
+        n_sub = round(control_dt / physics_dt)
+        if n_sub < 1 or abs(n_sub * physics_dt - control_dt) > 1e-9:
+            raise ValueError(f"control_dt ({control_dt}) must be a whole multiple of physics_dt ({physics_dt})")
+        if not 0.0 <= hydro_randomization < 1.0:
+            raise ValueError(f"hydro_randomization must be in [0, 1), got {hydro_randomization}")
+        for name, w in (
+            ("track_weight", track_weight),
+            ("orientation_weight", orientation_weight),
+            ("effort_weight", effort_weight),
+            ("proximity_weight", proximity_weight),
+            ("contact_weight", contact_weight),
+        ):
+            if not (math.isfinite(w) and w >= 0.0):
+                raise ValueError(f"{name} must be a finite non-negative number, got {w}")
+        self.params = params or UVDMSParams()
+        self.action_mode = action_mode
+        self.control_dt = float(control_dt)
+        self.physics_dt = float(physics_dt)
+        self.n_substeps = n_sub
+        self.hydro_randomization = float(hydro_randomization)
+        self.terminate_on_contact = bool(terminate_on_contact)
+        self.weights = {
+            "track": float(track_weight),
+            "orientation": float(orientation_weight),
+            "effort": float(effort_weight),
+            "proximity": float(proximity_weight),
+            "contact": float(contact_weight),
+        }
+        self.max_tracking_error = float(max_tracking_error)
+        self.render_mode = render_mode
+        self.render_width, self.render_height = int(render_width), int(render_height)
+
+        self.zeta_max = self.params.zeta_max.copy()
+        """Velocity-mode scale: ``zeta_cmd = action * zeta_max`` (m/s, rad/s)."""
+        self.tau_max = self.params.tau_max.copy()
+        """Torque-mode scale: ``tau = action * tau_max`` (N, N m)."""
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
+        self.observation_space = gym.spaces.Box(-OBS_CLIP, OBS_CLIP, (OBS_DIM,), np.float32)
+
+        self._sim = UVDMSSim(self.params, physics_dt=self.physics_dt, gui=render_mode == "human")
+        self._kin = KinematicModel(self.params)
+        self._nominal = NominalDynamics(self._kin)
+        self._loop = VelocityLoop(self._nominal, self.tau_max)
+        self._controller_kin: KinematicModel | None = None
+        self.task: Any = None
+        self.t = 0.0
+        self._obs = np.zeros(OBS_DIM, np.float32)
+        self._closed = False
+
+    # ----------------------------------------------------------------- task hooks
+    def _build_task(self, rng: np.random.Generator) -> Any:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - abstract
+        """Initial ``(eta, q)``."""
+        raise NotImplementedError
+
+    def _output(self) -> np.ndarray:  # pragma: no cover - abstract
+        """Tracked output ``y`` (6) at the kinematic model's state."""
+        raise NotImplementedError
+
+    def _errors(self, y: np.ndarray, y_ref: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """Observation error block (6, body frame, unscaled), position error (m), orientation error (rad)."""
+        raise NotImplementedError  # pragma: no cover - abstract
+
+    def _success(self, pos_err: float, ori_err: float) -> bool:
+        """Task success at the current step (default: none)."""
+        return False
+
+    # ----------------------------------------------------------------- public helpers
+    def reference(self, t: np.ndarray | float) -> np.ndarray:
+        """The task's reference ``y_ref`` on any time grid (s from episode start): (6,) or (N, 6)."""
+        if self.task is None:
+            raise RuntimeError("call reset() before reference()")
+        return self.task.reference(t)
+
+    @property
+    def kinematic_model(self) -> KinematicModel:
+        """A kinematic model (Jacobians, distances, ``J_dis``) built from the environment's parameters.
+
+        It is a separate instance from the environment's own (a controller may ``set_state`` it freely);
+        it knows nothing of the simulator's state beyond what ``info`` reports.
+        """
+        if self._controller_kin is None:
+            self._controller_kin = KinematicModel(self.params)
+        return self._controller_kin
+
+    # ----------------------------------------------------------------- gym API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start an episode: draw the task (and hydrodynamic factors) from the seeded generator."""
+        super().reset(seed=seed)
+        self.task = self._build_task(self.np_random)
+        self._apply_hydro_randomization()
+        eta, q = self._initial_state()
+        self._sim.reset(eta, np.zeros(6), q, np.zeros(12), with_object=self.with_object)
+        self._loop.reset()
+        self.t = 0.0
+        self._last_action = np.zeros(ACTION_DIM)
+        obs, info = self._observe(contacts=self._sim_contacts())
+        info.update({f"reward_{k}": 0.0 for k in self.weights})
+        return obs, info
+
+    def step(self, action):
+        """Apply the action over ``control_dt``, then observe, score and check the episode end."""
+        a, clipped = self._validate_action(action)
+        physics_error = None
+        contacts = 0
+        try:
+            tau_applied, saturated, contacts = self._apply(a)
+        except PhysicsError as exc:
+            physics_error = str(exc)
+            tau_applied, saturated = np.zeros(18), False
+        self.t += self.control_dt
+        if physics_error is not None:
+            info = dict(self._last_info)
+            info.update(self._physics_error_info(physics_error))
+            return self._obs.copy(), PHYSICS_ERROR_REWARD, True, False, info
+        obs, info = self._observe(contacts=contacts)
+        terms = self._reward_terms(a, info)
+        reward = float(sum(terms.values()))
+        info.update({f"reward_{k}": v for k, v in terms.items()})
+        info.update(tau=tau_applied, tau_saturated=saturated, action_clipped=clipped)
+        terminated = (self.terminate_on_contact and contacts > 0) or info["tracking_error"] > self.max_tracking_error
+        self._last_action = a
+        self._last_info = info
+        if self.render_mode == "human":
+            self.render()
+        return obs, reward, bool(terminated), False, info
+
+    def render(self):
+        """``rgb_array``: an HxWx3 uint8 image from a camera beside the vehicle; ``human``: the GUI window."""
+        if self.render_mode == "rgb_array":
+            return self._sim.render_rgb(self.render_width, self.render_height)
+        return None
+
+    def close(self) -> None:
+        """Disconnect the simulator (idempotent)."""
+        if not self._closed:
+            self._sim.close()
+            self._closed = True
+
+    # ----------------------------------------------------------------- step parts
+    def _validate_action(self, action) -> tuple[np.ndarray, bool]:
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (ACTION_DIM,):
+            raise ValueError(f"action must have shape ({ACTION_DIM},), got {a.shape}")
+        bad = ~np.isfinite(a)
+        if bad.any():
+            raise ValueError(f"action contains NaN or inf at indices {np.flatnonzero(bad).tolist()}")
+        clipped = bool(np.any(np.abs(a) > 1.0))
+        return (np.clip(a, -1.0, 1.0) if clipped else a), clipped
+
+    def _apply(self, a: np.ndarray) -> tuple[np.ndarray, bool, int]:
+        sim, dt = self._sim, self.physics_dt
+        contacts = 0
+        saturated = False
+        if self.action_mode == "torque":
+            tau = a * self.tau_max
+            for _ in range(self.n_substeps):
+                res = sim.step(tau, 1)
+                saturated |= bool(np.any(res.saturated))
+                contacts = max(contacts, self._sim_contacts())
+            return tau, saturated, contacts
+        self._loop.begin(a * self.zeta_max)  # kinematic model holds the current state (from _observe)
+        tau = np.zeros(18)
+        for _ in range(self.n_substeps):
+            tau = self._loop.torque(sim.zeta(), dt)
+            res = sim.step(tau, 1)
+            saturated |= bool(np.any(res.saturated))
+            contacts = max(contacts, self._sim_contacts())
+        return np.clip(tau, -self.tau_max, self.tau_max), saturated, contacts
+
+    def _sim_contacts(self) -> int:
+        return self._sim.count_contacts()
+
+    def _observe(self, contacts: int) -> tuple[np.ndarray, dict[str, Any]]:
+        st = self._sim.state()
+        self._kin.set_state(st.eta, st.q, st.zeta)
+        dist = compute_distances(self._kin, "exact")
+        y = self._output()
+        times = self.t + np.asarray(PREVIEW_TIMES)
+        refs = self.task.reference(times)
+        r_nb = self._kin.frame_placement("vehicle")[1]
+        blocks = []
+        pos_err = ori_err = 0.0
+        for k, y_ref in enumerate(refs):
+            blk, p_e, o_e = self._errors(y, y_ref, r_nb)
+            blocks.append(blk)
+            if k == 0:
+                pos_err, ori_err = p_e, o_e
+        obs = np.empty(OBS_DIM)
+        obs[0:18] = np.concatenate(blocks)
+        obs[18:20] = st.eta[3:5]
+        obs[20:26] = st.nu / self.zeta_max[:6]
+        obs[26:38] = np.sin(st.q)
+        obs[38:50] = np.cos(st.q)
+        obs[50:62] = st.qdot / self.zeta_max[6:]
+        obs[62:80] = (np.clip(dist.d, 0.0, CLEARANCE_CLIP) - D1) / (D2 - D1)
+        np.clip(obs, -OBS_CLIP, OBS_CLIP, out=obs)
+        self._obs = obs.astype(np.float32)
+        cost_contact = 1.0 if contacts > 0 else 0.0
+        cost_zone = 1.0 if float(dist.d.min()) < D1 else 0.0
+        info: dict[str, Any] = {
+            "t": self.t,
+            "eta": st.eta.copy(),
+            "nu": st.nu.copy(),
+            "q": st.q.copy(),
+            "qdot": st.qdot.copy(),
+            "y": y,
+            "y_ref": refs[0],
+            "distances": dist.d.copy(),
+            "min_distance": float(dist.d.min()),
+            "contacts": int(contacts),
+            "tracking_error": pos_err,
+            "orientation_error": ori_err,
+            "cost_contact": cost_contact,
+            "cost_zone": cost_zone,
+            "cost": cost_contact + cost_zone,
+            "is_success": self._success(pos_err, ori_err),
+            "physics_error": None,
+        }
+        self._last_info = info
+        return self._obs.copy(), info
+
+    def _reward_terms(self, a: np.ndarray, info: dict[str, Any]) -> dict[str, float]:
+        w = self.weights
+        s = velocity_damper(info["distances"], D1, D2)
+        return {
+            "track": -w["track"] * info["tracking_error"],
+            "orientation": -w["orientation"] * info["orientation_error"],
+            "effort": -w["effort"] * float(a @ a) / ACTION_DIM,
+            "proximity": -w["proximity"] * float(np.sum(1.0 - s)),
+            "contact": -w["contact"] * info["cost_contact"],
+        }
+
+    def _physics_error_info(self, msg: str) -> dict[str, Any]:
+        terms = {f"reward_{k}": 0.0 for k in self.weights}
+        terms["reward_physics_error"] = PHYSICS_ERROR_REWARD
+        return {**terms, "physics_error": msg, "t": self.t}
+
+    def _apply_hydro_randomization(self) -> None:
+        s = self.hydro_randomization
+        if s == 0.0:
+            self._sim.set_hydro_scale(None)
+            return
+        lo, hi = 1.0 - s, 1.0 + s
+        rng = self.np_random
+        from uvdms_gym.hydro import HydroScale
+
+        self._sim.set_hydro_scale(
+            HydroScale(
+                added_mass=float(rng.uniform(lo, hi)),
+                damping=float(rng.uniform(lo, hi)),
+                buoyancy=float(rng.uniform(lo, hi)),
+                link_drag=float(rng.uniform(lo, hi)),
+            )
+        )
+
+    # ----------------------------------------------------------------- misc
+    def with_params(self, **changes: Any) -> UVDMSParams:
+        """A copy of the environment's parameters with top-level fields replaced (for perturbed models)."""
+        return replace(self.params, **changes)
+
+
+def errors_positions(y: np.ndarray, y_ref: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Circle tracking: both end-effector position errors in the body frame; mean error norm."""
+    e = (y_ref - y).reshape(2, 3)
+    blk = (e @ r_nb).reshape(6) / POS_SCALE  # r_nb^T e for each row
+    return blk, float(np.linalg.norm(e, axis=1).mean()), 0.0
+
+
+def errors_pose(
+    p: np.ndarray, r: np.ndarray, y_ref: np.ndarray, r_nb: np.ndarray, r_ref: np.ndarray
+) -> tuple[np.ndarray, float, float]:
+    """Object transport: position error and orientation error (rotation vector), both in the body frame."""
+    e_p = y_ref[:3] - p
+    e_o = rot_error(r_ref, r)
+    blk = np.concatenate([r_nb.T @ e_p / POS_SCALE, r_nb.T @ e_o])
+    return blk, float(np.linalg.norm(e_p)), float(np.linalg.norm(e_o))

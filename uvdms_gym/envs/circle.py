@@ -1,0 +1,110 @@
+"""``uvdms/CircleTrack-v0``: collision-risk circle tracking with both end effectors (paper Section 4.1)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from uvdms_gym.envs.base import UVDMSEnv, errors_positions
+from uvdms_gym.envs.tasks import CircleTask, make_circle_task
+
+TRACKING_TRANSIENT = 5.0
+"""Tracking metrics exclude the first seconds of a run (the end effectors start ~0.6 m from their circles,
+SPEC section 5); collision metrics cover the whole run."""
+
+
+class CircleTrackEnv(UVDMSEnv):
+    """Both end effectors of the UVDMS track circles while the arms risk hitting each other and the frame.
+
+    ## Description
+    An underwater vehicle (18 DOF: 6 vehicle + 2 x 6 joints, PyBullet with added mass, damping and
+    buoyancy on the hull and every link) starts at the paper's pose ``[2, 0, 3, 0, 0, 0]`` (NED) with its
+    arms folded. Each end effector must track a circle in the vertical plane normal to the vehicle's x axis,
+    mirror-symmetrically (both move inward together); the paper's Case 1 pushes the right arm's link 3 toward
+    the right frame plate, Case 2 brings the right arm's link 5 close to the left arm's link 3.
+
+    ## Action Space
+    ``Box(-1, 1, (18,), float32)``. ``action_mode="velocity"`` (default): ``zeta_cmd = action * zeta_max``
+    (body velocity of the vehicle, then left and right joint rates), tracked by the environment's built-in
+    velocity loop (:mod:`uvdms_gym.envs.lowlevel`). ``action_mode="torque"``: ``tau = action * tau_max``
+    (body wrench at the vehicle origin, then 12 joint torques). Entries outside [-1, 1] are clipped and
+    flagged with ``info["action_clipped"]``; NaN/inf or a wrong shape raise ``ValueError``.
+
+    ## Observation Space
+    ``Box(-10, 10, (80,), float32)``, see :mod:`uvdms_gym.envs.base` (reference preview, attitude,
+    velocities, joint sin/cos and rates, the 18 clearances).
+
+    ## Rewards
+    ``reward = reward_track + reward_orientation + reward_effort + reward_proximity + reward_contact`` with
+    ``reward_track = -track_weight * mean end-effector position error (m)``, ``reward_orientation = 0``,
+    ``reward_effort = -effort_weight * |action|^2 / 18``,
+    ``reward_proximity = -proximity_weight * sum_i (1 - S(d_i))`` (velocity-damper shape, 0 beyond 0.12 m,
+    1 per distance inside 0.05 m) and ``reward_contact = -contact_weight`` on a step with physical contact.
+
+    ## Costs
+    Safety-Gymnasium convention: ``info["cost_contact"]`` = 1 if PyBullet reports a contact between robot
+    parts during the step, ``info["cost_zone"]`` = 1 if any of the 18 distances is below ``d1 = 0.05 m``,
+    ``info["cost"]`` their sum.
+
+    ## Starting State
+    Vehicle at ``[2, 0, 3, 0, 0, 0]``, at rest; joints at the paper's initial angles with the project's signs
+    (``params.CIRCLE_Q0_*``), at rest. Deterministic; ``case="random"`` draws the circles.
+
+    ## Episode End
+    Terminated on physical contact (``terminate_on_contact=True``), when the mean tracking error exceeds
+    ``max_tracking_error`` (2 m), or when the physics blows up (``info["physics_error"]``). Truncated by
+    ``max_episode_steps`` (500 steps of 0.04 s = 20 s: the transient plus 1.5 circle periods).
+
+    ## Arguments
+    ``case`` (1, 2 or ``"random"``), ``left_center``/``right_center`` (NED m), ``radius`` (m), ``period``
+    (s, default 10) override the case; an infeasible request raises ``ValueError``. Common arguments:
+    ``action_mode``, ``control_dt`` (0.04 s), ``physics_dt`` (0.01 s), ``hydro_randomization`` (s in [0, 1):
+    added mass, damping, buoyancy and link drag scaled per episode by factors in [1 - s, 1 + s]),
+    ``terminate_on_contact``, ``track_weight``, ``orientation_weight``, ``effort_weight``,
+    ``proximity_weight``, ``contact_weight``, ``max_tracking_error``, ``render_mode``
+    (``"rgb_array"``/``"human"``), ``render_width``, ``render_height``.
+
+    ## Version History
+    * v0: initial release.
+    """
+
+    with_object = False
+    tracking_transient = TRACKING_TRANSIENT
+
+    def __init__(
+        self,
+        *,
+        case: int | str = 1,
+        left_center: tuple[float, float, float] | None = None,
+        right_center: tuple[float, float, float] | None = None,
+        radius: float | None = None,
+        period: float = 10.0,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(**kwargs)
+        self.case = case
+        self._task_kwargs = {
+            "left_center": left_center,
+            "right_center": right_center,
+            "radius": radius,
+            "period": period,
+            "arm_bases_body": (np.array(self.params.arm_base_left), np.array(self.params.arm_base_right)),
+        }
+        try:  # validate now (an infeasible request fails at construction, not at reset)
+            make_circle_task(case, np.random.default_rng(0), **self._task_kwargs)
+        except ValueError:
+            self.close()
+            raise
+
+    def _build_task(self, rng: np.random.Generator) -> CircleTask:
+        return make_circle_task(self.case, rng, **self._task_kwargs)
+
+    def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.array(self.task.vehicle_start, dtype=float), np.array(self.task.q0, dtype=float)
+
+    def _output(self) -> np.ndarray:
+        return self._kin.ee_positions().reshape(6)
+
+    def _errors(self, y: np.ndarray, y_ref: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
+        return errors_positions(y, y_ref, r_nb)

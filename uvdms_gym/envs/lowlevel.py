@@ -1,0 +1,79 @@
+"""The environments' built-in low-level velocity controller (velocity action mode).
+
+It is part of the environment, not of any baseline: an agent or controller in velocity mode commands
+``zeta_cmd`` and this loop turns it into the 18 generalized forces, every physics substep:
+
+``tau = g_n(q, eta2) + D_n(nu_cmd) nu_cmd + K_p (zeta_cmd - zeta) + K_i int (zeta_cmd - zeta) dt``
+
+* ``g_n`` + ``D_n``: model-based feedforward from the nominal model (:mod:`uvdms_gym.nominal`: Pinocchio
+  rigid body + nominal hydrostatics and vehicle damping), evaluated once per control step;
+* PI on the velocity error with per-DOF gains from the effective inertia ``m_i = 1 / (M_n^-1)_ii`` (the
+  mass-matrix diagonal overestimates the inertia of small distal links, PITFALLS):
+  ``K_p = m_i omega_i``, ``K_i = K_p omega_i / 4`` (a critically damped PI for a first-order plant), with
+  bandwidths ``omega`` documented below; the integral is clamped so that its term never exceeds the actuator
+  limit (anti-windup).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from uvdms_gym.nominal import NominalDynamics
+
+
+@dataclass(frozen=True)
+class VelocityLoopGains:
+    """Bandwidths of the velocity loop, rad/s."""
+
+    vehicle_translation: float = 3.0
+    vehicle_rotation: float = 4.0
+    joints: float = 12.0
+    integral_ratio: float = 0.25
+    """``K_i = integral_ratio * K_p * omega``."""
+
+
+class VelocityLoop:
+    """PI + feedforward velocity tracking of ``zeta_cmd`` (see module docstring).
+
+    Args:
+        nominal: nominal dynamics; its kinematic model must be set to the current state before :meth:`begin`.
+        tau_max: actuator limits (18), used for anti-windup.
+        gains: loop bandwidths.
+    """
+
+    def __init__(self, nominal: NominalDynamics, tau_max: np.ndarray, gains: VelocityLoopGains | None = None):
+        self.nominal = nominal
+        self.tau_max = np.asarray(tau_max, dtype=float)
+        g = gains or VelocityLoopGains()
+        self.omega = np.r_[np.full(3, g.vehicle_translation), np.full(3, g.vehicle_rotation), np.full(12, g.joints)]
+        self.integral_ratio = g.integral_ratio
+        self.integral = np.zeros(18)
+        self._ff = np.zeros(18)
+        self._kp = np.zeros(18)
+        self._ki = np.zeros(18)
+        self._cmd = np.zeros(18)
+
+    def reset(self) -> None:
+        """Clear the integral state."""
+        self.integral[:] = 0.0
+
+    def begin(self, zeta_cmd: np.ndarray) -> None:
+        """Start a control step: feedforward and gains at the kinematic model's current state."""
+        self._cmd = np.asarray(zeta_cmd, dtype=float)
+        m = self.nominal.mass_matrix()
+        m_eff = 1.0 / np.diag(np.linalg.inv(m))
+        self._kp = m_eff * self.omega
+        self._ki = self._kp * self.omega * self.integral_ratio
+        ff = self.nominal.static_force()
+        ff[:6] += self.nominal.damping(self._cmd[:6])
+        self._ff = ff
+
+    def torque(self, zeta: np.ndarray, dt: float) -> np.ndarray:
+        """Generalized force for one physics substep at measured velocity ``zeta``."""
+        err = self._cmd - zeta
+        self.integral += err * dt
+        limit = self.tau_max / np.maximum(self._ki, 1e-12)
+        np.clip(self.integral, -limit, limit, out=self.integral)
+        return self._ff + self._kp * err + self._ki * self.integral

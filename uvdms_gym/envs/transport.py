@@ -1,0 +1,112 @@
+"""``uvdms/Transport-v0``: transport of a gripped cylinder along a reference (paper Section 4.2)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from uvdms_gym.envs.base import UVDMSEnv, errors_pose
+from uvdms_gym.envs.tasks import TransportTask, make_transport_task
+from uvdms_gym.frames import euler_to_rot
+from uvdms_gym.kinematics import KinematicModel
+
+SUCCESS_POSITION = 0.02
+"""Success: object position error below this (m) ..."""
+SUCCESS_ORIENTATION = np.radians(2.0)
+"""... and orientation error below this (rad), once the reference holds (t >= move_time)."""
+TRACKING_TRANSIENT = 0.0
+"""The transport run starts on its reference: no transient is excluded from its tracking metrics."""
+
+
+def vehicle_pose_for_object(kin: KinematicModel, object_pose: np.ndarray) -> np.ndarray:
+    """Vehicle pose ``eta`` that puts the gripped object at ``object_pose`` with all joints at zero.
+
+    At ``q = 0`` the object frame is aligned with the body frame at a fixed body offset ``p0`` (model.py),
+    so ``R_NB = R_NO`` and ``p_B = p_O - R_NO p0``.
+    """
+    kin.set_state(np.zeros(6), np.zeros(12))
+    p0 = kin.object_pose("right")[0]
+    r = euler_to_rot(object_pose[3:])
+    return np.concatenate([object_pose[:3] - r @ p0, object_pose[3:]])
+
+
+class TransportEnv(UVDMSEnv):
+    """Both arms hold a cylinder (closed kinematic chain) and carry it along a reference to a goal pose.
+
+    ## Description
+    The UVDMS grips a solid cylinder (0.6 m x 0.05 m, 1100 kg/m^3) with both end effectors (two fixed
+    constraints in PyBullet). The object pose ``[x y z phi theta psi]`` (NED, ZYX Euler) must follow a C2
+    spline from the start pose through a mid waypoint to the goal (:mod:`uvdms_gym.envs.tasks`) and hold it.
+
+    ## Action Space
+    As in :class:`~uvdms_gym.envs.circle.CircleTrackEnv`: ``Box(-1, 1, (18,), float32)``, velocity mode
+    (``zeta_cmd = action * zeta_max``, built-in velocity loop) or torque mode (``tau = action * tau_max``).
+
+    ## Observation Space
+    ``Box(-10, 10, (80,), float32)``, see :mod:`uvdms_gym.envs.base`; the preview blocks hold the object's
+    position error and orientation error (rotation vector), body frame.
+
+    ## Rewards
+    ``reward_track = -track_weight * |p_ref - p| (m)``,
+    ``reward_orientation = -orientation_weight * |rotation error| (rad)``, and the effort, proximity and
+    contact terms of the circle task; the reward is their sum.
+
+    ## Costs
+    ``info["cost_contact"]``, ``info["cost_zone"]``, ``info["cost"]`` as in the circle task.
+
+    ## Starting State
+    Object at ``start_pose`` (paper: ``[2, 1, 30, 0, 0, 0]``), all joints zero, vehicle placed accordingly,
+    everything at rest.
+
+    ## Episode End
+    Terminated on contact (``terminate_on_contact``), tracking error above ``max_tracking_error`` or a physics
+    blow-up. ``info["is_success"]`` is true while, after the reference stops, the object is within 2 cm and
+    2 degrees of the goal. Truncated by ``max_episode_steps`` (600 steps of 0.04 s = 20 s move + 4 s hold).
+
+    ## Arguments
+    ``goal`` (``"paper"`` or ``"random"``: a goal drawn from ``tasks.RANDOM_GOAL_ENVELOPE``), ``start_pose`` /
+    ``goal_pose`` (NED m + ZYX Euler **degrees**), ``move_time`` (s, default 20), and the common arguments
+    of the circle task.
+
+    ## Version History
+    * v0: initial release.
+    """
+
+    with_object = True
+    tracking_transient = TRACKING_TRANSIENT
+
+    def __init__(
+        self,
+        *,
+        goal: str = "paper",
+        start_pose: tuple[float, ...] | None = None,
+        goal_pose: tuple[float, ...] | None = None,
+        move_time: float = 20.0,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(**kwargs)
+        self.goal = goal
+        self._task_kwargs = {"start_pose": start_pose, "goal_pose": goal_pose, "move_time": move_time}
+        try:
+            make_transport_task(goal, np.random.default_rng(0), **self._task_kwargs)
+        except ValueError:
+            self.close()
+            raise
+
+    def _build_task(self, rng: np.random.Generator) -> TransportTask:
+        return make_transport_task(self.goal, rng, **self._task_kwargs)
+
+    def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        return vehicle_pose_for_object(self._kin, self.task.start), np.zeros(12)
+
+    def _output(self) -> np.ndarray:
+        pos, rpy = self._sim.object_pose()
+        self._obj_rot = euler_to_rot(rpy)
+        return np.concatenate([pos, rpy])
+
+    def _errors(self, y: np.ndarray, y_ref: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
+        return errors_pose(y[:3], self._obj_rot, y_ref, r_nb, euler_to_rot(y_ref[3:]))
+
+    def _success(self, pos_err: float, ori_err: float) -> bool:
+        return self.t >= self.task.move_time and pos_err < SUCCESS_POSITION and ori_err < SUCCESS_ORIENTATION

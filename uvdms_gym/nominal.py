@@ -1,0 +1,120 @@
+"""Nominal (controller-side) dynamics of the UVDMS in ``zeta`` coordinates.
+
+``M_n zetadot + b_n(q, zeta) = tau`` with
+
+* ``M_n`` = Pinocchio's rigid-body mass matrix (which already holds the isotropic added mass and the
+  rotational added inertia as the virtual ``added_mass`` body, see :mod:`uvdms_gym.params`) plus the
+  residual anisotropic added mass on the vehicle block;
+* ``b_n`` = rigid-body Coriolis and gravity + residual added-mass Coriolis ``C_A,res(nu) nu`` + vehicle
+  damping ``D(nu) nu`` + hydrostatics (buoyancy of the hull at ``r_b`` and of every link at its centre of
+  volume).
+
+Hydrostatics are computed with a second Pinocchio model whose bodies carry their *displaced* mass at their
+centre of volume under an upward gravity: its generalized gravity is exactly the generalized force that
+holds the buoyancy, ``-sum_i J_i^T F_b,i``, for the cost of one ``computeGeneralizedGravity`` call.
+
+This is the model an environment's built-in low-level controller and the reference controller may use. It
+omits link drag and the object's hydrodynamics and can be perturbed with scale factors, so it is
+deliberately not the simulator's exact plant.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from uvdms_gym.kinematics import KinematicModel
+from uvdms_gym.model import link_segment
+from uvdms_gym.params import ARM_SIDES, GRAVITY
+
+
+@dataclass(frozen=True)
+class NominalScale:
+    """Multiplicative factors on the nominal hydrodynamic coefficients (1.0 = the parameter values)."""
+
+    added_mass: float = 1.0
+    damping: float = 1.0
+    buoyancy: float = 1.0
+
+
+def _buoyancy_model(kin: KinematicModel, buoyancy_scale: float) -> pin.Model:
+    """Copy of the kinematic model whose inertias are displaced water masses at the centres of volume."""
+    params = kin.params
+    model = pin.Model(kin.model)
+    rho = params.water_density
+    for jid in range(1, model.njoints):
+        model.inertias[jid] = pin.Inertia.Zero()
+    veh = params.vehicle
+    root = pin.Inertia.FromSphere(veh.buoyancy / GRAVITY * buoyancy_scale, 0.0)
+    root.lever = np.array(veh.r_b)
+    model.inertias[1] = root
+    for side in ARM_SIDES:
+        for i in range(params.arm.n_links):
+            frame = model.frames[model.getFrameId(f"{side}_link{i}")]
+            a, b = link_segment(params, i)
+            centre = frame.placement.act(0.5 * (a + b))  # in the parent joint's frame
+            piece = pin.Inertia.FromSphere(rho * params.arm.link_volume(i) * buoyancy_scale, 0.0)
+            piece.lever = centre
+            model.inertias[frame.parentJoint] = model.inertias[frame.parentJoint] + piece
+    model.gravity.linear = np.array([0.0, 0.0, -GRAVITY])  # buoyancy pushes up (-z in NED)
+    return model
+
+
+class NominalDynamics:
+    """Nominal model evaluated at the state last given to its :class:`KinematicModel`.
+
+    Args:
+        kin: the kinematic model (its ``set_state`` must have been called with ``zeta`` for :meth:`bias`).
+        scale: factors on added mass, damping and buoyancy (model mismatch on purpose).
+    """
+
+    def __init__(self, kin: KinematicModel, scale: NominalScale | None = None) -> None:
+        self.kin = kin
+        self.scale = scale or NominalScale()
+        veh = kin.params.vehicle
+        self._residual_ma = np.array(veh.residual_added_mass) * self.scale.added_mass
+        extra = (self.scale.added_mass - 1.0) * np.array(
+            [veh.rigid_added_mass] * 3 + list(veh.added_mass[3:])
+        )  # perturbation of the part the rigid virtual body carries
+        self._base_added = self._residual_ma + extra
+        self._lin = np.array(veh.linear_damping) * self.scale.damping
+        self._quad = np.array(veh.quadratic_damping) * self.scale.damping
+        self._bmodel = _buoyancy_model(kin, self.scale.buoyancy)
+        self._bdata = self._bmodel.createData()
+
+    def mass_matrix(self) -> np.ndarray:
+        """``M_n`` (18, 18): rigid body (with the virtual added-mass body) + residual/perturbed added mass."""
+        m = self.kin.mass_matrix()
+        m[np.arange(6), np.arange(6)] += self._base_added
+        return m
+
+    def hydrostatics(self) -> np.ndarray:
+        """Generalized force (18) holding buoyancy (hull and links): add it to gravity for ``g_n``."""
+        return pin.computeGeneralizedGravity(self._bmodel, self._bdata, self.kin.config).copy()
+
+    def static_force(self) -> np.ndarray:
+        """``g_n(q, eta2)`` (18): rigid gravity + hydrostatics, the force that holds the system at rest."""
+        return self.kin.gravity() + self.hydrostatics()
+
+    def damping(self, nu: np.ndarray) -> np.ndarray:
+        """Vehicle damping ``D(nu) nu`` (6, body frame)."""
+        return (self._lin + self._quad * np.abs(nu)) * nu
+
+    def added_mass_coriolis(self, nu: np.ndarray) -> np.ndarray:
+        """Residual/perturbed added-mass Coriolis ``C_A(nu) nu`` (6) for the diagonal part in ``_base_added``."""
+        a1 = self._base_added[:3] * nu[:3]
+        a2 = self._base_added[3:] * nu[3:]
+        w = nu[3:]
+        return np.concatenate([np.cross(w, a1), np.cross(nu[:3], a1) + np.cross(w, a2)])
+
+    def bias(self) -> np.ndarray:
+        """``b_n(q, zeta)`` (18) at the kinematic model's state (needs ``zeta``)."""
+        zeta = self.kin.zeta
+        if zeta is None:
+            raise RuntimeError("bias() needs zeta: call kin.set_state(eta, q, zeta)")
+        b = self.kin.nonlinear_effects() + self.hydrostatics()
+        nu = zeta[:6]
+        b[:6] += self.damping(nu) + self.added_mass_coriolis(nu)
+        return b
