@@ -1,0 +1,32 @@
+"""The reinforcement-learning algorithms available to the training scripts."""
+
+from sb3_contrib import TQC
+from stable_baselines3 import PPO, SAC, TD3
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+
+ALGOS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC, "td3": TD3, "tqc": TQC}
+"""Algorithm name (as used in ``--algo`` and in ``train_configs/<algo>.yml``) -> SB3 class."""
+
+
+def get_algo(name: str) -> type[BaseAlgorithm]:
+    """Return the algorithm class for ``name``.
+
+    Args:
+        name: One of the keys of :data:`ALGOS`.
+
+    Returns:
+        The Stable-Baselines3 algorithm class.
+
+    Raises:
+        ValueError: If the name is unknown.
+    """
+    try:
+        return ALGOS[name]
+    except KeyError:
+        raise ValueError(f"unknown algorithm {name!r}; choose one of {sorted(ALGOS)}") from None
+
+
+def is_off_policy(name: str) -> bool:
+    """Whether the algorithm ``name`` uses a replay buffer (SAC, TD3, TQC)."""
+    return issubclass(get_algo(name), OffPolicyAlgorithm)

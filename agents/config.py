@@ -1,0 +1,711 @@
+"""Training configurations: RL-Zoo-shaped YAML files validated into typed dataclasses.
+
+A file ``train_configs/<algo>.yml`` is a mapping from Gymnasium environment ids to *entries*, plus an
+optional ``default`` entry. The entry used for an environment is the ``default`` entry shallow-merged with
+the environment's own entry (the environment's keys win; ``policy_kwargs`` etc. are replaced, not merged).
+YAML anchors and merge keys (``<<: *anchor``) work as usual. Example::
+
+    default:
+      n_timesteps: 1000000
+      n_envs: 2
+      normalize: {norm_obs: true, norm_reward: false}
+      learning_rate: 3.0e-4           # algorithm hyperparameters sit beside the fields below
+      policy_kwargs: {net_arch: [256, 256], activation_fn: relu}
+    uvdms/CircleTrack-v0:
+      n_timesteps: 2000000
+
+Keys of an entry are the fields of :class:`TrainConfig` (except ``algo`` and ``hyperparams``) or keyword
+arguments of the algorithm class (``SAC.__init__`` etc.), which are collected into
+``TrainConfig.hyperparams``. Every value is type-checked against the dataclass field or the SB3
+annotation; unknown keys and wrong types raise :class:`ConfigError` naming the key and the file.
+Classes are written as whitelisted names (``activation_fn: tanh``), schedules as ``lin_<initial value>``
+(RL-Zoo convention: linear decay to zero), action noise as ``noise_type``/``noise_std``. Nothing is ever
+evaluated. YAML 1.1 reads ``3e-4`` (no dot) as a string; numeric strings are accepted for numeric keys.
+"""
+
+from __future__ import annotations
+
+import collections.abc
+import dataclasses
+import inspect
+import math
+import re
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal, Union
+
+import numpy as np
+import torch
+import yaml
+from gymnasium import spaces
+from stable_baselines3.common.noise import ActionNoise, NormalActionNoise, OrnsteinUhlenbeckActionNoise
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, FlattenExtractor
+from stable_baselines3.common.vec_env import VecNormalize
+
+from agents.algos import ALGOS, is_off_policy
+
+DEFAULT_ENTRY = "default"
+
+ACTIVATIONS: dict[str, type[torch.nn.Module]] = {
+    "tanh": torch.nn.Tanh,
+    "relu": torch.nn.ReLU,
+    "elu": torch.nn.ELU,
+    "leaky_relu": torch.nn.LeakyReLU,
+    "gelu": torch.nn.GELU,
+    "silu": torch.nn.SiLU,
+    "softplus": torch.nn.Softplus,
+}
+"""Whitelist of ``activation_fn`` names."""
+
+OPTIMIZERS: dict[str, type[torch.optim.Optimizer]] = {
+    "adam": torch.optim.Adam,
+    "adamw": torch.optim.AdamW,
+    "rmsprop": torch.optim.RMSprop,
+}
+"""Whitelist of ``optimizer_class`` names."""
+
+FEATURES_EXTRACTORS: dict[str, type[BaseFeaturesExtractor]] = {"flatten": FlattenExtractor}
+"""Whitelist of ``features_extractor_class`` names."""
+
+NOISE_TYPES = ("normal", "ornstein-uhlenbeck")
+"""Values of ``noise_type`` (Gaussian or OU exploration noise for off-policy algorithms)."""
+
+_CLASS_WHITELISTS: tuple[tuple[type, dict[str, type]], ...] = (
+    (torch.nn.Module, ACTIVATIONS),
+    (torch.optim.Optimizer, OPTIMIZERS),
+    (BaseFeaturesExtractor, FEATURES_EXTRACTORS),
+)
+_CLASS_KEYS = {
+    "activation_fn": ACTIVATIONS,
+    "optimizer_class": OPTIMIZERS,
+    "features_extractor_class": FEATURES_EXTRACTORS,
+}
+
+# Algorithm keyword arguments that the training script sets itself (or that have their own field).
+_MANAGED_HYPERPARAMS = {
+    "policy": "use the 'policy' field",
+    "policy_kwargs": "use the 'policy_kwargs' field",
+    "env": "the environment comes from the command line",
+    "seed": "the seed comes from the command line (--seed)",
+    "tensorboard_log": "the run directory is chosen by the training script",
+    "verbose": "verbosity is a command-line option",
+    "_init_setup_model": "internal SB3 argument",
+    "action_noise": "use 'noise_type' and 'noise_std'",
+}
+# Policy keyword arguments that are set by the algorithm or the environment.
+_MANAGED_POLICY_KWARGS = {
+    "observation_space": "taken from the environment",
+    "action_space": "taken from the environment",
+    "lr_schedule": "set by the algorithm from 'learning_rate'",
+    "use_sde": "set 'use_sde' as an algorithm hyperparameter",
+}
+_VECNORMALIZE_MANAGED = {"venv", "training"}
+
+_NUMBER_RE = re.compile(r"^[-+]?(\d[\d_]*(\.\d*)?|\.\d+)([eE][-+]?\d+)?$")
+_SCHEDULE_RE = re.compile(r"^lin_(.+)$")
+
+
+class ConfigError(ValueError):
+    """Invalid training configuration (unknown key, wrong type, missing entry, bad file)."""
+
+
+@dataclass(frozen=True)
+class LinearSchedule:
+    """Linear schedule from ``initial`` (start of training) to 0 (end), as RL Zoo's ``lin_<x>``.
+
+    Attributes:
+        initial: Value at the start of training.
+    """
+
+    initial: float
+
+    def __call__(self, progress_remaining: float) -> float:
+        """Value at ``progress_remaining`` (1 at the start of training, 0 at the end)."""
+        return progress_remaining * self.initial
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One validated training configuration (an entry of ``train_configs/<algo>.yml``).
+
+    Frequencies are in environment steps summed over all training environments.
+
+    Attributes:
+        algo: Algorithm name (key of :data:`agents.algos.ALGOS`); not a YAML key (comes from the file).
+        n_timesteps: Total environment steps of a fresh training run.
+        policy: Policy alias of the algorithm (``MlpPolicy``, ``MultiInputPolicy``, ...).
+        n_envs: Number of parallel training environments.
+        normalize: ``VecNormalize`` on the training env: ``false``, ``true`` or a mapping of its keyword
+            arguments (``norm_obs``, ``norm_reward``, ``clip_obs``, ``clip_reward``, ``gamma``, ``epsilon``).
+        policy_kwargs: Policy keyword arguments as plain data (class names are whitelisted strings).
+        hyperparams: Algorithm keyword arguments as plain data (schedules as ``lin_<x>`` strings).
+        eval_freq: Evaluate every this many steps (0 disables evaluation and ``best_model.zip``).
+        n_eval_episodes: Episodes per evaluation.
+        n_eval_envs: Number of evaluation environments.
+        checkpoint_freq: Save a checkpoint every this many steps (0 disables checkpoints).
+        env_kwargs: Keyword arguments of ``gymnasium.make`` for training and evaluation environments.
+        eval_env_kwargs: Keyword arguments for the evaluation environments only (override ``env_kwargs``).
+        noise_type: Exploration noise of off-policy algorithms: ``None``, ``normal``, ``ornstein-uhlenbeck``.
+        noise_std: Standard deviation of the exploration noise (in normalised action units).
+        save_replay_buffer: Save the replay buffer with the final model and the latest checkpoint, so that
+            ``--resume`` continues with a filled buffer (large files: buffer_size x transition size).
+    """
+
+    algo: str
+    n_timesteps: int
+    policy: str = "MlpPolicy"
+    n_envs: int = 2
+    normalize: bool | dict[str, Any] = False
+    policy_kwargs: dict[str, Any] = field(default_factory=dict)
+    hyperparams: dict[str, Any] = field(default_factory=dict)
+    eval_freq: int = 10_000
+    n_eval_episodes: int = 5
+    n_eval_envs: int = 1
+    checkpoint_freq: int = 50_000
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    eval_env_kwargs: dict[str, Any] = field(default_factory=dict)
+    noise_type: str | None = None
+    noise_std: float = 0.1
+    save_replay_buffer: bool = False
+
+    # ----------------------------------------------------------------------------------------------
+    def to_entry(self) -> dict[str, Any]:
+        """Plain flat mapping (YAML entry) that :func:`parse_entry` turns back into this config."""
+        entry: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            if f.name in ("algo", "hyperparams"):
+                continue
+            entry[f.name] = _copy_plain(getattr(self, f.name))
+        entry.update(_copy_plain(self.hyperparams))
+        return entry
+
+    def normalize_kwargs(self) -> dict[str, Any] | None:
+        """Keyword arguments for ``VecNormalize`` or ``None`` when normalisation is off.
+
+        ``gamma`` defaults to the algorithm's discount factor.
+        """
+        if self.normalize is False:
+            return None
+        kwargs = {} if self.normalize is True else dict(self.normalize)
+        kwargs.setdefault("gamma", self.gamma)
+        return kwargs
+
+    @property
+    def gamma(self) -> float:
+        """Discount factor (hyperparameter or the algorithm's default)."""
+        if "gamma" in self.hyperparams:
+            return float(self.hyperparams["gamma"])
+        return float(inspect.signature(ALGOS[self.algo].__init__).parameters["gamma"].default)
+
+    def sb3_policy_kwargs(self) -> dict[str, Any]:
+        """Policy keyword arguments with class names resolved through the whitelists."""
+        return resolve_policy_kwargs(self.policy_kwargs)
+
+    def sb3_hyperparams(self) -> dict[str, Any]:
+        """Algorithm keyword arguments with schedules and ``train_freq`` converted for SB3."""
+        params = inspect.signature(ALGOS[self.algo].__init__).parameters
+        out: dict[str, Any] = {}
+        for key, value in self.hyperparams.items():
+            if isinstance(value, str) and _accepts_callable(params[key].annotation):
+                match = _SCHEDULE_RE.match(value)
+                if match:
+                    value = LinearSchedule(float(match.group(1)))
+            if isinstance(value, list) and _accepts_tuple(params[key].annotation):
+                value = tuple(value)
+            out[key] = value
+        return out
+
+    def action_noise(self, action_space: spaces.Space) -> ActionNoise | None:
+        """Exploration noise object for off-policy algorithms (``None`` when ``noise_type`` is unset)."""
+        if self.noise_type is None:
+            return None
+        if not isinstance(action_space, spaces.Box):
+            raise ConfigError(f"noise_type {self.noise_type!r} needs a Box action space")
+        n = int(np.prod(action_space.shape))
+        mean, sigma = np.zeros(n), self.noise_std * np.ones(n)
+        if self.noise_type == "normal":
+            return NormalActionNoise(mean=mean, sigma=sigma)
+        return OrnsteinUhlenbeckActionNoise(mean=mean, sigma=sigma)
+
+
+# ------------------------------------------------------------------------------------------------------
+# Public loading functions
+# ------------------------------------------------------------------------------------------------------
+def default_config_path(algo: str) -> Path:
+    """``train_configs/<algo>.yml`` in the repository."""
+    return Path(__file__).resolve().parents[1] / "train_configs" / f"{algo}.yml"
+
+
+def read_config_file(path: str | Path) -> dict[str, dict[str, Any]]:
+    """Read a config file with ``yaml.safe_load`` and check its shape (env id -> mapping).
+
+    Args:
+        path: The YAML file.
+
+    Returns:
+        The raw entries, keyed by environment id (and ``default``).
+
+    Raises:
+        ConfigError: If the file is missing, not valid YAML, or not a mapping of mappings.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read config file ({exc})") from exc
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: invalid YAML: {exc}") from exc
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: top level must be a mapping of env id -> entry, got {_tname(data)}")
+    for key, entry in data.items():
+        if not isinstance(key, str):
+            raise ConfigError(f"{path}: top-level key {key!r} must be an env id string")
+        if entry is None:
+            data[key] = {}
+        elif not isinstance(entry, dict):
+            raise ConfigError(f"{path}: entry {key!r} must be a mapping, got {_tname(entry)}")
+    return data
+
+
+def load_config(
+    path: str | Path,
+    algo: str,
+    env_id: str,
+    overrides: Mapping[str, Any] | None = None,
+) -> TrainConfig:
+    """Load the configuration of ``env_id`` from ``path`` (``default`` merged with the env entry).
+
+    Every entry of the file is validated, so a typo anywhere in the file is reported.
+
+    Args:
+        path: ``train_configs/<algo>.yml``-style file.
+        algo: Algorithm name; hyperparameters are validated against this algorithm.
+        env_id: Environment id to look up.
+        overrides: Extra keys applied on top of the merged entry (validated the same way).
+
+    Returns:
+        The validated configuration.
+
+    Raises:
+        ConfigError: Unknown key, wrong type, or no entry for ``env_id`` and no ``default``.
+    """
+    _check_algo(algo, str(path))
+    entries = read_config_file(path)
+    for name in entries:
+        parse_entry(_merged(entries, name), algo, source=str(path), entry_name=name)
+    if env_id not in entries and DEFAULT_ENTRY not in entries:
+        raise ConfigError(f"{path}: no entry for env {env_id!r} and no {DEFAULT_ENTRY!r} entry")
+    entry = _merged(entries, env_id)
+    name = env_id if env_id in entries else DEFAULT_ENTRY
+    if overrides:
+        entry.update(overrides)
+        name = f"{name} + overrides"
+    return parse_entry(entry, algo, source=str(path), entry_name=name)
+
+
+def validate_config_file(path: str | Path, algo: str | None = None) -> dict[str, TrainConfig]:
+    """Validate every entry of a config file.
+
+    Args:
+        path: The YAML file.
+        algo: Algorithm name; defaults to the file stem (``sac.yml`` -> ``sac``).
+
+    Returns:
+        The validated configurations keyed by entry name (``default`` merged into each).
+    """
+    algo = algo if algo is not None else Path(path).stem
+    _check_algo(algo, str(path))
+    entries = read_config_file(path)
+    return {name: parse_entry(_merged(entries, name), algo, source=str(path), entry_name=name) for name in entries}
+
+
+def parse_entry(
+    entry: Mapping[str, Any],
+    algo: str,
+    source: str = "<mapping>",
+    entry_name: str = "<entry>",
+) -> TrainConfig:
+    """Validate one flat entry into a :class:`TrainConfig`.
+
+    Args:
+        entry: Mapping of field names and algorithm hyperparameters.
+        algo: Algorithm name.
+        source: File name used in error messages.
+        entry_name: Entry name used in error messages.
+
+    Returns:
+        The validated configuration.
+
+    Raises:
+        ConfigError: Unknown key, wrong type or out-of-range value (the message names key and file).
+    """
+    where = f"{source}: entry {entry_name!r}"
+    _check_algo(algo, source)
+    algo_cls = ALGOS[algo]
+    hints = typing.get_type_hints(TrainConfig)
+    yaml_fields = [f.name for f in dataclasses.fields(TrainConfig) if f.name not in ("algo", "hyperparams")]
+    algo_params = inspect.signature(algo_cls.__init__).parameters
+
+    values: dict[str, Any] = {}
+    hyperparams: dict[str, Any] = {}
+    for key, value in entry.items():
+        if not isinstance(key, str):
+            raise ConfigError(f"{where}: key {key!r} must be a string")
+        if key in yaml_fields:
+            values[key] = _validate(value, hints[key], where, key)
+        elif key in _MANAGED_HYPERPARAMS:
+            raise ConfigError(f"{where}: key {key!r} cannot be set here ({_MANAGED_HYPERPARAMS[key]})")
+        elif key in algo_params and key != "self":
+            hyperparams[key] = _validate(value, algo_params[key].annotation, where, key)
+        else:
+            close = _close_matches(key, [*yaml_fields, *algo_params])
+            raise ConfigError(
+                f"{where}: unknown key {key!r} (neither a TrainConfig field nor a {algo_cls.__name__} argument){close}"
+            )
+    if "n_timesteps" not in values:
+        raise ConfigError(f"{where}: missing required key 'n_timesteps'")
+
+    policy = values.get("policy", "MlpPolicy")
+    if policy not in algo_cls.policy_aliases:
+        raise ConfigError(
+            f"{where}: key 'policy': unknown policy {policy!r} for {algo_cls.__name__}; "
+            f"choose one of {sorted(algo_cls.policy_aliases)}"
+        )
+    if "policy_kwargs" in values:
+        values["policy_kwargs"] = _validate_policy_kwargs(values["policy_kwargs"], algo, policy, where)
+    if isinstance(values.get("normalize"), dict):
+        values["normalize"] = _validate_normalize(values["normalize"], where)
+    _check_ranges(values, algo, where)
+    return TrainConfig(algo=algo, hyperparams=hyperparams, **values)
+
+
+def resolve_policy_kwargs(policy_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """Replace whitelisted class names (``activation_fn: tanh``) by the classes.
+
+    Args:
+        policy_kwargs: Plain-data policy keyword arguments.
+
+    Returns:
+        Keyword arguments ready for the SB3 policy constructor.
+
+    Raises:
+        ConfigError: If a class name is not whitelisted.
+    """
+    out = dict(policy_kwargs)
+    for key, table in _CLASS_KEYS.items():
+        if key in out and isinstance(out[key], str):
+            if out[key] not in table:
+                raise ConfigError(f"policy_kwargs {key!r}: {out[key]!r} is not one of {sorted(table)}")
+            out[key] = table[out[key]]
+    if isinstance(out.get("net_arch"), dict):
+        out["net_arch"] = {k: list(v) for k, v in out["net_arch"].items()}
+    return out
+
+
+def plain_policy_kwargs(policy_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """Inverse of :func:`resolve_policy_kwargs`: classes -> whitelisted names (for JSON export).
+
+    Raises:
+        ConfigError: If a class is not in a whitelist or a value is not plain data.
+    """
+    out: dict[str, Any] = {}
+    for key, value in policy_kwargs.items():
+        if isinstance(value, type):
+            for table in _CLASS_KEYS.values():
+                names = [name for name, cls in table.items() if cls is value]
+                if names:
+                    out[key] = names[0]
+                    break
+            else:
+                raise ConfigError(f"policy_kwargs {key!r}: class {value.__qualname__} is not whitelisted")
+        else:
+            out[key] = _plain(value, f"policy_kwargs {key!r}")
+    return out
+
+
+# ------------------------------------------------------------------------------------------------------
+# Validation helpers
+# ------------------------------------------------------------------------------------------------------
+class _Mismatch(Exception):
+    """A value does not match an annotation (message: what was expected)."""
+
+
+def _validate(value: Any, annotation: Any, where: str, key: str) -> Any:
+    try:
+        return _check(value, annotation, coerce=False)
+    except _Mismatch:
+        pass
+    try:
+        return _check(value, annotation, coerce=True)
+    except _Mismatch as exc:
+        raise ConfigError(f"{where}: key {key!r}: expected {exc}, got {_tname(value)} {_short(value)}") from None
+
+
+def _check(value: Any, ann: Any, coerce: bool) -> Any:
+    if ann is Any or ann is inspect.Parameter.empty:
+        try:
+            return _plain(value, "value")
+        except ConfigError as exc:
+            raise _Mismatch("plain YAML data") from exc
+    if ann is type(None) or ann is None:
+        if value is None:
+            return None
+        raise _Mismatch("null")
+    origin = typing.get_origin(ann)
+    if origin in (Union, types.UnionType):
+        members = typing.get_args(ann)
+        for member in members:
+            try:
+                return _check(value, member, coerce=False)
+            except _Mismatch:
+                pass
+        if coerce:
+            for member in members:
+                try:
+                    return _check(value, member, coerce=True)
+                except _Mismatch:
+                    pass
+        raise _Mismatch(" or ".join(d for d in (_describe(m) for m in members) if d))
+    if ann is bool:
+        if isinstance(value, bool):
+            return value
+        raise _Mismatch("bool")
+    if ann is int:
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
+        if coerce:
+            number = _as_number(value)
+            if number is not None and math.isfinite(number) and float(number).is_integer():
+                return int(number)
+        raise _Mismatch("int")
+    if ann is float:
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            return float(value)
+        if coerce:
+            number = _as_number(value)
+            if number is not None:
+                return float(number)
+        raise _Mismatch("float")
+    if ann is str:
+        if isinstance(value, str):
+            return value
+        raise _Mismatch("str")
+    if origin is Literal:
+        if value in typing.get_args(ann):
+            return value
+        raise _Mismatch(_describe(ann))
+    if origin in (list, collections.abc.Sequence):
+        (item,) = typing.get_args(ann) or (Any,)
+        if isinstance(value, list):
+            return [_check(v, item, coerce) for v in value]
+        raise _Mismatch(_describe(ann))
+    if origin is tuple:
+        args = typing.get_args(ann)
+        if isinstance(value, list | tuple):
+            if len(args) == 2 and args[1] is Ellipsis:
+                return [_check(v, args[0], coerce) for v in value]
+            if len(value) == len(args):
+                return [_check(v, a, coerce) for v, a in zip(value, args)]
+        raise _Mismatch(_describe(ann))
+    if origin in (dict, collections.abc.Mapping):
+        key_t, val_t = typing.get_args(ann) or (str, Any)
+        if isinstance(value, dict):
+            return {_check(k, key_t, False): _check(v, val_t, coerce) for k, v in value.items()}
+        raise _Mismatch(_describe(ann))
+    if ann is collections.abc.Callable or origin is collections.abc.Callable:
+        if isinstance(value, str):
+            match = _SCHEDULE_RE.match(value)
+            if match and _as_number(match.group(1)) is not None:
+                return value
+        raise _Mismatch(_describe(ann))
+    if origin is type:
+        table = _class_whitelist(ann)
+        if table is not None and value in table:
+            return value
+        raise _Mismatch(_describe(ann))
+    raise _Mismatch(_describe(ann))
+
+
+def _describe(ann: Any) -> str:
+    if ann is type(None) or ann is None:
+        return "null"
+    origin = typing.get_origin(ann)
+    if origin in (Union, types.UnionType):
+        return " or ".join(d for d in (_describe(m) for m in typing.get_args(ann)) if d)
+    if ann in (bool, int, float, str):
+        return ann.__name__
+    if origin is Literal:
+        return "one of " + ", ".join(repr(a) for a in typing.get_args(ann))
+    if origin in (list, collections.abc.Sequence):
+        (item,) = typing.get_args(ann) or (Any,)
+        return f"a list of {_describe(item)}"
+    if origin is tuple:
+        return "a list [" + ", ".join(_describe(a) for a in typing.get_args(ann) if a is not Ellipsis) + "]"
+    if origin in (dict, collections.abc.Mapping):
+        return "a mapping"
+    if ann is collections.abc.Callable or origin is collections.abc.Callable:
+        return "a schedule string 'lin_<initial value>'"
+    if origin is type:
+        table = _class_whitelist(ann)
+        if table is not None:
+            return "one of " + ", ".join(repr(k) for k in table)
+        return ""  # a class that cannot be written in YAML
+    if ann is Any:
+        return "plain data"
+    return ""  # objects (action noise, torch.device, ...) cannot be written in YAML
+
+
+def _class_whitelist(ann: Any) -> dict[str, type] | None:
+    (base,) = typing.get_args(ann) or (None,)
+    if not isinstance(base, type):
+        return None
+    for root, table in _CLASS_WHITELISTS:
+        if issubclass(base, root) or issubclass(root, base):
+            if all(issubclass(cls, base) for cls in table.values()):
+                return table
+    return None
+
+
+def _accepts_callable(ann: Any) -> bool:
+    if ann is collections.abc.Callable or typing.get_origin(ann) is collections.abc.Callable:
+        return True
+    if typing.get_origin(ann) in (Union, types.UnionType):
+        return any(_accepts_callable(a) for a in typing.get_args(ann))
+    return False
+
+
+def _accepts_tuple(ann: Any) -> bool:
+    if typing.get_origin(ann) is tuple:
+        return True
+    if typing.get_origin(ann) in (Union, types.UnionType):
+        return any(_accepts_tuple(a) for a in typing.get_args(ann))
+    return False
+
+
+def _validate_policy_kwargs(kwargs: dict[str, Any], algo: str, policy: str, where: str) -> dict[str, Any]:
+    policy_cls = ALGOS[algo].policy_aliases[policy]
+    params = inspect.signature(policy_cls.__init__).parameters
+    out = {}
+    for key, value in kwargs.items():
+        full_key = f"policy_kwargs.{key}"
+        if key in _MANAGED_POLICY_KWARGS:
+            raise ConfigError(f"{where}: key {full_key!r} cannot be set here ({_MANAGED_POLICY_KWARGS[key]})")
+        if key not in params or key == "self":
+            close = _close_matches(key, [p for p in params if p != "self"])
+            raise ConfigError(f"{where}: unknown key {full_key!r} for {policy_cls.__name__}{close}")
+        out[key] = _validate(value, params[key].annotation, where, full_key)
+    net_arch = out.get("net_arch")
+    if isinstance(net_arch, dict):
+        allowed = {"pi", "vf"} if algo == "ppo" else {"pi", "qf"}
+        extra = set(net_arch) - allowed
+        if extra:
+            raise ConfigError(
+                f"{where}: key 'policy_kwargs.net_arch': unknown sub-keys {sorted(extra)}; use {sorted(allowed)}"
+            )
+    return out
+
+
+def _validate_normalize(kwargs: dict[str, Any], where: str) -> dict[str, Any]:
+    params = inspect.signature(VecNormalize.__init__).parameters
+    allowed = [p for p in params if p not in _VECNORMALIZE_MANAGED and p != "self"]
+    out = {}
+    for key, value in kwargs.items():
+        if key not in allowed:
+            raise ConfigError(f"{where}: unknown key 'normalize.{key}' (VecNormalize arguments: {', '.join(allowed)})")
+        out[key] = _validate(value, params[key].annotation, where, f"normalize.{key}")
+    return out
+
+
+def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
+    minimum = {
+        "n_timesteps": 1,
+        "n_envs": 1,
+        "n_eval_episodes": 1,
+        "n_eval_envs": 1,
+        "eval_freq": 0,
+        "checkpoint_freq": 0,
+    }
+    for key, low in minimum.items():
+        if key in values and values[key] < low:
+            raise ConfigError(f"{where}: key {key!r} must be >= {low}, got {values[key]}")
+    if values.get("n_envs", 1) > 1000:
+        raise ConfigError(f"{where}: key 'n_envs' must be <= 1000 (seed scheme), got {values['n_envs']}")
+    if values.get("noise_std", 0.0) < 0:
+        raise ConfigError(f"{where}: key 'noise_std' must be >= 0")
+    noise_type = values.get("noise_type")
+    if noise_type is not None:
+        if noise_type not in NOISE_TYPES:
+            raise ConfigError(f"{where}: key 'noise_type' must be one of {NOISE_TYPES} or null")
+        if not is_off_policy(algo):
+            raise ConfigError(f"{where}: key 'noise_type' is only for off-policy algorithms, not {algo}")
+    if values.get("save_replay_buffer") and not is_off_policy(algo):
+        raise ConfigError(f"{where}: key 'save_replay_buffer' is only for off-policy algorithms")
+
+
+def _check_algo(algo: str, source: str) -> None:
+    if algo not in ALGOS:
+        raise ConfigError(f"{source}: unknown algorithm {algo!r}; choose one of {sorted(ALGOS)}")
+
+
+def _merged(entries: dict[str, dict[str, Any]], name: str) -> dict[str, Any]:
+    merged = dict(entries.get(DEFAULT_ENTRY, {}))
+    if name != DEFAULT_ENTRY:
+        merged.update(entries.get(name, {}))
+    return merged
+
+
+def _as_number(value: Any) -> float | None:
+    if isinstance(value, str) and _NUMBER_RE.match(value.strip()):
+        return float(value.strip().replace("_", ""))
+    if isinstance(value, float) and not isinstance(value, bool):
+        return value
+    return None
+
+
+def _plain(value: Any, where: str) -> Any:
+    """Check that ``value`` is JSON-like plain data (tuples become lists)."""
+    if value is None or isinstance(value, bool | int | str):
+        return value
+    if isinstance(value, float):
+        return value
+    if isinstance(value, list | tuple):
+        return [_plain(v, where) for v in value]
+    if isinstance(value, dict):
+        out = {}
+        for k, v in value.items():
+            if not isinstance(k, str):
+                raise ConfigError(f"{where}: mapping key {k!r} must be a string")
+            out[k] = _plain(v, where)
+        return out
+    raise ConfigError(f"{where}: {_tname(value)} is not plain data (null, bool, number, string, list, mapping)")
+
+
+def _copy_plain(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _copy_plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_copy_plain(v) for v in value]
+    return value
+
+
+def _close_matches(key: str, candidates: list[str]) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(key, candidates, n=3)
+    return f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
+
+
+def _tname(value: Any) -> str:
+    return {dict: "mapping", list: "list", type(None): "null"}.get(type(value), type(value).__name__)
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return f"({text[:60]}...)" if len(text) > 60 else f"({text})"

@@ -1,0 +1,529 @@
+"""Loading trained agents for evaluation, and a weights-only export format that never unpickles.
+
+Two ways to get an :class:`AgentController` (``reset(seed)``, ``predict(obs, info) -> action``,
+deterministic, VecNormalize observation statistics applied without a VecEnv):
+
+* :func:`load_agent` on a run directory or an SB3 zip. SB3 zips and VecNormalize ``.pkl`` files contain
+  pickles (arbitrary code on load), so this goes through :func:`load_sb3_zip`, which refuses unless the
+  caller passes ``trust=True`` or the file lies inside the repository's ``trained_agents/`` folder.
+* :func:`load_weights_only` on a directory written by :func:`export_agent`::
+
+      agent.json          format, algo, env id/kwargs, policy alias, policy_kwargs (plain data, class names
+                          whitelisted), observation/action spaces (shape, dtype, bounds), normalisation
+                          settings, num_timesteps, package versions, SHA-256 of the two files below
+      policy.pt           ``torch.save(policy.state_dict())``: tensors only, loaded with
+                          ``torch.load(..., weights_only=True)``
+      normalization.npz   ``obs_mean``, ``obs_var`` (only when observations are normalised), loaded with
+                          ``numpy.load(..., allow_pickle=False)``
+
+  The policy is rebuilt from the JSON by constructing the algorithm's policy class with the saved spaces
+  and keyword arguments; no file of the export is unpickled.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import json
+import math
+import pickle
+import zipfile
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import torch
+import yaml
+from gymnasium import spaces
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.vec_env import VecNormalize
+
+from agents.algos import ALGOS
+from agents.config import ConfigError, plain_policy_kwargs, resolve_policy_kwargs
+from agents.train import package_versions
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+TRUSTED_DIR = REPO_ROOT / "trained_agents"
+"""SB3 zips and pickles inside this folder (committed, reviewed agents) load without ``trust=True``."""
+
+FORMAT_NAME = "uvdms-agent-weights"
+FORMAT_VERSION = 1
+AGENT_JSON = "agent.json"
+WEIGHTS_FILE = "policy.pt"
+NORMALIZATION_FILE = "normalization.npz"
+_DTYPES = {"float32": np.float32, "float64": np.float64}
+_SPACE_ARGS = ("observation_space", "action_space", "lr_schedule")
+
+Which = Literal["final", "best"]
+
+
+class UntrustedFileError(ValueError):
+    """Refused to unpickle a file that is neither trusted by the caller nor inside ``trained_agents/``."""
+
+
+class ExportFormatError(ValueError):
+    """A weights-only export is malformed, tampered with, or cannot represent the policy."""
+
+
+# ------------------------------------------------------------------------------------------------------
+# Controller
+# ------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ObsNormalizer:
+    """VecNormalize observation normalisation without a VecEnv (same formula and dtype as SB3).
+
+    Attributes:
+        mean: Running mean of the observations (float64).
+        var: Running variance of the observations (float64).
+        clip_obs: Normalised observations are clipped to ``[-clip_obs, clip_obs]``.
+        epsilon: Added to the variance.
+    """
+
+    mean: np.ndarray
+    var: np.ndarray
+    clip_obs: float
+    epsilon: float
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Normalise ``obs`` (any leading batch dimensions) and return float32."""
+        normalized = np.clip((obs - self.mean) / np.sqrt(self.var + self.epsilon), -self.clip_obs, self.clip_obs)
+        return normalized.astype(np.float32)
+
+
+class AgentController:
+    """A trained policy as a deterministic controller: ``reset(seed)`` then ``predict(obs, info)``.
+
+    Attributes:
+        policy: The SB3 policy (evaluation mode).
+        algo: Algorithm name.
+        env_id: Environment id the agent was trained on (``None`` if unknown).
+        env_kwargs: ``gymnasium.make`` keyword arguments of the training environment.
+        normalizer: Observation normalisation (``None`` if the agent was trained without it).
+        num_timesteps: Training steps of the loaded model (``None`` if unknown).
+        source: Where the agent was loaded from.
+    """
+
+    def __init__(
+        self,
+        policy: BasePolicy,
+        *,
+        algo: str,
+        env_id: str | None = None,
+        env_kwargs: Mapping[str, Any] | None = None,
+        normalizer: ObsNormalizer | None = None,
+        num_timesteps: int | None = None,
+        source: str = "",
+    ) -> None:
+        self.policy = policy
+        self.policy.set_training_mode(False)
+        self.algo = algo
+        self.env_id = env_id
+        self.env_kwargs = dict(env_kwargs or {})
+        self.normalizer = normalizer
+        self.num_timesteps = num_timesteps
+        self.source = source
+        self.seed: int | None = None
+
+    @property
+    def observation_space(self) -> spaces.Space:
+        """Observation space the policy expects (un-normalised observations)."""
+        return self.policy.observation_space
+
+    @property
+    def action_space(self) -> spaces.Space:
+        """Action space of the policy's outputs."""
+        return self.policy.action_space
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start an episode. The MLP policies are stateless and deterministic; the seed is only recorded."""
+        self.seed = seed
+
+    def normalize(self, obs: np.ndarray) -> np.ndarray:
+        """The observation as the network sees it (normalised if the agent was trained with VecNormalize)."""
+        obs = np.asarray(obs, dtype=self.observation_space.dtype)
+        return self.normalizer(obs) if self.normalizer is not None else obs
+
+    def predict(self, obs: np.ndarray, info: Mapping[str, Any] | None = None) -> np.ndarray:
+        """Deterministic action for one observation (or a batch with a leading dimension).
+
+        Args:
+            obs: Raw environment observation.
+            info: The environment's info dict (unused; for interface parity with other controllers).
+
+        Returns:
+            The action, within the action space bounds.
+        """
+        with torch.no_grad():
+            action, _ = self.policy.predict(self.normalize(obs), deterministic=True)
+        return action
+
+
+# ------------------------------------------------------------------------------------------------------
+# Full SB3 zips (pickles: trust required)
+# ------------------------------------------------------------------------------------------------------
+def is_trusted_path(path: str | Path) -> bool:
+    """Whether ``path`` (symlinks resolved) lies inside the repository's ``trained_agents/`` folder."""
+    return Path(path).resolve().is_relative_to(TRUSTED_DIR.resolve())
+
+
+def _require_trust(path: Path, trust: bool) -> None:
+    if not (trust or is_trusted_path(path)):
+        raise UntrustedFileError(
+            f"{path} contains pickled objects, which can run arbitrary code when loaded; pass trust=True if "
+            f"you trust its origin, put it under {TRUSTED_DIR}, or use a weights-only export "
+            "(export_agent / load_weights_only)"
+        )
+
+
+def load_sb3_zip(path: str | Path, trust: bool, algo: str | None = None, device: str = "cpu") -> BaseAlgorithm:
+    """Load a full SB3 model zip (this unpickles: allowed only if trusted).
+
+    Args:
+        path: The ``.zip`` file.
+        trust: The caller trusts the file. Without it, only files inside ``trained_agents/`` load.
+        algo: Algorithm name; by default inferred from the zip's JSON data (policy class module).
+        device: Torch device.
+
+    Returns:
+        The SB3 model (without an environment).
+
+    Raises:
+        UntrustedFileError: If not trusted.
+        FileNotFoundError: If the file does not exist.
+    """
+    path = Path(path)
+    _require_trust(path, trust)
+    if not path.is_file():
+        raise FileNotFoundError(path)
+    algo = algo if algo is not None else zip_algo(path)
+    return ALGOS[algo].load(str(path), device=device, print_system_info=False)
+
+
+def zip_algo(path: str | Path) -> str:
+    """Algorithm of an SB3 zip, read from the module name of its policy class (no unpickling)."""
+    with zipfile.ZipFile(path) as archive:
+        data = json.loads(archive.read("data").decode("utf-8"))
+    module = data.get("policy_class", {}).get("__module__")
+    for name, cls in ALGOS.items():
+        if any(p.__module__ == module for p in cls.policy_aliases.values()):
+            return name
+    raise ValueError(f"{path}: cannot infer the algorithm from policy module {module!r}; pass algo=")
+
+
+def load_vecnormalize_stats(path: str | Path, trust: bool) -> ObsNormalizer | None:
+    """Observation statistics of a VecNormalize pickle (this unpickles: allowed only if trusted).
+
+    Returns:
+        The normaliser, or ``None`` if the VecNormalize did not normalise observations.
+    """
+    path = Path(path)
+    _require_trust(path, trust)
+    with path.open("rb") as f:
+        vec_normalize = pickle.load(f)  # guarded by the trust check above
+    if not isinstance(vec_normalize, VecNormalize):
+        raise ValueError(f"{path} does not contain VecNormalize statistics")
+    return _normalizer_from_vecnormalize(vec_normalize)
+
+
+def _normalizer_from_vecnormalize(vec_normalize: VecNormalize) -> ObsNormalizer | None:
+    if not vec_normalize.norm_obs:
+        return None
+    if isinstance(vec_normalize.obs_rms, dict):
+        raise NotImplementedError("dict observations are not supported by AgentController")
+    return ObsNormalizer(
+        mean=np.asarray(vec_normalize.obs_rms.mean, dtype=np.float64),
+        var=np.asarray(vec_normalize.obs_rms.var, dtype=np.float64),
+        clip_obs=float(vec_normalize.clip_obs),
+        epsilon=float(vec_normalize.epsilon),
+    )
+
+
+def load_agent(
+    path: str | Path, *, which: Which = "final", trust: bool = False, algo: str | None = None
+) -> AgentController:
+    """Load a trained agent for evaluation.
+
+    Args:
+        path: A weights-only export directory (no trust needed), a run directory, or an SB3 zip
+            (``final_model.zip``, ``best_model.zip``, ``checkpoints/rl_model_<N>_steps.zip``) whose
+            VecNormalize statistics sit beside it with the names written by ``agents.train``.
+        which: For a run directory: ``final`` (``final_model.zip``) or ``best`` (``best_model.zip``).
+        trust: Allow unpickling the run's files (see :func:`load_sb3_zip`).
+        algo: Algorithm name if it cannot be read from ``config.yml`` or the zip.
+
+    Returns:
+        The controller.
+
+    Raises:
+        UntrustedFileError: If SB3/VecNormalize pickles would have to be loaded without trust.
+        FileNotFoundError: If the model or its required normalisation statistics are missing.
+    """
+    path = Path(path)
+    if path.is_dir() and (path / AGENT_JSON).is_file():
+        return load_weights_only(path)
+    if path.is_dir():
+        if which not in ("final", "best"):
+            raise ValueError(f"which must be 'final' or 'best', got {which!r}")
+        model_path = path / f"{which}_model.zip"
+    else:
+        model_path = path
+    if not model_path.is_file():
+        raise FileNotFoundError(f"no model at {model_path}")
+    stats_path = _stats_path(model_path)
+    resolved = _find_run_config(model_path)
+    config = resolved.get("config", {})
+    if stats_path is None and config.get("normalize", False) not in (False, None):
+        raise FileNotFoundError(f"{model_path}: the run normalises observations but no statistics beside it")
+    model = load_sb3_zip(model_path, trust=trust, algo=algo or resolved.get("algo"))
+    normalizer = load_vecnormalize_stats(stats_path, trust=trust) if stats_path is not None else None
+    return AgentController(
+        model.policy,
+        algo=algo or resolved.get("algo") or zip_algo(model_path),
+        env_id=resolved.get("env_id"),
+        env_kwargs=config.get("env_kwargs", {}),
+        normalizer=normalizer,
+        num_timesteps=int(model.num_timesteps),
+        source=str(model_path),
+    )
+
+
+def _stats_path(model_path: Path) -> Path | None:
+    name = model_path.name
+    if name == "final_model.zip":
+        candidate = model_path.with_name("vecnormalize.pkl")
+    elif name == "best_model.zip":
+        candidate = model_path.with_name("best_vecnormalize.pkl")
+    elif name.startswith("rl_model_") and name.endswith("_steps.zip"):
+        steps = name[len("rl_model_") : -len("_steps.zip")]
+        candidate = model_path.with_name(f"rl_model_vecnormalize_{steps}_steps.pkl")
+    else:
+        candidate = model_path.with_suffix(".vecnormalize.pkl")
+    return candidate if candidate.is_file() else None
+
+
+def _find_run_config(model_path: Path) -> dict[str, Any]:
+    for folder in (model_path.parent, model_path.parent.parent):
+        config_file = folder / "config.yml"
+        if config_file.is_file():
+            data = yaml.safe_load(config_file.read_text(encoding="utf-8"))
+            return data if isinstance(data, dict) else {}
+    return {}
+
+
+# ------------------------------------------------------------------------------------------------------
+# Weights-only export
+# ------------------------------------------------------------------------------------------------------
+def export_agent(
+    run_dir: str | Path,
+    out_path: str | Path,
+    *,
+    which: Which = "final",
+    trust: bool = False,
+    overwrite: bool = False,
+) -> Path:
+    """Export a trained agent to the weights-only format (a directory; see the module docstring).
+
+    Args:
+        run_dir: Run directory or SB3 zip (as for :func:`load_agent`).
+        out_path: Output directory (created).
+        which: ``final`` or ``best`` model of a run directory.
+        trust: Allow unpickling the run's files (reading them is the one unpickling step).
+        overwrite: Replace the files of an existing export in ``out_path``.
+
+    Returns:
+        The export directory.
+
+    Raises:
+        ExportFormatError: If the policy uses a class or space the format cannot represent.
+        FileExistsError: If ``out_path`` is not empty and ``overwrite`` is false.
+    """
+    agent = load_agent(run_dir, which=which, trust=trust)
+    return export_controller(agent, out_path, overwrite=overwrite)
+
+
+def export_controller(agent: AgentController, out_path: str | Path, *, overwrite: bool = False) -> Path:
+    """Write an :class:`AgentController` in the weights-only format (see :func:`export_agent`)."""
+    out = Path(out_path)
+    if out.exists() and any(out.iterdir()) and not overwrite:
+        raise FileExistsError(f"{out} exists and is not empty (pass overwrite=True)")
+    policy = agent.policy
+    params = dict(policy._get_constructor_parameters())
+    observation_space, action_space = params["observation_space"], params["action_space"]
+    for name in _SPACE_ARGS:
+        params.pop(name, None)
+    try:
+        policy_kwargs = plain_policy_kwargs(params)
+    except ConfigError as exc:
+        raise ExportFormatError(str(exc)) from exc
+    aliases = [name for name, cls in ALGOS[agent.algo].policy_aliases.items() if cls is type(policy)]
+    if not aliases:
+        raise ExportFormatError(f"policy class {type(policy).__qualname__} is not a {agent.algo} policy alias")
+
+    out.mkdir(parents=True, exist_ok=True)
+    state = {key: value.detach().cpu().clone() for key, value in policy.state_dict().items()}
+    torch.save(state, out / WEIGHTS_FILE)
+    files = {WEIGHTS_FILE: _sha256(out / WEIGHTS_FILE)}
+    normalization: dict[str, Any] = {"norm_obs": agent.normalizer is not None}
+    if agent.normalizer is not None:
+        np.savez(out / NORMALIZATION_FILE, obs_mean=agent.normalizer.mean, obs_var=agent.normalizer.var)
+        normalization.update(clip_obs=agent.normalizer.clip_obs, epsilon=agent.normalizer.epsilon)
+        files[NORMALIZATION_FILE] = _sha256(out / NORMALIZATION_FILE)
+    elif (out / NORMALIZATION_FILE).exists():
+        (out / NORMALIZATION_FILE).unlink()
+
+    document = {
+        "format": FORMAT_NAME,
+        "format_version": FORMAT_VERSION,
+        "algo": agent.algo,
+        "env_id": agent.env_id,
+        "env_kwargs": agent.env_kwargs,
+        "policy": aliases[0],
+        "policy_class": f"{type(policy).__module__}.{type(policy).__qualname__}",
+        "policy_kwargs": policy_kwargs,
+        "observation_space": _space_to_json(observation_space),
+        "action_space": _space_to_json(action_space),
+        "normalization": normalization,
+        "num_timesteps": agent.num_timesteps,
+        "source": Path(agent.source).name,
+        "versions": package_versions(),
+        "files": files,
+    }
+    (out / AGENT_JSON).write_text(json.dumps(document, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    return out
+
+
+def load_weights_only(path: str | Path, device: str = "cpu") -> AgentController:
+    """Rebuild an agent from a weights-only export without unpickling anything.
+
+    Args:
+        path: Export directory (or its ``agent.json``).
+        device: Torch device.
+
+    Returns:
+        The controller.
+
+    Raises:
+        ExportFormatError: Malformed JSON, unknown algorithm/policy/class names, checksum mismatch, or
+            a weights file that is not a plain tensor dictionary.
+        pickle.UnpicklingError: If the weights file contains pickled objects (refused by
+            ``torch.load(weights_only=True)``).
+    """
+    path = Path(path)
+    folder = path.parent if path.name == AGENT_JSON else path
+    try:
+        doc = json.loads((folder / AGENT_JSON).read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ExportFormatError(f"{folder}: cannot read {AGENT_JSON}: {exc}") from exc
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT_NAME:
+        raise ExportFormatError(f"{folder}: not a {FORMAT_NAME} export")
+    if doc.get("format_version") != FORMAT_VERSION:
+        raise ExportFormatError(f"{folder}: unsupported format_version {doc.get('format_version')!r}")
+    files = doc.get("files", {})
+    for name, digest in files.items():
+        if name not in (WEIGHTS_FILE, NORMALIZATION_FILE):
+            raise ExportFormatError(f"{folder}: unexpected file entry {name!r}")
+        if _sha256(folder / name) != digest:
+            raise ExportFormatError(f"{folder / name}: SHA-256 does not match {AGENT_JSON}")
+    if WEIGHTS_FILE not in files:
+        raise ExportFormatError(f"{folder}: {AGENT_JSON} lists no {WEIGHTS_FILE}")
+
+    algo = doc.get("algo")
+    if algo not in ALGOS:
+        raise ExportFormatError(f"{folder}: unknown algo {algo!r}")
+    policy_cls = ALGOS[algo].policy_aliases.get(doc.get("policy"))
+    if policy_cls is None:
+        raise ExportFormatError(f"{folder}: unknown {algo} policy {doc.get('policy')!r}")
+    allowed = set(inspect.signature(policy_cls.__init__).parameters) - {"self", *_SPACE_ARGS}
+    policy_kwargs = doc.get("policy_kwargs", {})
+    if not isinstance(policy_kwargs, dict) or set(policy_kwargs) - allowed:
+        raise ExportFormatError(
+            f"{folder}: policy_kwargs has keys unknown to {policy_cls.__name__}: {sorted(set(policy_kwargs) - allowed)}"
+        )
+    try:
+        kwargs = resolve_policy_kwargs(policy_kwargs)
+    except ConfigError as exc:
+        raise ExportFormatError(f"{folder}: {exc}") from exc
+    policy = policy_cls(
+        observation_space=_space_from_json(doc["observation_space"]),
+        action_space=_space_from_json(doc["action_space"]),
+        lr_schedule=_zero_schedule,
+        **kwargs,
+    ).to(device)
+    state = torch.load(folder / WEIGHTS_FILE, map_location=device, weights_only=True)
+    if not isinstance(state, dict) or not all(
+        isinstance(k, str) and isinstance(v, torch.Tensor) for k, v in state.items()
+    ):
+        raise ExportFormatError(f"{folder / WEIGHTS_FILE}: not a mapping of parameter names to tensors")
+    policy.load_state_dict(state, strict=True)
+
+    normalizer = None
+    normalization = doc.get("normalization", {})
+    if normalization.get("norm_obs"):
+        if NORMALIZATION_FILE not in files:
+            raise ExportFormatError(f"{folder}: norm_obs is set but {NORMALIZATION_FILE} is not listed")
+        with np.load(folder / NORMALIZATION_FILE, allow_pickle=False) as stats:
+            normalizer = ObsNormalizer(
+                mean=np.asarray(stats["obs_mean"], dtype=np.float64),
+                var=np.asarray(stats["obs_var"], dtype=np.float64),
+                clip_obs=float(normalization["clip_obs"]),
+                epsilon=float(normalization["epsilon"]),
+            )
+    return AgentController(
+        policy,
+        algo=algo,
+        env_id=doc.get("env_id"),
+        env_kwargs=doc.get("env_kwargs") or {},
+        normalizer=normalizer,
+        num_timesteps=doc.get("num_timesteps"),
+        source=str(folder),
+    )
+
+
+def _zero_schedule(_progress_remaining: float) -> float:
+    return 0.0
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _encode_floats(array: np.ndarray) -> list[Any]:
+    return [x if math.isfinite(x) else str(x) for x in np.asarray(array, dtype=np.float64).ravel().tolist()]
+
+
+def _decode_floats(values: list[Any], shape: tuple[int, ...], dtype: type) -> np.ndarray:
+    if not isinstance(values, list) or not all(isinstance(v, int | float | str) for v in values):
+        raise ExportFormatError("space bounds must be a list of numbers or 'inf'/'-inf'/'nan'")
+    try:
+        flat = np.array([float(v) for v in values], dtype=np.float64)
+    except ValueError as exc:
+        raise ExportFormatError(f"bad space bound: {exc}") from exc
+    return flat.reshape(shape).astype(dtype)
+
+
+def _space_to_json(space: spaces.Space) -> dict[str, Any]:
+    if not isinstance(space, spaces.Box):
+        raise ExportFormatError(f"only Box spaces can be exported, got {type(space).__name__}")
+    dtype = np.dtype(space.dtype).name
+    if dtype not in _DTYPES:
+        raise ExportFormatError(f"unsupported Box dtype {dtype}")
+    return {
+        "type": "Box",
+        "shape": list(space.shape),
+        "dtype": dtype,
+        "low": _encode_floats(space.low),
+        "high": _encode_floats(space.high),
+    }
+
+
+def _space_from_json(data: Any) -> spaces.Box:
+    if not isinstance(data, dict) or data.get("type") != "Box" or data.get("dtype") not in _DTYPES:
+        raise ExportFormatError(f"unsupported space description {data!r:.200}")
+    shape = tuple(int(n) for n in data["shape"])
+    dtype = _DTYPES[data["dtype"]]
+    low = _decode_floats(data["low"], shape, dtype)
+    high = _decode_floats(data["high"], shape, dtype)
+    return spaces.Box(low=low, high=high, shape=shape, dtype=dtype)

@@ -1,0 +1,556 @@
+"""Tests of the agents package: configs, training runs, resume, loading and weights-only export.
+
+The environments under test are listed in TEST_ENVS; add the uvdms ids (with small env_kwargs, e.g. a
+short ``max_episode_steps``) once they are registered by ``import uvdms_gym``.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import re
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+import yaml
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+from agents import policy as agent_policy
+from agents.algos import ALGOS
+from agents.config import ConfigError, load_config, parse_entry, validate_config_file
+from agents.policy import (
+    UntrustedFileError,
+    export_agent,
+    load_agent,
+    load_sb3_zip,
+    load_weights_only,
+)
+from agents.train import (
+    EnvironmentNotFoundError,
+    RunDirError,
+    eval_env_seed,
+    latest_checkpoint,
+    main,
+    parse_key_values,
+    run_dir_for,
+    train,
+    train_env_seed,
+    zip_num_timesteps,
+)
+
+REPO = Path(__file__).resolve().parents[1]
+
+# (env id, gymnasium.make kwargs). Extend with e.g. ("uvdms/CircleTrack-v0", {"max_episode_steps": 60}).
+TEST_ENVS: list[tuple[str, dict]] = [
+    ("Pendulum-v1", {"max_episode_steps": 100}),
+    ("MountainCarContinuous-v0", {"max_episode_steps": 100}),
+]
+ALGO_NAMES = sorted(ALGOS)
+UVDMS_IDS = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0")
+
+# A tiny config per algorithm (tests override n_timesteps; small nets, buffers and batches).
+_COMMON = {"n_timesteps": 300, "n_envs": 2, "eval_freq": 200, "n_eval_episodes": 1, "checkpoint_freq": 200}
+TINY = {
+    "ppo": {
+        **_COMMON,
+        "normalize": True,
+        "n_steps": 64,
+        "batch_size": 64,
+        "n_epochs": 2,
+        "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}, "log_std_init": -1.0},
+    },
+    "sac": {
+        **_COMMON,
+        "normalize": {"norm_obs": True, "norm_reward": False},
+        "buffer_size": 1000,
+        "batch_size": 32,
+        "learning_starts": 50,
+        "policy_kwargs": {"net_arch": [16]},
+    },
+    "td3": {
+        **_COMMON,
+        "buffer_size": 1000,
+        "batch_size": 32,
+        "learning_starts": 50,
+        "noise_type": "normal",
+        "noise_std": 0.2,
+        "policy_kwargs": {"net_arch": [16]},
+    },
+    "tqc": {
+        **_COMMON,
+        "normalize": True,
+        "buffer_size": 1000,
+        "batch_size": 32,
+        "learning_starts": 50,
+        "policy_kwargs": {"net_arch": [16], "n_quantiles": 5},
+    },
+}
+
+
+def _write_config(folder: Path, algo: str, **extra) -> Path:
+    path = folder / f"{algo}.yml"
+    path.write_text(yaml.safe_dump({"default": {**TINY[algo], **extra}}), encoding="utf-8")
+    return path
+
+
+def _observations(env_id: str, env_kwargs: dict, n: int = 12) -> list[np.ndarray]:
+    env = gym.make(env_id, **env_kwargs)
+    obs_list = []
+    obs, _ = env.reset(seed=123)
+    env.action_space.seed(123)
+    for _ in range(n):
+        obs_list.append(obs)
+        obs, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            obs, _ = env.reset()
+    env.close()
+    return obs_list
+
+
+@pytest.fixture(scope="module")
+def config_dir(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("configs")
+    for algo in ALGO_NAMES:
+        _write_config(folder, algo)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory, config_dir) -> dict[tuple[str, str], Path]:
+    """One short training run per (algo, env) of the test lists, shared by several tests."""
+    out = tmp_path_factory.mktemp("runs")
+    result = {}
+    for algo in ALGO_NAMES:
+        for env_id, env_kwargs in TEST_ENVS:
+            result[algo, env_id] = train(
+                algo,
+                env_id,
+                env_kwargs,
+                config_dir / f"{algo}.yml",
+                seed=7,
+                total_timesteps=None,
+                n_envs=None,
+                out_dir=out,
+                resume_dir=None,
+                progress=False,
+                gym_packages=["uvdms_gym"],
+            )
+    return result
+
+
+# ------------------------------------------------------------------------------------------------------
+# Configs
+# ------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("path", sorted((REPO / "train_configs").glob("*.yml")), ids=lambda p: p.name)
+def test_every_train_config_validates(path):
+    configs = validate_config_file(path)
+    assert path.stem in ALGOS
+    assert "default" in configs
+    for env_id in UVDMS_IDS:
+        cfg = configs[env_id]
+        assert cfg.n_timesteps >= 100_000
+        assert cfg.algo == path.stem
+    for cfg in configs.values():
+        assert parse_entry(cfg.to_entry(), cfg.algo) == cfg  # the resolved form round-trips
+        cfg.sb3_policy_kwargs()
+        cfg.sb3_hyperparams()
+
+
+def test_all_algos_have_a_config():
+    assert sorted(p.stem for p in (REPO / "train_configs").glob("*.yml")) == ALGO_NAMES
+
+
+@pytest.mark.parametrize(
+    ("entry", "key"),
+    [
+        ({"n_timesteps": 10, "learning_rat": 1.0e-3}, "learning_rat"),
+        ({"n_timesteps": 10, "policy_kwargs": {"net_arc": [8]}}, "policy_kwargs.net_arc"),
+        ({"n_timesteps": 10, "normalize": {"clip": 5.0}}, "normalize.clip"),
+        ({"n_timesteps": 10, "seed": 3}, "seed"),
+        ({"n_timesteps": 10, "action_noise": "normal"}, "action_noise"),
+    ],
+)
+def test_unknown_key_is_rejected_with_its_name(tmp_path, entry, key):
+    path = tmp_path / "sac.yml"
+    path.write_text(yaml.safe_dump({"default": entry}), encoding="utf-8")
+    with pytest.raises(ConfigError, match=re.escape(f"'{key}'")) as info:
+        load_config(path, "sac", "Pendulum-v1")
+    assert str(path) in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("entry", "key"),
+    [
+        ({"n_timesteps": "many"}, "n_timesteps"),
+        ({"n_timesteps": 10, "n_envs": 1.5}, "n_envs"),
+        ({"n_timesteps": 10, "batch_size": "32x"}, "batch_size"),
+        ({"n_timesteps": 10, "gamma": [0.9]}, "gamma"),
+        ({"n_timesteps": 10, "normalize": "yes"}, "normalize"),
+        ({"n_timesteps": 10, "learning_rate": "fast"}, "learning_rate"),
+        ({"n_timesteps": 10, "policy_kwargs": {"activation_fn": "sigmoid"}}, "policy_kwargs.activation_fn"),
+        ({"n_timesteps": 10, "policy_kwargs": {"net_arch": "big"}}, "policy_kwargs.net_arch"),
+        ({"n_timesteps": 10, "use_sde": 1}, "use_sde"),
+        ({"n_timesteps": 10, "env_kwargs": ["case", 1]}, "env_kwargs"),
+    ],
+)
+def test_wrong_type_is_rejected_with_key_and_file(tmp_path, entry, key):
+    path = tmp_path / "sac.yml"
+    path.write_text(yaml.safe_dump({"default": entry, "Pendulum-v1": {}}), encoding="utf-8")
+    with pytest.raises(ConfigError, match=re.escape(f"'{key}'")) as info:
+        load_config(path, "sac", "Pendulum-v1")
+    assert str(path) in str(info.value)
+
+
+def test_error_in_another_entry_is_reported(tmp_path):
+    path = tmp_path / "ppo.yml"
+    path.write_text("default: {n_timesteps: 10}\nOther-v0: {n_stepz: 3}\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"n_stepz.*did you mean 'n_steps'"):
+        load_config(path, "ppo", "Pendulum-v1")
+
+
+def test_anchors_default_merge_and_conversions(tmp_path):
+    path = tmp_path / "ppo.yml"
+    path.write_text(
+        "base: &base\n"
+        "  n_timesteps: 1000\n"
+        "  learning_rate: 3e-4\n"  # YAML 1.1 reads this as a string; accepted as a float
+        "  policy_kwargs: {net_arch: {pi: [32], vf: [64]}, activation_fn: elu}\n"
+        "default:\n  <<: *base\n  n_envs: 4\n"
+        "My-v0:\n  <<: *base\n  clip_range: lin_0.2\n  env_kwargs: {case: 2}\n",
+        encoding="utf-8",
+    )
+    cfg = load_config(path, "ppo", "My-v0")
+    assert cfg.n_envs == 4  # from default
+    assert cfg.hyperparams["learning_rate"] == pytest.approx(3e-4)
+    assert cfg.env_kwargs == {"case": 2}
+    kwargs = cfg.sb3_policy_kwargs()
+    assert kwargs["activation_fn"] is torch.nn.ELU
+    schedule = cfg.sb3_hyperparams()["clip_range"]
+    assert schedule(1.0) == pytest.approx(0.2) and schedule(0.5) == pytest.approx(0.1)
+    assert load_config(path, "ppo", "Unlisted-v0").n_envs == 4
+
+
+def test_missing_entry_and_bad_files(tmp_path):
+    path = tmp_path / "sac.yml"
+    path.write_text("Other-v0: {n_timesteps: 10}\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="no entry for env 'Pendulum-v1'"):
+        load_config(path, "sac", "Pendulum-v1")
+    path.write_text("- 1\n- 2\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="top level must be a mapping"):
+        load_config(path, "sac", "Pendulum-v1")
+    path.write_text("default: !!python/object/apply:os.system ['true']\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="invalid YAML"):
+        load_config(path, "sac", "Pendulum-v1")
+    with pytest.raises(ConfigError, match="unknown algorithm"):
+        load_config(path, "dqn", "Pendulum-v1")
+
+
+def test_parse_key_values():
+    assert parse_key_values(["case=1", "goal=paper", "hydro_randomization=true", "scale=1.5e-2", "goals=[1, 2]"]) == {
+        "case": 1,
+        "goal": "paper",
+        "hydro_randomization": True,
+        "scale": 0.015,
+        "goals": [1, 2],
+    }
+    with pytest.raises(ConfigError, match="key=value"):
+        parse_key_values(["novalue"])
+
+
+# ------------------------------------------------------------------------------------------------------
+# Training runs
+# ------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("env_id", [e for e, _ in TEST_ENVS])
+@pytest.mark.parametrize("algo", ALGO_NAMES)
+def test_training_writes_complete_run_dir(runs, algo, env_id):
+    run_dir = runs[algo, env_id]
+    assert run_dir == run_dir_for(run_dir.parents[1], env_id, algo, 7)
+    assert "/" not in run_dir.parent.name
+    for name in (
+        "config.yml",
+        "command.txt",
+        "meta.json",
+        "final_model.zip",
+        "best_model.zip",
+        "best_model.json",
+        "logs/seg0/progress.csv",
+        "logs/seg0/evaluations.npz",
+        "monitor/seg0_train_0.monitor.csv",
+        "monitor/seg0_train_1.monitor.csv",
+        "monitor/seg0_eval_0.monitor.csv",
+    ):
+        assert (run_dir / name).is_file(), name
+    assert list((run_dir / "logs" / "seg0").glob("events.out.tfevents.*"))
+    assert list((run_dir / "checkpoints").glob("rl_model_*_steps.zip"))
+    normalized = TINY[algo].get("normalize", False) is not False
+    assert (run_dir / "vecnormalize.pkl").is_file() == normalized
+    assert (run_dir / "best_vecnormalize.pkl").is_file() == normalized
+
+    resolved = yaml.safe_load((run_dir / "config.yml").read_text())
+    assert resolved["algo"] == algo and resolved["env_id"] == env_id and resolved["seed"] == 7
+    assert resolved["config"]["env_kwargs"] == dict(TEST_ENVS)[env_id]
+    assert parse_entry(resolved["config"], algo).n_envs == 2
+
+    meta = json.loads((run_dir / "meta.json").read_text())
+    for package in ("python", "numpy", "torch", "stable_baselines3", "sb3_contrib", "gymnasium"):
+        assert meta["versions"][package]
+    assert re.fullmatch(r"[0-9a-f]{40}", meta["git"]["revision"])
+    assert isinstance(meta["git"]["dirty"], bool)
+    (segment,) = meta["segments"]
+    assert segment["status"] == "completed"
+    assert segment["end_num_timesteps"] >= 300
+    assert segment["train_env_seeds"] == [train_env_seed(7, 0, 0), train_env_seed(7, 0, 1)] == [7, 8]
+    assert segment["eval_env_seeds"] == [eval_env_seed(7, 0)]
+    assert not set(segment["train_env_seeds"]) & set(segment["eval_env_seeds"])
+    assert zip_num_timesteps(run_dir / "final_model.zip") == segment["end_num_timesteps"]
+    command = (run_dir / "command.txt").read_text().splitlines()
+    assert len(command) == 1 and f"--algo {algo}" in command[0]
+
+
+@pytest.mark.parametrize("env_id", [e for e, _ in TEST_ENVS])
+@pytest.mark.parametrize("algo", ALGO_NAMES)
+def test_round_trip_gives_identical_actions(runs, tmp_path, algo, env_id):
+    run_dir = runs[algo, env_id]
+    env_kwargs = dict(TEST_ENVS)[env_id]
+    observations = _observations(env_id, env_kwargs)
+
+    # Reference: the SB3 model and VecNormalize exactly as SB3 loads them.
+    model = ALGOS[algo].load(run_dir / "final_model.zip", device="cpu")
+    vec_normalize = None
+    if (run_dir / "vecnormalize.pkl").is_file():
+        vec_normalize = VecNormalize.load(
+            str(run_dir / "vecnormalize.pkl"), DummyVecEnv([lambda: gym.make(env_id, **env_kwargs)])
+        )
+    expected = []
+    for obs in observations:
+        net_obs = vec_normalize.normalize_obs(obs) if vec_normalize is not None else obs
+        expected.append(model.predict(net_obs, deterministic=True)[0])
+
+    agent = load_agent(run_dir, trust=True)
+    exported = load_weights_only(export_agent(run_dir, tmp_path / "export", trust=True))
+    for controller in (agent, exported):
+        assert controller.algo == algo and controller.env_id == env_id
+        assert (controller.normalizer is not None) == (vec_normalize is not None)
+        controller.reset(seed=0)
+        for obs, action in zip(observations, expected):
+            np.testing.assert_array_equal(controller.predict(obs, {}), action)
+            assert controller.action_space.contains(controller.predict(obs, {}).astype(np.float32))
+    assert exported.num_timesteps == agent.num_timesteps == model.num_timesteps
+    assert exported.env_kwargs == env_kwargs
+    if vec_normalize is not None:
+        # The statistics are really applied: the network input differs from the raw observation.
+        obs = observations[0]
+        np.testing.assert_array_equal(agent.normalize(obs), vec_normalize.normalize_obs(obs))
+        np.testing.assert_array_equal(exported.normalize(obs), vec_normalize.normalize_obs(obs))
+        assert not np.allclose(agent.normalize(obs), obs)
+
+    best = load_agent(run_dir, which="best", trust=True)
+    best_model = ALGOS[algo].load(run_dir / "best_model.zip", device="cpu")
+    obs = observations[0]
+    net_obs = obs
+    if (run_dir / "best_vecnormalize.pkl").is_file():
+        net_obs = VecNormalize.load(
+            str(run_dir / "best_vecnormalize.pkl"), DummyVecEnv([lambda: gym.make(env_id, **env_kwargs)])
+        ).normalize_obs(obs)
+    np.testing.assert_array_equal(best.predict(obs, {}), best_model.predict(net_obs, deterministic=True)[0])
+
+
+def test_loading_pickles_requires_trust(runs, monkeypatch):
+    run_dir = runs["sac", TEST_ENVS[0][0]]
+    with pytest.raises(UntrustedFileError, match="trust=True"):
+        load_agent(run_dir)
+    with pytest.raises(UntrustedFileError):
+        load_sb3_zip(run_dir / "final_model.zip", trust=False)
+    with pytest.raises(UntrustedFileError):
+        export_agent(run_dir, run_dir.parent / "export_untrusted")
+    assert load_sb3_zip(run_dir / "final_model.zip", trust=True).num_timesteps > 0
+    # Files inside the repository's trained_agents/ folder are trusted without the flag.
+    monkeypatch.setattr(agent_policy, "TRUSTED_DIR", run_dir.parent)
+    assert load_agent(run_dir).algo == "sac"
+
+
+def test_weights_only_export_contains_no_pickle(runs, tmp_path):
+    run_dir = runs["ppo", TEST_ENVS[0][0]]
+    export = export_agent(run_dir, tmp_path / "export", trust=True)
+    assert sorted(p.name for p in export.iterdir()) == ["agent.json", "normalization.npz", "policy.pt"]
+
+    def _no_constants(name):
+        raise ValueError(name)
+
+    doc = json.loads((export / "agent.json").read_text(), parse_constant=_no_constants)  # strict JSON
+    assert doc["algo"] == "ppo" and doc["policy"] == "MlpPolicy"
+    assert doc["policy_kwargs"]["activation_fn"] == "tanh"
+    assert doc["policy_kwargs"]["net_arch"] == {"pi": [16], "vf": [16]}
+    assert doc["observation_space"]["shape"] == list(gym.make(TEST_ENVS[0][0]).observation_space.shape)
+    state = torch.load(export / "policy.pt", weights_only=True)
+    assert all(isinstance(v, torch.Tensor) for v in state.values())
+    with np.load(export / "normalization.npz", allow_pickle=False) as stats:
+        assert set(stats.files) == {"obs_mean", "obs_var"}
+    with pytest.raises(FileExistsError):
+        export_agent(run_dir, export, trust=True)
+
+    # Tampered weights: a pickled object that would create a file when unpickled.
+    marker = tmp_path / "pwned"
+    torch.save({**state, "payload": _Payload(str(marker))}, export / "policy.pt")
+    with pytest.raises(agent_policy.ExportFormatError, match="SHA-256"):
+        load_weights_only(export)
+    doc["files"]["policy.pt"] = agent_policy._sha256(export / "policy.pt")  # an attacker fixes the hash
+    (export / "agent.json").write_text(json.dumps(doc))
+    with pytest.raises(pickle.UnpicklingError):
+        load_weights_only(export)
+    assert not marker.exists()
+
+    # Unknown class names in the JSON are refused too.
+    torch.save(state, export / "policy.pt")
+    doc["files"]["policy.pt"] = agent_policy._sha256(export / "policy.pt")
+    doc["policy_kwargs"]["activation_fn"] = "os.system"
+    (export / "agent.json").write_text(json.dumps(doc))
+    with pytest.raises(agent_policy.ExportFormatError, match="activation_fn"):
+        load_weights_only(export)
+
+
+class _Payload:
+    def __init__(self, path: str) -> None:
+        self.path = path
+
+    def __reduce__(self):
+        return (Path.touch, (Path(self.path),))
+
+
+@pytest.mark.parametrize("algo", ["ppo", "sac"])
+def test_resume_continues_step_count(tmp_path, config_dir, algo):
+    env_id, env_kwargs = TEST_ENVS[0]
+    config = _write_config(tmp_path, algo, save_replay_buffer=True) if algo == "sac" else (config_dir / f"{algo}.yml")
+    run_dir = train(
+        algo, env_id, env_kwargs, config, seed=1, out_dir=tmp_path / "runs", progress=False, total_timesteps=200
+    )
+    before = zip_num_timesteps(run_dir / "final_model.zip")
+    assert latest_checkpoint(run_dir).model == run_dir / "final_model.zip"
+    with pytest.raises(RunDirError, match="--resume"):
+        train(algo, env_id, env_kwargs, config, seed=1, out_dir=tmp_path / "runs", progress=False)
+
+    assert train(resume_dir=run_dir, total_timesteps=200, progress=False) == run_dir
+    model = ALGOS[algo].load(run_dir / "final_model.zip")
+    assert model.num_timesteps > before
+    assert model.num_timesteps >= before + 200
+    for segment in ("seg0", "seg1"):
+        assert (run_dir / "logs" / segment / "progress.csv").is_file()
+        assert (run_dir / "monitor" / f"{segment}_train_0.monitor.csv").is_file()
+    progress = (run_dir / "logs" / "seg1" / "progress.csv").read_text().splitlines()
+    header = progress[0].split(",")
+    steps = [
+        int(float(row.split(",")[header.index("time/total_timesteps")]))
+        for row in progress[1:]
+        if row.split(",")[header.index("time/total_timesteps")]
+    ]
+    assert steps and min(steps) > before  # the step axis continues
+    meta = json.loads((run_dir / "meta.json").read_text())
+    assert [s["status"] for s in meta["segments"]] == ["completed", "completed"]
+    first, second = meta["segments"]
+    assert second["start_num_timesteps"] == first["end_num_timesteps"] == before
+    assert second["resumed_from"] == "final_model.zip"
+    assert not set(first["train_env_seeds"]) & set(second["train_env_seeds"])
+    assert len((run_dir / "command.txt").read_text().splitlines()) == 2
+    if algo == "sac":
+        assert (run_dir / "replay_buffer.pkl").is_file()
+    # A finished run needs --total-timesteps to continue.
+    with pytest.raises(ConfigError, match="--total-timesteps"):
+        train(resume_dir=run_dir, progress=False, total_timesteps=None)
+    with pytest.raises(ConfigError, match="differs"):
+        train(algo="td3", resume_dir=run_dir, total_timesteps=10, progress=False)
+
+
+def test_same_seed_gives_identical_weights(tmp_path, config_dir):
+    env_id, env_kwargs = TEST_ENVS[0]
+    weights = []
+    for out in ("a", "b"):
+        run_dir = train(
+            "sac",
+            env_id,
+            env_kwargs,
+            config_dir / "sac.yml",
+            seed=5,
+            out_dir=tmp_path / out,
+            progress=False,
+            total_timesteps=150,
+        )
+        model = ALGOS["sac"].load(run_dir / "final_model.zip")
+        weights.append(torch.cat([p.flatten() for p in model.policy.parameters()]))
+    torch.testing.assert_close(weights[0], weights[1], rtol=0, atol=0)
+
+
+def test_cli(tmp_path, config_dir, capsys):
+    env_id = TEST_ENVS[0][0]
+    argv = [
+        "--algo",
+        "td3",
+        "--env",
+        env_id,
+        "--config",
+        str(config_dir / "td3.yml"),
+        "--seed",
+        "2",
+        "--total-timesteps",
+        "120",
+        "--n-envs",
+        "1",
+        "--out",
+        str(tmp_path),
+        "--no-progress",
+        "--env-kwargs",
+        "max_episode_steps=50",
+        "--hyperparams",
+        "learning_rate=1.0e-3",
+        "eval_freq=0",
+        "checkpoint_freq=0",
+    ]
+    assert main(argv) == 0
+    run_dir = run_dir_for(tmp_path, env_id, "td3", 2)
+    assert capsys.readouterr().out.strip() == str(run_dir)
+    resolved = yaml.safe_load((run_dir / "config.yml").read_text())["config"]
+    assert resolved["env_kwargs"] == {"max_episode_steps": 50}
+    assert resolved["n_envs"] == 1 and resolved["learning_rate"] == 1.0e-3
+    assert not (run_dir / "best_model.zip").exists() and not (run_dir / "checkpoints").exists()
+    assert "--env-kwargs max_episode_steps=50" in (run_dir / "command.txt").read_text()
+
+    assert main(argv) == 2  # exists
+    assert "--resume" in capsys.readouterr().err
+    assert main(["--algo", "sac", "--env", "uvdms/NoSuchEnv-v0", "--out", str(tmp_path), "--no-progress"]) == 2
+    assert "not registered" in capsys.readouterr().err
+    assert main(["--algo", "sac", "--env", env_id, "--out", str(tmp_path), "--hyperparams", "gama=0.9"]) == 2
+    assert "'gama'" in capsys.readouterr().err
+
+
+def test_missing_env_package_is_reported(tmp_path, config_dir):
+    with pytest.raises(EnvironmentNotFoundError, match=r"no_such_gym_pkg.*ModuleNotFoundError"):
+        train(
+            "sac",
+            "NoSuch-v0",
+            None,
+            config_dir / "sac.yml",
+            out_dir=tmp_path,
+            progress=False,
+            gym_packages=["no_such_gym_pkg"],
+        )
+
+
+def test_subproc_vec_env(tmp_path, config_dir):
+    env_id, env_kwargs = TEST_ENVS[0]
+    run_dir = train(
+        "sac",
+        env_id,
+        env_kwargs,
+        config_dir / "sac.yml",
+        out_dir=tmp_path,
+        progress=False,
+        total_timesteps=100,
+        vec_env="subproc",
+        hyperparams={"eval_freq": 0, "checkpoint_freq": 0},
+    )
+    meta = json.loads((run_dir / "meta.json").read_text())
+    assert meta["segments"][0]["vec_env"] == "subproc"
+    assert meta["segments"][0]["status"] == "completed"
+    assert (run_dir / "monitor" / "seg0_train_1.monitor.csv").is_file()

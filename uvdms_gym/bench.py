@@ -1,0 +1,116 @@
+"""Benchmarks behind ``uvdms bench {sim,env,mpc} --json``: medians (µs) and ratios measured in one run.
+
+Timings are medians of repeated blocks (each block averages many calls, so timer overhead is negligible).
+They are measurements, never test assertions.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from uvdms_gym.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG, UVDMSParams
+
+
+def _median_us(fn: Callable[[], object], calls: int, blocks: int) -> float:
+    """Median over ``blocks`` of the mean time per call of ``calls`` calls, in µs."""
+    fn()  # warm-up
+    per_call = []
+    for _ in range(blocks):
+        t0 = time.perf_counter()
+        for _ in range(calls):
+            fn()
+        per_call.append((time.perf_counter() - t0) / calls)
+    return float(np.median(per_call) * 1e6)
+
+
+def bench_sim(quick: bool = False) -> dict:
+    """Bare ``stepSimulation`` vs one substep with hydrodynamics, the three distance methods and ``J_dis``."""
+    from uvdms_gym.distances import compute_distances, distance_jacobian, pybullet_distances
+    from uvdms_gym.kinematics import KinematicModel
+    from uvdms_gym.sim import UVDMSSim
+
+    calls, blocks = (200, 5) if quick else (1000, 15)
+    params = UVDMSParams()
+    q0 = np.radians(np.array(CIRCLE_Q0_LEFT_DEG + CIRCLE_Q0_RIGHT_DEG))
+    eta0 = np.array([2.0, 0.0, 3.0, 0.0, 0.0, 0.0])
+    rng = np.random.default_rng(0)
+    out: dict = {"physics_dt": None}
+    with UVDMSSim(params) as sim:
+        sim.reset(eta0, q=q0)
+        out["physics_dt"] = sim.physics_dt
+        tau = np.zeros(18)
+        tau[6:] = rng.uniform(-1.0, 1.0, 12)
+
+        def reset_if_far() -> None:
+            if sim.t > 5.0:
+                sim.reset(eta0, q=q0)
+
+        # interleave the two measurements block by block so machine load affects both alike
+        bare, full = [], []
+        for _ in range(blocks):
+            reset_if_far()
+            bare.append(_median_us(sim.bare_step, calls, 1))
+            reset_if_far()
+            full.append(_median_us(lambda: sim.step(tau), calls, 1))
+        out["bare_step_us"] = float(np.median(bare))
+        out["physics_step_us"] = float(np.median(full))
+        out["overhead_ratio"] = out["physics_step_us"] / out["bare_step_us"]
+        sim.reset(eta0, q=q0)
+        pb = _median_us(lambda: pybullet_distances(sim.client, sim.body_id, sim.link_index, params), calls // 4, blocks)
+    kin = KinematicModel(params)
+    kin.set_state(eta0, q0)
+    exact = _median_us(lambda: compute_distances(kin, "exact"), calls, blocks)
+    sampled = _median_us(lambda: compute_distances(kin, "sampled", n=20), calls, blocks)
+    res = compute_distances(kin, "exact")
+    jdis = _median_us(lambda: distance_jacobian(kin, res), calls, blocks)
+    both = _median_us(lambda: distance_jacobian(kin, compute_distances(kin, "exact")), calls, blocks)
+    out["distances_us"] = {"exact": exact, "sampled_n20": sampled, "pybullet": pb}
+    out["jdis_us"] = jdis
+    out["exact_plus_jdis_us"] = both
+    return out
+
+
+def bench_env(quick: bool = False) -> dict:
+    """Environment steps per second (velocity mode, random actions) and the ratio to bare physics."""
+    import gymnasium as gym
+
+    import uvdms_gym
+    from uvdms_gym.sim import UVDMSSim
+
+    n_steps = 300 if quick else 2000
+    result: dict = {}
+    with UVDMSSim(UVDMSParams()) as sim:
+        sim.reset(np.array([2.0, 0.0, 3.0, 0.0, 0.0, 0.0]))
+        bare_us = _median_us(sim.bare_step, 500, 5)
+    for env_id in uvdms_gym.ENV_IDS:
+        env = gym.make(env_id, action_mode="velocity", terminate_on_contact=False)
+        rng = np.random.default_rng(0)
+        env.reset(seed=0)
+        n_sub = env.unwrapped.n_substeps
+        actions = rng.uniform(-0.3, 0.3, (n_steps, 18)).astype(np.float32)
+        t0 = time.perf_counter()
+        for a in actions:
+            _, _, term, trunc, _ = env.step(a)
+            if term or trunc:
+                env.reset()
+        elapsed = time.perf_counter() - t0
+        env.close()
+        step_us = elapsed / n_steps * 1e6
+        result[env_id] = {
+            "steps_per_s": n_steps / elapsed,
+            "step_us": step_us,
+            "ratio_to_bare_physics": step_us / (n_sub * bare_us),
+            "substeps": n_sub,
+        }
+    result["bare_step_us"] = bare_us
+    return result
+
+
+def bench_mpc(quick: bool = False) -> dict:
+    """CAMPC control-step cost and the same QP sequence on OSQP (see ``baselines``)."""
+    from baselines.bench import benchmark_all
+
+    return benchmark_all(quick=quick)
