@@ -4,7 +4,7 @@ Structure (link names)::
 
     vehicle (base, hull inertia at r_G; visual box, no collision shape)
     ├── added_mass            fixed, virtual rigid body carrying the isotropic added mass (see params)
-    ├── plate_{front,left,right,bottom}   fixed, box collision shapes (the frame obstacles)
+    ├── plate_{front,left,right,bottom}   fixed, the frame obstacles: box + 4 edge capsules (rounded edges)
     └── {left,right}_link0    fixed arm base shell at T_B{l,r}
         └── {side}_link1 .. {side}_link6   revolute joints {side}_joint1 .. {side}_joint6 (DH, a_i = 0)
             └── {side}_ee (fixed, tool tip)  and  {side}_grasp (fixed, the gripped object's frame)
@@ -130,7 +130,32 @@ def _cylinder_inertia(mass: float, radius: float, length: float, axis: np.ndarra
     return tuple(axial if abs(a) > 0.5 else transverse for a in axis)
 
 
-def build_urdf(params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: bool = True) -> str:
+def _plate_edges(plate) -> str:
+    """Collision capsules of radius ``t/2`` along the four edges of a plate (in the plate's frame).
+
+    Box plus edge capsules is exactly the plate's mid-surface rectangle swept by a ball of radius ``t/2``,
+    so a capsule link touches the plate exactly when its axis is ``r + t/2`` from the rectangle, also beside
+    the edges (a bare box touches there at ``r``; measured in ``tests/test_distances.py``).
+    """
+    hx, hy = plate.half_extents
+    rho = 0.5 * plate.thickness
+    out = []
+    for xyz, rpy, length in (
+        ((0.0, hy, 0.0), (0.0, math.pi / 2, 0.0), 2 * hx),
+        ((0.0, -hy, 0.0), (0.0, math.pi / 2, 0.0), 2 * hx),
+        ((hx, 0.0, 0.0), (math.pi / 2, 0.0, 0.0), 2 * hy),
+        ((-hx, 0.0, 0.0), (math.pi / 2, 0.0, 0.0), 2 * hy),
+    ):
+        out.append(
+            f'<collision><origin xyz="{_fmt(xyz)}" rpy="{_fmt(rpy)}"/>'
+            f'<geometry><capsule radius="{rho:.12g}" length="{length:.12g}"/></geometry></collision>'
+        )
+    return "".join(out)
+
+
+def build_urdf(
+    params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: bool = True, arms: bool = True
+) -> str:
     """URDF text of the vehicle, frame plates and both arms.
 
     Args:
@@ -139,6 +164,8 @@ def build_urdf(params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: 
             the origin). The simulator always includes it; a bare rigid-body model omits it.
         shapes: include visual and collision shapes (Pinocchio's parser cannot read capsules, so the
             kinematic model is built without them; distances are computed analytically).
+        arms: include both arms (``False``: the bare vehicle with its frame plates, used by the
+            simulator's hydrostatics and 1-DOF hydrodynamics tests).
     """
     v = params.vehicle
     parts = [
@@ -162,17 +189,18 @@ def build_urdf(params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: 
         rot = np.column_stack([u, w, n])
         size = (2 * plate.half_extents[0], 2 * plate.half_extents[1], plate.thickness)
         geom = f'<geometry><box size="{_fmt(size)}"/></geometry>'
+        edges = _plate_edges(plate) if shapes else ""  # Pinocchio's URDF parser rejects capsules
         parts.append(
             f'<link name="plate_{plate.name}">{_inertial(TINY_MASS, (0, 0, 0), (TINY_INERTIA,) * 3)}'
             f'<visual><origin xyz="0 0 0" rpy="0 0 0"/>{geom}<material name="plate"/></visual>'
-            f'<collision><origin xyz="0 0 0" rpy="0 0 0"/>{geom}</collision></link>'
+            f'<collision><origin xyz="0 0 0" rpy="0 0 0"/>{geom}</collision>{edges}</link>'
         )
         parts.append(
             _fixed(f"plate_{plate.name}_joint", "vehicle", f"plate_{plate.name}", plate.center, rot_to_rpy(rot))
         )
     arm = params.arm
     mount_rpy = rot_to_rpy(mount_rotation(params))
-    for side in ARM_SIDES:
+    for side in ARM_SIDES if arms else ():
         base = params.arm_base_left if side == "left" else params.arm_base_right
         for i in range(arm.n_links):
             a, b = link_segment(params, i)

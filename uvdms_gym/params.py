@@ -171,7 +171,9 @@ class FramePlate:
 
     The plate is the rectangle ``center + s * u + t * v`` with ``|s| <= half_extents[0]``,
     ``|t| <= half_extents[1]``; ``u`` and ``v`` are unit, orthogonal, in body coordinates. Its physical
-    (PyBullet) shape is a box of that rectangle and thickness :attr:`thickness`.
+    (PyBullet) shape is that rectangle swept by a ball of radius ``thickness / 2``: a box of the rectangle and
+    :attr:`thickness` plus capsules along its four edges (``model._plate_edges``), so that a link touches it
+    exactly when its axis is ``link_radius + thickness / 2`` from the rectangle, edges included.
     """
 
     name: str

@@ -1,0 +1,30 @@
+"""Reference controllers of the UVDMS benchmark (the paper's method and its ablations).
+
+* :mod:`baselines.mpc` — the kinematic MPC / CAMPC QP core (:class:`KinematicMPC`, :class:`MPCConfig`);
+* :mod:`baselines.campc` — its model-based front end (:class:`MPCController`, :func:`make_mpc_controller`);
+* :mod:`baselines.di` — dynamic inversion with RBF compensation (:class:`DynamicInversionController`);
+* :mod:`baselines.cascade` — MPC outer loop + DI inner loop (:class:`CascadeController`);
+* :mod:`baselines.bench` — timings (:func:`benchmark_mpc`, :func:`benchmark_di`) and the OSQP replay.
+"""
+
+from baselines.campc import MPCController, make_mpc_controller, task_config
+from baselines.cascade import CascadeController, CascadeOutput
+from baselines.di import DIConfig, DIOutput, DynamicInversionController, UVDMSNominalModel
+from baselines.mpc import KinematicMPC, MPCConfig, MPCProblem, MPCStepRecord, QPMatrices
+
+__all__ = [
+    "CascadeController",
+    "CascadeOutput",
+    "DIConfig",
+    "DIOutput",
+    "DynamicInversionController",
+    "KinematicMPC",
+    "MPCConfig",
+    "MPCController",
+    "MPCProblem",
+    "MPCStepRecord",
+    "QPMatrices",
+    "UVDMSNominalModel",
+    "make_mpc_controller",
+    "task_config",
+]

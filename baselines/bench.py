@@ -1,0 +1,233 @@
+"""Timing of the CAMPC control step and an OSQP replay of the same QP sequence.
+
+:func:`benchmark_mpc` runs CAMPC in closed loop on the *kinematic* model of the circle task (the command is
+integrated exactly with ``pin.integrate``, no dynamics simulator needed), times every control step
+(kinematics + distances + ``J_dis`` + QP build + warm-started ProxSuite solve) and then replays the recorded
+QP sequence with OSQP (set up once, warm-started, matrices updated in place) at the same absolute
+tolerance. :class:`OSQPReplay` is also the independent solver used by the tests.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from baselines.mpc import INF, KinematicMPC, MPCConfig, MPCProblem, QPMatrices
+
+_OSQP_INF = 1e30
+
+
+def _csc_values(mat: np.ndarray, pattern: sp.csc_matrix) -> np.ndarray:
+    """Values of a dense matrix in the order of a CSC pattern's data array."""
+    cols = np.repeat(np.arange(pattern.shape[1]), np.diff(pattern.indptr))
+    return np.ascontiguousarray(mat[pattern.indices, cols])
+
+
+class OSQPReplay:
+    """OSQP on the same QP sequence: set up once on a fixed structural pattern, then update + solve.
+
+    The constraint matrix is ``[A; C; I]`` (equalities as ``l = u`` rows, the box as identity rows).
+    """
+
+    def __init__(self, mpc: KinematicMPC, eps_abs: float, eps_rel: float = 0.0, **settings: object) -> None:
+        """Derive the sparsity patterns from an all-ones problem and store the settings.
+
+        Args:
+            mpc: the controller whose QPs are replayed (for dimensions and structure).
+            eps_abs: OSQP absolute tolerance.
+            eps_rel: OSQP relative tolerance.
+            **settings: further OSQP settings (e.g. ``polishing=True``, ``max_iter``).
+        """
+        cfg = mpc.config
+        ones = MPCProblem(
+            e0=np.ones((cfg.n_p, mpc.m)),
+            j_y=np.ones((mpc.m, 18)),
+            q=np.zeros(12),
+            j_dis=np.ones((18, 18)),
+            d=np.ones(18),
+            j_eq=np.ones((cfg.n_eq_rows, 18)),
+        )
+        probe = KinematicMPC(cfg, mpc.params, mpc.m)
+        mats = probe.qp_matrices(ones)
+        self.n = mats.H.shape[0]
+        self.p_pattern = sp.csc_matrix(np.triu(mats.H != 0).astype(float))
+        self.a_pattern = sp.csc_matrix(self._stack(mats)[0] != 0)
+        self.settings = {"eps_abs": eps_abs, "eps_rel": eps_rel, "verbose": False, "warm_starting": True, **settings}
+        self.solver: osqp.OSQP | None = None
+
+    def _stack(self, m: QPMatrices) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        c, lo, up = m.full_inequalities(include_box=True)
+        a = np.vstack([m.A, c])
+        lo = np.concatenate([m.b, lo])
+        up = np.concatenate([m.b, up])
+        lo = np.where(lo <= -INF, -_OSQP_INF, lo)
+        up = np.where(up >= INF, _OSQP_INF, up)
+        return a, lo, up
+
+    def solve(self, m: QPMatrices) -> tuple[np.ndarray, str, int, float]:
+        """Solve one QP of the sequence (the first call sets OSQP up).
+
+        Args:
+            m: the step's matrices.
+
+        Returns:
+            ``(x, status, iterations, wall time of update + solve in µs)``.
+        """
+        a, lo, up = self._stack(m)
+        px = _csc_values(np.triu(m.H), self.p_pattern)
+        ax = _csc_values(a, self.a_pattern)
+        t0 = time.perf_counter()
+        if self.solver is None:
+            p = self.p_pattern.copy()
+            p.data = px
+            amat = self.a_pattern.copy().astype(float)
+            amat.data = ax
+            self.solver = osqp.OSQP()
+            self.solver.setup(p, m.g, amat, lo, up, **self.settings)
+        else:
+            self.solver.update(q=m.g, l=lo, u=up, Px=px, Ax=ax)
+        res = self.solver.solve(raise_error=False)
+        dt = (time.perf_counter() - t0) * 1e6
+        return np.array(res.x), str(res.info.status), int(res.info.iter), dt
+
+
+def benchmark_mpc(
+    n_steps: int = 200,
+    case: int = 1,
+    config: MPCConfig | None = None,
+    osqp_compare: bool = True,
+    warmup: int = 20,
+    osqp_eps_abs: float | None = None,
+) -> dict[str, float | int | str]:
+    """Median cost of a CAMPC control step on the circle task, and the OSQP replay for a ratio.
+
+    Args:
+        n_steps: timed control steps (closed loop on the kinematic model, ``T_c`` apart).
+        case: circle case (1 or 2).
+        config: MPC settings (default: CAMPC, ``N_c = 5``, ``N_p = 10``).
+        osqp_compare: also replay the QP sequence with OSQP at the same ``eps_abs``.
+        warmup: untimed steps before the timed ones (start-up transient, caches).
+        osqp_eps_abs: OSQP's absolute tolerance; ``None`` means ProxSuite's ``eps_abs`` (equal tolerance).
+
+    Returns:
+        A flat dict (JSON-ready): ``step_us_median`` (kinematics + distances + build + solve),
+        ``step_us_p90``, ``step_us_max``, ``solve_us_median`` (ProxSuite update + solve), ``build_us_median``,
+        ``model_us_median`` (kinematics + distances + ``J_dis``), ``iterations_median``, ``iterations_max``,
+        ``unsolved`` (steps not ``"solved"``), ``cold_retries``, QP sizes, and with OSQP ``osqp_us_median``,
+        ``osqp_iterations_median``, ``osqp_unsolved``, ``osqp_over_proxsuite`` (ratio of median solve times)
+        and ``max_solution_diff`` (largest ``|x_osqp - x_proxsuite|_inf`` over the sequence).
+    """
+    import pinocchio as pin
+
+    from baselines.campc import MPCController
+    from uvdms_gym.envs.tasks import make_circle_task
+    from uvdms_gym.frames import quat_xyzw_to_rot, rot_to_euler
+
+    cfg = config or MPCConfig()
+    task = make_circle_task(case)
+    ctl = MPCController("ee_positions", cfg)
+    kin = ctl.kin
+    eta = np.array(task.vehicle_start, dtype=float)
+    q = task.q0.copy()
+    config_vec = kin.configuration(eta, q)
+    steps, solves, builds, iters, statuses = [], [], [], [], []
+    mats: list[QPMatrices] = []
+    xs: list[np.ndarray] = []
+    for k in range(warmup + n_steps):
+        y_ref = task.reference(ctl.reference_times(k * cfg.t_c))
+        rec = ctl.step(eta, q, y_ref)
+        if k >= warmup:
+            steps.append(rec.total_us)
+            solves.append(rec.solve_us)
+            builds.append(rec.build_us)
+            iters.append(rec.iterations)
+            statuses.append(rec.status)
+            if osqp_compare:
+                assert ctl.last_problem is not None
+                mats.append(ctl.mpc.qp_matrices(ctl.last_problem))
+                xs.append(ctl.mpc.qp.results.x.copy())
+        config_vec = pin.integrate(kin.model, config_vec, rec.zeta_cmd * cfg.t_c)
+        eta = np.concatenate([config_vec[:3], rot_to_euler(quat_xyzw_to_rot(config_vec[3:7]))])
+        q = config_vec[7:].copy()
+    steps_a, solves_a = np.array(steps), np.array(solves)
+    out: dict[str, float | int | str] = {
+        "case": case,
+        "n_steps": n_steps,
+        "n": ctl.mpc.n,
+        "n_eq": ctl.mpc.n_eq,
+        "n_in": ctl.mpc.n_in,
+        "box_constraints": int(cfg.box_constraints),
+        "eps_abs": cfg.eps_abs,
+        "step_us_median": float(np.median(steps_a)),
+        "step_us_p90": float(np.percentile(steps_a, 90)),
+        "step_us_max": float(steps_a.max()),
+        "solve_us_median": float(np.median(solves_a)),
+        "build_us_median": float(np.median(builds)),
+        "model_us_median": float(np.median(steps_a - solves_a - np.array(builds))),
+        "iterations_median": float(np.median(iters)),
+        "iterations_max": int(max(iters)),
+        "unsolved": int(sum(s != "solved" for s in statuses)),
+        "cold_retries": int(ctl.mpc.n_cold_retries),
+    }
+    if osqp_compare:
+        eps = cfg.eps_abs if osqp_eps_abs is None else osqp_eps_abs
+        out["osqp_eps_abs"] = eps
+        rep = OSQPReplay(ctl.mpc, eps_abs=eps, eps_rel=cfg.eps_rel, polishing=False, max_iter=20000)
+        o_us, o_it, o_bad, diff = [], [], 0, 0.0
+        for m, x in zip(mats, xs):
+            xo, status, it, us = rep.solve(m)
+            o_us.append(us)
+            o_it.append(it)
+            err = float(np.max(np.abs(xo - x)))
+            o_bad += status != "solved" or not np.isfinite(err)
+            diff = max(diff, err) if np.isfinite(err) else diff
+        out["osqp_us_median"] = float(np.median(o_us[1:] if len(o_us) > 1 else o_us))
+        out["osqp_iterations_median"] = float(np.median(o_it))
+        out["osqp_unsolved"] = int(o_bad)
+        out["osqp_over_proxsuite"] = out["osqp_us_median"] / out["solve_us_median"]
+        out["max_solution_diff"] = diff
+    return out
+
+
+def benchmark_configs() -> dict[str, MPCConfig]:
+    """Named configurations for comparison runs (defaults, rows instead of box, plain MPC)."""
+    base = MPCConfig()
+    return {
+        "campc": base,
+        "campc_rows": replace(base, box_constraints=False),
+        "campc_j0": replace(base, collision_steps=1),
+        "mpc": replace(base, collision=False),
+    }
+
+
+def benchmark_di(n_steps: int = 500, use_nn: bool = True) -> dict[str, float | int]:
+    """Median cost of one dynamic-inversion tick on the UVDMS nominal model (model + network + update).
+
+    Args:
+        n_steps: timed ticks (random states near the circle task's start).
+        use_nn: include the RBF network.
+
+    Returns:
+        ``{"di_us_median", "di_us_p90", "n_steps"}``.
+    """
+    from baselines.di import DIConfig, DynamicInversionController
+    from uvdms_gym.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG
+
+    ctl = DynamicInversionController(DIConfig(use_nn=use_nn))
+    rng = np.random.default_rng(0)
+    q0 = np.radians(np.r_[CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG])
+    eta0 = np.array([2.0, 0.0, 3.0, 0.0, 0.0, 0.0])
+    times = []
+    for _ in range(n_steps + 10):
+        eta = eta0 + rng.normal(size=6) * 0.01
+        q = q0 + rng.normal(size=12) * 0.01
+        zeta = rng.normal(size=18) * 0.05
+        t0 = time.perf_counter()
+        ctl.step(np.zeros(18), eta, q, zeta)
+        times.append((time.perf_counter() - t0) * 1e6)
+    arr = np.array(times[10:])
+    return {"di_us_median": float(np.median(arr)), "di_us_p90": float(np.percentile(arr, 90)), "n_steps": n_steps}

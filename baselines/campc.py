@@ -1,0 +1,241 @@
+"""Model-based front end of the kinematic MPC: state + reference window -> :class:`~baselines.mpc.MPCProblem`.
+
+:class:`MPCController` owns a :class:`~uvdms_gym.kinematics.KinematicModel` and a
+:class:`~baselines.mpc.KinematicMPC`; each :meth:`MPCController.step` runs kinematics, (CAMPC) distances and
+``J_dis``, builds the QP and solves it. Tracked outputs:
+
+* ``"ee_positions"`` (circle tasks): ``y = [p_left; p_right]`` (6), ``J_y`` = the linear rows of ``J``;
+* ``"object_pose"`` (transport): ``y = [p_o; orientation]`` with the reference given as ZYX Euler angles; the
+  orientation error is the rotation-error vector ``rot_error(R_d, R_o)`` (wrapped, in NED) and ``J_y`` is the
+  object Jacobian ``J_o`` (through the right arm) whose angular rows integrate it. The closed-chain equality
+  uses ``J_o,left - J_o,right``.
+
+With ``config.attitude_weight > 0`` two outputs are appended: vehicle roll and pitch regulated to zero
+(``[phi, theta]_dot = T(eta2)[0:2] nu2``), as in the paper's transport run.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import Literal
+
+import numpy as np
+
+from baselines.mpc import KinematicMPC, MPCConfig, MPCProblem, MPCStepRecord, euler_to_rot_batch, rotation_errors
+from uvdms_gym import distances
+from uvdms_gym.frames import euler_rate_matrix
+from uvdms_gym.kinematics import KinematicModel
+from uvdms_gym.params import UVDMSParams
+
+OutputKind = Literal["ee_positions", "object_pose"]
+
+
+class MPCController:
+    """Kinematic MPC (``config.collision=False``) or CAMPC (``True``) on the UVDMS kinematic model.
+
+    Attributes:
+        output: the tracked output kind.
+        config: the MPC settings.
+        kin: the kinematic model (its state is the last step's).
+        mpc: the QP core (one ProxSuite object, allocated once).
+        last_distances: the :class:`~uvdms_gym.distances.DistanceResult` of the last CAMPC step.
+    """
+
+    def __init__(
+        self,
+        output: OutputKind = "ee_positions",
+        config: MPCConfig | None = None,
+        params: UVDMSParams | None = None,
+        kin: KinematicModel | None = None,
+    ) -> None:
+        """Build the controller.
+
+        Args:
+            output: ``"ee_positions"`` (circle tasks) or ``"object_pose"`` (transport).
+            config: MPC settings; for ``"object_pose"`` the closed-chain equality is switched on.
+            params: physical parameters; defaults to :class:`UVDMSParams`.
+            kin: a kinematic model to reuse (its state is overwritten every step); built if ``None``.
+        """
+        if output not in ("ee_positions", "object_pose"):
+            raise ValueError(f"output must be 'ee_positions' or 'object_pose', got {output!r}")
+        cfg = config or MPCConfig()
+        if output == "object_pose" and not cfg.closed_chain:
+            cfg = replace(cfg, closed_chain=True)
+        self.output = output
+        self.config = cfg
+        self.params = params or UVDMSParams()
+        self.kin = kin or KinematicModel(self.params)
+        self.n_att = 2 if cfg.attitude_weight > 0.0 else 0
+        self.n_post = 12 if cfg.posture_weight > 0.0 else 0
+        m = 6 + self.n_att + self.n_post
+        qw = np.ones(m)
+        qw[:6] = np.broadcast_to(np.asarray(cfg.q_weight, dtype=float), (6,))
+        qw[6 : 6 + self.n_att] = cfg.attitude_weight
+        qw[6 + self.n_att :] = cfg.posture_weight
+        self.q_nominal: np.ndarray | None = None
+        self.mpc = KinematicMPC(replace(cfg, q_weight=tuple(qw)), self.params, n_outputs=m)
+        self.last_distances: distances.DistanceResult | None = None
+        self.last_problem: MPCProblem | None = None
+
+    def reset(self) -> None:
+        """Start a new episode (the next solve is cold; the QP object is kept)."""
+        self.mpc.reset()
+        self.q_nominal = None
+        self.last_distances = None
+        self.last_problem = None
+
+    def output_and_jacobian(self) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """Current output ``y`` (positions; for a pose the rotation is returned separately) and ``J_y``.
+
+        Returns:
+            ``(y, J_y, R)``: ``y`` (6) with the orientation part zero for ``"object_pose"`` (its error is
+            computed from ``R``), ``J_y`` (6, 18), ``R`` the object rotation or ``None``.
+        """
+        kin = self.kin
+        if self.output == "ee_positions":
+            j = kin.ee_jacobian()
+            return kin.ee_positions().ravel(), j[[0, 1, 2, 6, 7, 8]], None
+        p, r = kin.object_pose("right")
+        y = np.concatenate([p, np.zeros(3)])
+        return y, kin.object_jacobian("right"), r
+
+    def make_problem(self, eta: np.ndarray, q: np.ndarray, y_ref: np.ndarray) -> MPCProblem:
+        """Set the kinematic state and assemble the step's problem (kinematics, distances, ``J_dis``).
+
+        Args:
+            eta: vehicle pose (6).
+            q: joint angles (12).
+            y_ref: reference at ``t + j T_c``, ``j = 1..N_p``, shape ``(N_p, 6)``: ``[p_l; p_r]`` or
+                ``[x y z phi theta psi]`` (ZYX Euler, rad) for ``"object_pose"``.
+
+        Returns:
+            The problem (also kept as :attr:`last_problem`).
+        """
+        cfg = self.config
+        eta = np.asarray(eta, dtype=float)
+        q = np.asarray(q, dtype=float)
+        y_ref = np.asarray(y_ref, dtype=float)
+        if y_ref.shape != (cfg.n_p, 6):
+            raise ValueError(f"y_ref must have shape ({cfg.n_p}, 6), got {y_ref.shape}")
+        kin = self.kin
+        kin.set_state(eta, q)
+        y, jy, rot = self.output_and_jacobian()
+        m = 6 + self.n_att + self.n_post
+        e0 = np.empty((cfg.n_p, m))
+        j_y = np.zeros((m, 18))
+        j_y[:6] = jy
+        if rot is None:
+            e0[:, :6] = y_ref - y[None, :]
+        else:
+            e0[:, :3] = y_ref[:, :3] - y[None, :3]
+            e0[:, 3:6] = rotation_errors(euler_to_rot_batch(y_ref[:, 3:6]), rot)
+        if self.n_att:
+            t = euler_rate_matrix(eta[3:6])
+            j_y[6:8, 3:6] = t[:2]
+            e0[:, 6:8] = -eta[None, 3:5]
+        if self.n_post:
+            if self.q_nominal is None:
+                self.q_nominal = q.copy()
+            r0 = 6 + self.n_att
+            j_y[r0:, 6:] = np.eye(12)
+            e0[:, r0:] = (self.q_nominal - q)[None, :]
+        problem = MPCProblem(e0=e0, j_y=j_y, q=q)
+        if cfg.collision:
+            res = distances.compute_distances(kin, cfg.distance_method, cfg.distance_samples)
+            problem.d = res.d
+            problem.j_dis = distances.distance_jacobian(kin, res)
+            self.last_distances = res
+        if cfg.closed_chain:
+            problem.j_eq = kin.object_jacobian("left") - kin.object_jacobian("right")
+        self.last_problem = problem
+        return problem
+
+    def step(self, eta: np.ndarray, q: np.ndarray, y_ref: np.ndarray) -> MPCStepRecord:
+        """One control step: kinematics, distances, QP build and warm-started solve.
+
+        Args:
+            eta: vehicle pose (6).
+            q: joint angles (12).
+            y_ref: the reference window (see :meth:`make_problem`).
+
+        Returns:
+            The step record; ``total_us`` covers the whole step, ``d`` the distances used (CAMPC).
+        """
+        t0 = time.perf_counter()
+        problem = self.make_problem(eta, q, y_ref)
+        rec = self.mpc.solve(problem)
+        rec.total_us = (time.perf_counter() - t0) * 1e6
+        rec.d = problem.d
+        return rec
+
+    def reference_times(self, t: float) -> np.ndarray:
+        """Times ``t + j T_c``, ``j = 1..N_p``, at which :meth:`step` expects the reference."""
+        return t + self.config.t_c * np.arange(1, self.config.n_p + 1)
+
+
+def resample_reference(t_grid: np.ndarray, y_grid: np.ndarray, times: np.ndarray, angle_cols=()) -> np.ndarray:
+    """Linear interpolation of a reference given on a time grid (held beyond its ends).
+
+    Args:
+        t_grid: increasing times (N,).
+        y_grid: values (N, k).
+        times: query times (M,).
+        angle_cols: columns holding angles (unwrapped before and wrapped after interpolation).
+
+    Returns:
+        Values at ``times`` (M, k).
+    """
+    y = np.array(y_grid, dtype=float)
+    cols = list(angle_cols)
+    if cols:
+        y[:, cols] = np.unwrap(y[:, cols], axis=0)
+    out = np.stack([np.interp(times, t_grid, y[:, i]) for i in range(y.shape[1])], axis=-1)
+    if cols:
+        out[:, cols] = (out[:, cols] + np.pi) % (2.0 * np.pi) - np.pi
+    return out
+
+
+def task_config(task: Literal["circle", "transport"], collision: bool = True, **overrides: object) -> MPCConfig:
+    """The MPC settings used for a task (SPEC section 5); ``overrides`` replace any field.
+
+    * ``"circle"``: end-effector positions, no closed chain, no posture term.
+    * ``"transport"``: object pose with the closed-chain equality and a weak posture term
+      (``posture_weight = 1``) so that the vehicle carries the object and the arms correct its pose.
+
+    Args:
+        task: ``"circle"`` or ``"transport"``.
+        collision: CAMPC (``True``) or plain MPC.
+        **overrides: further :class:`MPCConfig` fields.
+
+    Returns:
+        The configuration.
+    """
+    if task == "circle":
+        cfg = MPCConfig(collision=collision)
+    elif task == "transport":
+        cfg = MPCConfig(collision=collision, closed_chain=True, posture_weight=1.0)
+    else:
+        raise ValueError(f"task must be 'circle' or 'transport', got {task!r}")
+    return replace(cfg, **overrides)  # type: ignore[arg-type]
+
+
+def make_mpc_controller(
+    task: Literal["circle", "transport"],
+    collision: bool = True,
+    params: UVDMSParams | None = None,
+    **overrides: object,
+) -> MPCController:
+    """An :class:`MPCController` for a task (``"circle"``: end-effector positions; ``"transport"``: object pose).
+
+    Args:
+        task: ``"circle"`` or ``"transport"``.
+        collision: CAMPC (``True``) or plain MPC.
+        params: physical parameters.
+        **overrides: :class:`MPCConfig` fields (e.g. ``t_c`` to match an environment's control period).
+
+    Returns:
+        The controller.
+    """
+    output: OutputKind = "ee_positions" if task == "circle" else "object_pose"
+    return MPCController(output, task_config(task, collision, **overrides), params)

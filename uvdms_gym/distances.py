@@ -1,0 +1,764 @@
+"""The 18 collision distances of the UVDMS (SPEC section 4), their closest points, ``J_dis`` and ``S(d)``.
+
+Row layout (``docs/ARCHITECTURE.md``):
+
+* rows 0-5: right links 1..6 vs the left arm (left links 0..6, the minimum over them);
+* rows 6-11: right links 1..6 vs the nearest frame plate;
+* rows 12-17: left links 1..6 vs the nearest frame plate.
+
+``d`` is the distance between the monitored link's **axis segment** and the obstacle's core (the other
+link's axis segment, or the plate's mid-surface rectangle); it is not reduced by any radius. ``P`` is the
+closest point on the monitored link, ``E`` on the obstacle, ``n = (E - P)/|E - P|``.
+
+Three interchangeable methods:
+
+* ``"exact"``: analytic segment-segment and segment-rectangle distances (vectorized numpy);
+* ``"sampled"``: the paper's Algorithm 1 (point samples on the monitored link, ``d' = d - r``);
+* :func:`pybullet_distances`: PyBullet closest-point queries on the loaded multibody, converted to the
+  same axis/core convention.
+
+All geometry helpers broadcast over leading dimensions (points and vectors are ``(..., 3)``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from uvdms_gym import frames
+
+N_ROWS = 18
+SIDES = ("left", "right")
+
+_TINY = 1e-300
+_PARALLEL_EPS = 1e-12
+
+
+# --------------------------------------------------------------------------------------------------------
+# Pure geometry
+# --------------------------------------------------------------------------------------------------------
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("...i,...i->...", a, b)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    a, b = np.broadcast_arrays(a, b)
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
+
+
+def point_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance from point(s) ``p`` to segment(s) ``[a, b]`` (a degenerate segment ``a = b`` is a point).
+
+    Args:
+        p: points ``(..., 3)``.
+        a: segment start points ``(..., 3)`` (broadcast with ``p``).
+        b: segment end points ``(..., 3)``.
+
+    Returns:
+        ``(dist, q)``: distances ``(...)`` and the closest points ``q`` on the segments ``(..., 3)``.
+    """
+    p, a, b = (np.asarray(x, dtype=float) for x in (p, a, b))
+    ab = b - a
+    den = _dot(ab, ab)
+    t = np.clip(_dot(p - a, ab) / np.maximum(den, _TINY), 0.0, 1.0)
+    t = np.where(den > 0.0, t, 0.0)
+    q = a + t[..., None] * ab
+    return np.linalg.norm(p - q, axis=-1), q
+
+
+def segment_segment(
+    a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact distance between segments ``[a0, a1]`` and ``[b0, b1]``, broadcasting over leading dims.
+
+    Minimises ``|a0 + s (a1 - a0) - b0 - t (b1 - b0)|`` over ``(s, t)`` in the unit square. Candidates:
+    Ericson's clamped solution (*Real-Time Collision Detection*, 5.1.9: the unconstrained ``s`` clamped,
+    ``t`` optimal for it, ``s`` re-optimised if ``t`` had to be clamped) and the four end-point-to-segment
+    projections; the smallest actual distance wins. Ericson's solution is the global minimum (convexity)
+    whenever ``s`` is computed accurately; for (nearly) parallel segments ``s`` is ill-conditioned, but
+    then the minimum lies on the square's boundary or the distance is nearly constant along the overlap,
+    and an end-point projection is exact (to ``~1e-16`` m). Degenerate segments (points) are handled.
+
+    Returns:
+        ``(dist, p_on_a, p_on_b)`` with shapes ``(...)``, ``(..., 3)``, ``(..., 3)``.
+    """
+    a0, a1, b0, b1 = (np.asarray(x, dtype=float) for x in (a0, a1, b0, b1))
+    d1 = a1 - a0
+    d2 = b1 - b0
+    r = a0 - b0
+    a = _dot(d1, d1)
+    e = _dot(d2, d2)
+    b = _dot(d1, d2)
+    c = _dot(d1, r)
+    f = _dot(d2, r)
+    a_ok = a > 0.0
+    e_ok = e > 0.0
+    inv_a = np.where(a_ok, 1.0 / np.where(a_ok, a, 1.0), 0.0)  # a point: any s, take 0
+    inv_e = np.where(e_ok, 1.0 / np.where(e_ok, e, 1.0), 0.0)
+    den = a * e - b * b
+    gen = den > _PARALLEL_EPS * a * e
+    s = np.where(gen, np.clip((b * f - c * e) / np.where(gen, den, 1.0), 0.0, 1.0), 0.0)
+    s = np.where(e_ok, s, np.clip(-c * inv_a, 0.0, 1.0))  # B is a point: project it onto A
+    t = (b * s + f) * inv_e
+    s_lo = np.clip(-c * inv_a, 0.0, 1.0)  # b0 projected onto A
+    s_hi = np.clip((b - c) * inv_a, 0.0, 1.0)  # b1 projected onto A
+    s = np.where(t < 0.0, s_lo, np.where(t > 1.0, s_hi, s))
+    t = np.clip(t, 0.0, 1.0)
+    # candidates (..., 5): Ericson, a0 -> B, a1 -> B, b0 -> A, b1 -> A
+    one = np.ones_like(s)
+    s_all = np.stack([s, 0.0 * one, one, s_lo, s_hi], axis=-1)
+    t_all = np.stack([t, np.clip(f * inv_e, 0.0, 1.0), np.clip((f + b) * inv_e, 0.0, 1.0), 0.0 * one, one], axis=-1)
+    pa = a0[..., None, :] + s_all[..., None] * d1[..., None, :]
+    pb = b0[..., None, :] + t_all[..., None] * d2[..., None, :]
+    dist = np.linalg.norm(pa - pb, axis=-1)
+    k = np.argmin(dist, axis=-1)[..., None]
+    pa = np.take_along_axis(pa, k[..., None], axis=-2)[..., 0, :]
+    pb = np.take_along_axis(pb, k[..., None], axis=-2)[..., 0, :]
+    return np.take_along_axis(dist, k, axis=-1)[..., 0], pa, pb
+
+
+def point_rectangle(
+    p: np.ndarray, center: np.ndarray, u: np.ndarray, v: np.ndarray, half_extents: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Distance from point(s) to the filled rectangle ``center + s u + t v``, ``|s| <= h0``, ``|t| <= h1``.
+
+    Args:
+        p: points ``(..., 3)``.
+        center: rectangle centres ``(..., 3)``.
+        u: first in-plane unit axis ``(..., 3)`` (orthogonal to ``v``).
+        v: second in-plane unit axis ``(..., 3)``.
+        half_extents: half sizes along ``u`` and ``v``, ``(..., 2)``.
+
+    Returns:
+        ``(dist, q)``: distances ``(...)`` and closest points on the rectangles ``(..., 3)``.
+    """
+    p, center, u, v, h = (np.asarray(x, dtype=float) for x in (p, center, u, v, half_extents))
+    w = p - center
+    s = np.clip(_dot(w, u), -h[..., 0], h[..., 0])
+    t = np.clip(_dot(w, v), -h[..., 1], h[..., 1])
+    q = center + s[..., None] * u + t[..., None] * v
+    return np.linalg.norm(p - q, axis=-1), q
+
+
+def rectangle_edges(
+    center: np.ndarray, u: np.ndarray, v: np.ndarray, half_extents: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The four edges of rectangle(s): start and end points, each ``(..., 4, 3)``."""
+    center, u, v, h = (np.asarray(x, dtype=float) for x in (center, u, v, half_extents))
+    hu = h[..., 0, None] * u
+    hv = h[..., 1, None] * v
+    c00 = center - hu - hv
+    c10 = center + hu - hv
+    c11 = center + hu + hv
+    c01 = center - hu + hv
+    start = np.stack([c00, c10, c11, c01], axis=-2)
+    end = np.stack([c10, c11, c01, c00], axis=-2)
+    return start, end
+
+
+def _segment_plane_crossing(a0, a1, center, u, v, h):
+    """Crossing point of segments with filled rectangles: ``(hit (...), x (..., 3))``."""
+    n = _cross(u, v)
+    da = _dot(a0 - center, n)
+    db = _dot(a1 - center, n)
+    den = da - db
+    cross = (da * db <= 0.0) & (den != 0.0)
+    lam = np.where(cross, da / np.where(cross, den, 1.0), 0.0)
+    x = a0 + lam[..., None] * (a1 - a0)
+    w = x - center
+    inside = (np.abs(_dot(w, u)) <= h[..., 0]) & (np.abs(_dot(w, v)) <= h[..., 1])
+    return cross & inside, x
+
+
+def segment_rectangle(
+    a0: np.ndarray, a1: np.ndarray, center: np.ndarray, u: np.ndarray, v: np.ndarray, half_extents: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact distance from segment(s) ``[a0, a1]`` to filled rectangle(s), broadcasting over leading dims.
+
+    If the segment crosses the rectangle the distance is 0 (both closest points at the crossing).
+    Otherwise the minimum lies at an end point (projected onto the rectangle) or on one of the four edges
+    (the distance to the rectangle is convex along the segment; in the open face region it is linear, so
+    an interior minimum there is either a crossing or is attained at an end point too).
+
+    Returns:
+        ``(dist, p_on_segment, p_on_rectangle)`` with shapes ``(...)``, ``(..., 3)``, ``(..., 3)``.
+    """
+    a0, a1, center, u, v, h = (np.asarray(x, dtype=float) for x in (a0, a1, center, u, v, half_extents))
+    shape = np.broadcast_shapes(a0.shape, a1.shape, center.shape, u.shape, v.shape, (*h.shape[:-1], 3))
+    a0, a1, center, u, v = (np.broadcast_to(x, shape) for x in (a0, a1, center, u, v))
+    h = np.broadcast_to(h, (*shape[:-1], 2))
+    hit, x = _segment_plane_crossing(a0, a1, center, u, v, h)
+    ends = np.stack([a0, a1], axis=-2)  # (..., 2, 3)
+    d_end, q_end = point_rectangle(ends, center[..., None, :], u[..., None, :], v[..., None, :], h[..., None, :])
+    e0, e1 = rectangle_edges(center, u, v, h)
+    d_edge, p_edge, q_edge = segment_segment(a0[..., None, :], a1[..., None, :], e0, e1)
+    dist = np.concatenate([d_end, d_edge], axis=-1)  # (..., 6)
+    p_all = np.concatenate([ends, p_edge], axis=-2)
+    q_all = np.concatenate([q_end, q_edge], axis=-2)
+    k = np.argmin(dist, axis=-1)
+    d = np.take_along_axis(dist, k[..., None], axis=-1)[..., 0]
+    p = np.take_along_axis(p_all, k[..., None, None], axis=-2)[..., 0, :]
+    q = np.take_along_axis(q_all, k[..., None, None], axis=-2)[..., 0, :]
+    d = np.where(hit, 0.0, d)
+    p = np.where(hit[..., None], x, p)
+    q = np.where(hit[..., None], x, q)
+    return d, p, q
+
+
+def sample_segment(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    """Algorithm 1 sample points ``P'(i) = A + (i/n) AB`` for ``i = 0..n`` (both ends): ``(..., n+1, 3)``.
+
+    The paper's loop runs ``i = 1..n`` (it never samples ``A`` itself); this project also samples
+    ``i = 0`` so that both end points are included. The sampling interval is ``r = |AB| / n`` either way.
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    lam = np.arange(n + 1, dtype=float) / n
+    return a[..., None, :] + lam[:, None] * (b - a)[..., None, :]
+
+
+def algorithm1_segment(
+    a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, n: int = 20
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Algorithm 1 for link ``AB`` vs obstacle segment(s) ``CD``: conservative distance ``d' = d - r``.
+
+    ``AB`` is sampled with :func:`sample_segment`; ``d`` is the minimum exact point-to-segment distance of
+    the samples to ``CD`` and ``r = |AB|/n``. ``c, d`` may carry one extra axis before the coordinates
+    (``(..., m, 3)``, several obstacle segments, e.g. the links of the other arm): the minimum over them is
+    taken. Theorem 1: ``d' <= d*`` (the exact segment-segment distance); with samples at both ends the
+    error ``d* - d'`` lies in ``[r/2, r]``.
+
+    Returns:
+        ``(d_prime, p, e)``: conservative distances ``(...)``, the chosen sample point on ``AB`` and its
+        closest point on the obstacle (``|e - p| = d' + r``).
+    """
+    a, b, c, d = (np.asarray(x, dtype=float) for x in (a, b, c, d))
+    many = c.ndim > a.ndim
+    pts = sample_segment(a, b, n)  # (..., n+1, 3)
+    if many:
+        dist, q = point_segment(pts[..., :, None, :], c[..., None, :, :], d[..., None, :, :])  # (..., n+1, m)
+    else:
+        dist, q = point_segment(pts, c[..., None, :], d[..., None, :])  # (..., n+1)
+    return _pick_min_sample(dist, q, pts, a, b, n, many)
+
+
+def algorithm1_rectangle(
+    a: np.ndarray,
+    b: np.ndarray,
+    center: np.ndarray,
+    u: np.ndarray,
+    v: np.ndarray,
+    half_extents: np.ndarray,
+    n: int = 20,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Algorithm 1 for link ``AB`` vs filled rectangle(s) (point-to-rectangle distances).
+
+    The paper says "point-plane distance"; the frame plates are finite, so the point-to-**rectangle**
+    distance is used (the same plate core as the exact method). Rectangle arguments may carry one extra
+    axis (``(..., m, 3)`` / ``(..., m, 2)``, several plates): the minimum over them is taken.
+
+    Returns:
+        ``(d_prime, p, e)`` as in :func:`algorithm1_segment`.
+    """
+    a, b, center, u, v, h = (np.asarray(x, dtype=float) for x in (a, b, center, u, v, half_extents))
+    many = center.ndim > a.ndim
+    pts = sample_segment(a, b, n)
+    if many:
+        dist, q = point_rectangle(
+            pts[..., :, None, :], center[..., None, :, :], u[..., None, :, :], v[..., None, :, :], h[..., None, :, :]
+        )
+    else:
+        dist, q = point_rectangle(pts, center[..., None, :], u[..., None, :], v[..., None, :], h[..., None, :])
+    return _pick_min_sample(dist, q, pts, a, b, n, many)
+
+
+def _pick_min_sample(dist, q, pts, a, b, n, many):
+    if many:  # (..., n+1, m) -> (..., (n+1) m)
+        m = dist.shape[-1]
+        flat = dist.reshape((*dist.shape[:-2], -1))
+        k = np.argmin(flat, axis=-1)
+        dmin = np.take_along_axis(flat, k[..., None], axis=-1)[..., 0]
+        e = np.take_along_axis(q.reshape((*q.shape[:-3], -1, 3)), k[..., None, None], axis=-2)[..., 0, :]
+        i = k // m
+    else:
+        i = np.argmin(dist, axis=-1)
+        dmin = np.take_along_axis(dist, i[..., None], axis=-1)[..., 0]
+        e = np.take_along_axis(q, i[..., None, None], axis=-2)[..., 0, :]
+    p = np.take_along_axis(pts, i[..., None, None], axis=-2)[..., 0, :]
+    r = np.linalg.norm(b - a, axis=-1) / n
+    return dmin - r, p, e
+
+
+# --------------------------------------------------------------------------------------------------------
+# Velocity damper
+# --------------------------------------------------------------------------------------------------------
+def velocity_damper(d: np.ndarray | float, d1: float = 0.05, d2: float = 0.12) -> np.ndarray:
+    """Velocity damper ``S(d)`` (SPEC section 4): 0 for ``d <= d1``, 1 for ``d >= d2``, ``sin^2`` between.
+
+    ``S(d) = sin^2((pi/2) (d - d1)/(d2 - d1))`` on ``d1 < d < d2``; continuous and non-decreasing.
+    """
+    x = np.clip((np.asarray(d, dtype=float) - d1) / (d2 - d1), 0.0, 1.0)
+    return np.sin(0.5 * np.pi * x) ** 2
+
+
+# --------------------------------------------------------------------------------------------------------
+# The 18 UVDMS distances
+# --------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class DistanceResult:
+    """The 18 distances with their closest points (NED), in the row order of the module docstring.
+
+    Attributes:
+        d: distances (18,), axis segment to obstacle core (not reduced by radii). For the ``"sampled"``
+            method these are Algorithm 1's conservative ``d' = d - r`` (then ``|e - p| = d' + r``).
+        p: closest point on the monitored link (18, 3).
+        e: closest point on the obstacle (18, 3).
+        link_frame: frame name carrying ``P`` per row (``"right_link{k}"`` / ``"left_link{k}"``).
+        obstacle_frame: frame name carrying ``E`` per row (``"left_link{j}"``, or ``"vehicle"`` for plates).
+        obstacle_index: left link ``j`` (0..6) for rows 0-5, plate index (``params.plates``) for rows 6-17.
+        method: ``"exact"``, ``"sampled"`` or ``"pybullet"``.
+    """
+
+    d: np.ndarray
+    p: np.ndarray
+    e: np.ndarray
+    obstacle_frame: tuple[str, ...]
+    link_frame: tuple[str, ...]
+    obstacle_index: np.ndarray
+    method: str = "exact"
+
+    @property
+    def normals(self) -> np.ndarray:
+        """Unit vectors ``n = (E - P)/|E - P|`` (18, 3); zero rows where ``E = P``."""
+        diff = self.e - self.p
+        nrm = np.sqrt(np.einsum("ij,ij->i", diff, diff))[:, None]
+        return diff / np.where(nrm > 0.0, nrm, np.inf)
+
+
+LINK_FRAMES: tuple[str, ...] = tuple(
+    [f"right_link{k}" for k in range(1, 7)] * 2 + [f"left_link{k}" for k in range(1, 7)]
+)
+"""Frame carrying the monitored link of each row (``P``)."""
+
+ROW_NAMES: tuple[str, ...] = tuple(
+    [f"right_link{k}-left_arm" for k in range(1, 7)]
+    + [f"right_link{k}-plate" for k in range(1, 7)]
+    + [f"left_link{k}-plate" for k in range(1, 7)]
+)
+"""Human-readable name of each row."""
+
+_LEFT_FRAMES = tuple(f"left_link{j}" for j in range(7))
+_PLATE_ROWS_FRAMES = ("vehicle",) * 12
+
+
+def contact_thresholds(params, obstacle_index: np.ndarray | None = None) -> np.ndarray:
+    """Distance ``d`` (18,) at which the physical surfaces touch, per row.
+
+    ``2 r`` for link-link rows, ``r + t/2`` for link-plate rows (``t`` the thickness of the row's plate,
+    given by ``obstacle_index``; the thinnest plate if ``None``).
+
+    Args:
+        params: :class:`uvdms_gym.params.UVDMSParams`.
+        obstacle_index: :attr:`DistanceResult.obstacle_index`, or ``None``.
+    """
+    r = params.arm.link_radius
+    t = np.array([pl.thickness for pl in params.plates], dtype=float)
+    out = np.empty(N_ROWS)
+    out[:6] = 2.0 * r
+    out[6:] = r + 0.5 * (t.min() if obstacle_index is None else t[np.asarray(obstacle_index)[6:]])
+    return out
+
+
+def _plate_arrays(plates) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    c = np.array([pl[0] for pl in plates], dtype=float)
+    u = np.array([pl[1] for pl in plates], dtype=float)
+    v = np.array([pl[2] for pl in plates], dtype=float)
+    h = np.array([pl[3] for pl in plates], dtype=float)
+    return c, u, v, h
+
+
+def _monitored(seg: np.ndarray) -> np.ndarray:
+    """Monitored links of the plate rows 6-17: right links 1..6 then left links 1..6, (12, 2, 3)."""
+    return seg[::-1, 1:].reshape(12, 2, 3)
+
+
+def _link_link_exact(seg: np.ndarray):
+    """Rows 0-5: right links 1..6 vs left links 0..6, all 42 pairs at once.
+
+    Ericson's clamped solution (see :func:`segment_segment`) with the dot products from one Gram matrix;
+    links have positive length. No parallel threshold: for (nearly) parallel pairs ``s`` is computed from
+    the rounded ``den`` (floored at 1e-300, never 0/0) and clamped, ``t`` is optimal for it and ``s`` is
+    re-optimised if ``t`` had to be clamped. Forcing ``s = 0`` below a threshold instead picks the wrong
+    end of nearly parallel segments (errors ~1e-7 m, measured); this form matches the candidate search of
+    :func:`segment_segment` to 1e-16 m on nearly parallel and exactly parallel pairs (tested).
+    """
+    ra = seg[1, 1:]  # (6, 2, 3)
+    lb = seg[0]  # (7, 2, 3)
+    a0 = ra[:, 0]
+    d1 = ra[:, 1] - a0
+    b0 = lb[:, 0]
+    d2 = lb[:, 1] - b0
+    z = np.concatenate([a0, d1, b0, d2])  # (26, 3)
+    gram = z @ z.T
+    a = np.maximum(np.diagonal(gram[6:12, 6:12]), _TINY)[:, None]  # (6, 1); links have positive length
+    e = np.maximum(np.diagonal(gram[19:, 19:]), _TINY)  # (7,)
+    b = gram[6:12, 19:]  # d1 . d2, (6, 7)
+    c = np.diagonal(gram[6:12, :6])[:, None] - gram[6:12, 12:19]  # d1 . (a0 - b0)
+    f = gram[:6, 19:] - np.diagonal(gram[12:19, 19:])  # d2 . (a0 - b0)
+    den = np.maximum(a * e - b * b, _TINY)
+    s = np.minimum(np.maximum((b * f - c * e) / den, 0.0), 1.0)
+    t = (b * s + f) / e
+    s_lo = np.minimum(np.maximum(-c / a, 0.0), 1.0)
+    s_hi = np.minimum(np.maximum((b - c) / a, 0.0), 1.0)
+    s = np.where(t < 0.0, s_lo, np.where(t > 1.0, s_hi, s))
+    t = np.minimum(np.maximum(t, 0.0), 1.0)
+    pa = a0[:, None, :] + s[..., None] * d1[:, None, :]  # (6, 7, 3)
+    pb = b0[None] + t[..., None] * d2[None]
+    diff = pa - pb
+    dd = (diff * diff).sum(-1)  # (6, 7)
+    j = np.argmin(dd, axis=1)
+    rows = np.arange(6)
+    return np.sqrt(dd[rows, j]), pa[rows, j], pb[rows, j], j
+
+
+def _candidate_matrix() -> np.ndarray:
+    """Linear map from per-pair features to the numerators and denominators of the 9 piece minimisers.
+
+    Plate coordinates ``(s, t, w)`` (along ``u``, ``v``, normal), segment ``X0 + lam (ds, dt, dw)`` with
+    ``X0 = (s0, t0, w0)``. Piece ``(sig, tau)``: the excess along ``u`` is ``s - hx`` (``sig = 1``),
+    ``s + hx`` (``sig = -1``) or absent (inside, ``a_s = 0``), the same along ``v``; its quadratic
+    ``a_s (s - sig hx)^2 + a_t (t - tau hy)^2 + w^2`` is stationary at
+    ``lam = -(a_s ds (s0 - sig hx) + a_t dt (t0 - tau hy) + dw w0) / (a_s ds^2 + a_t dt^2 + dw^2)``.
+
+    Returns:
+        ``(18, 8)`` matrix ``C``: ``C @ [ds s0, dt t0, dw w0, ds hx, dt hy, ds^2, dt^2, dw^2]`` gives the 9
+        numerators (with the minus sign) then the 9 denominators.
+    """
+    cmat = np.zeros((18, 8))
+    k = 0
+    for a_s, sig in ((1.0, 1.0), (1.0, -1.0), (0.0, 0.0)):
+        for a_t, tau in ((1.0, 1.0), (1.0, -1.0), (0.0, 0.0)):
+            cmat[k, :5] = -a_s, -a_t, -1.0, a_s * sig, a_t * tau
+            cmat[9 + k, 5:] = a_s, a_t, 1.0
+            k += 1
+    return cmat
+
+
+_CAND = _candidate_matrix()
+_N_CAND = 9  # the 9 piece minimisers
+
+
+@dataclass(frozen=True)
+class _PlateData:
+    """Constant (body-frame) plate geometry, prepared once per parameter set (pairs are link-major)."""
+
+    basis: np.ndarray  # (n_pl * 3, 3): rows u, v, n of each plate (body)
+    basis_c: np.ndarray  # (n_pl * 3,): basis rows dotted with the plate centre
+    n_plates: int
+    h2: np.ndarray  # (2, m * n_pl): [hx; hy] per link-plate pair
+    h3: np.ndarray  # (3, m * n_pl): [hx; hy; 0]
+
+    @classmethod
+    def build(cls, plates, m: int = 12) -> _PlateData:
+        u = np.array([pl.u for pl in plates], dtype=float)
+        v = np.array([pl.v for pl in plates], dtype=float)
+        c = np.array([pl.center for pl in plates], dtype=float)
+        h = np.array([pl.half_extents for pl in plates], dtype=float)
+        basis = np.stack([u, v, np.cross(u, v)], axis=1)  # (n_pl, 3, 3)
+        h2 = np.tile(h, (m, 1)).T.copy()  # (2, m * n_pl)
+        h3 = np.concatenate([h2, np.zeros((1, h2.shape[1]))])
+        return cls(
+            basis.reshape(-1, 3),
+            np.einsum("pij,pj->pi", basis, c).ravel(),
+            len(plates),
+            h2,
+            h3,
+        )
+
+
+_PLATE_CACHE: dict = {}
+
+
+def _plate_data(params) -> _PlateData:
+    key = params.plates
+    pd = _PLATE_CACHE.get(key)
+    if pd is None:
+        pd = _PLATE_CACHE[key] = _PlateData.build(key)
+    return pd
+
+
+def _link_plate_exact(mon: np.ndarray, rot: np.ndarray, pos: np.ndarray, pd: _PlateData):
+    """Monitored links ``mon`` (m, 2, 3) vs plates: nearest plate per link, exact.
+
+    In plate coordinates ``(s, t, w)`` the squared distance of the segment point ``X(lam)`` to the rectangle
+    is ``g(lam) = max(|s|-hx, 0)^2 + max(|t|-hy, 0)^2 + w^2``: convex, continuously differentiable and
+    piecewise quadratic in ``lam`` (9 pieces, :func:`_candidate_matrix`). Let ``lam*`` minimise ``g`` on
+    ``[0, 1]`` and ``q`` be the quadratic of a piece containing it. If ``q`` is strictly convex, ``lam*`` is
+    ``q``'s minimiser clamped to ``[0, 1]`` (``g' = q'`` there, as ``g`` is C1: zero inside, of the right
+    sign at an end). If ``q`` is flat, ``g`` keeps its minimum value over the whole piece, up to a
+    breakpoint where ``s`` or ``t`` crosses ``+-h`` (so the neighbouring piece is strictly convex and
+    stationary there, ``g' = 0``) or up to ``lam = 0`` (the flat piece's own candidate, ``0/0 -> 0``).
+    Evaluating ``g`` at the 9 clamped piece minimisers therefore gives the exact minimum. Arrays are laid
+    out coordinates first, pairs last (contiguous inner loops).
+
+    Args:
+        mon: monitored link segments in NED.
+        rot: vehicle rotation ``R_NB``.
+        pos: vehicle position (NED).
+        pd: body-frame plate data.
+    """
+    m = mon.shape[0]
+    n_pl = pd.n_plates
+    n = m * n_pl
+    bw = pd.basis @ rot.T  # (3 n_pl, 3) plate axes in NED
+    off = bw @ pos + pd.basis_c
+    x = bw @ mon.reshape(-1, 3).T - off[:, None]  # (3 n_pl, 2 m): rows (plate, coord), columns (link, end)
+    x = x.reshape(n_pl, 3, m, 2).transpose(1, 3, 2, 0).reshape(3, 2, n)  # (coord, end, pair)
+    p0 = x[:, 0]
+    dl = x[:, 1] - p0
+    feat = np.concatenate([dl * p0, dl[:2] * pd.h2, dl * dl])  # (8, n)
+    nd = _CAND @ feat  # (18, n)
+    lam = np.divide(nd[:9], nd[9:] + _TINY)  # (9, n); a zero denominator (flat piece) has a zero numerator
+    np.clip(lam, 0.0, 1.0, out=lam)
+    xx = p0[:, None, :] + lam * dl[:, None, :]  # (3, 9, n) plate coordinates of the candidates
+    ex = np.abs(xx[:2])
+    ex -= pd.h2[:, None, :]
+    np.maximum(ex, 0.0, out=ex)
+    g = (ex * ex).sum(0) + xx[2] * xx[2]  # (9, n)
+    g = g.reshape(_N_CAND, m, n_pl).transpose(1, 2, 0).reshape(m, n_pl * _N_CAND)
+    k = np.argmin(g, axis=1)
+    rows = np.arange(m)
+    pl = k // _N_CAND
+    cand = k - pl * _N_CAND
+    pair = rows * n_pl + pl
+    xb = xx[:, cand, pair]  # (3, m)
+    h3 = pd.h3[:, pair]
+    excess = xb - np.minimum(np.maximum(xb, -h3), h3)  # P - E in plate coordinates
+    p = mon[:, 0] + lam[cand, pair][:, None] * (mon[:, 1] - mon[:, 0])
+    e = p - np.einsum("im,mij->mj", excess, bw.reshape(n_pl, 3, 3)[pl])
+    return np.sqrt(g[rows, k]), p, e, pl
+
+
+def _exact(seg: np.ndarray, rot: np.ndarray, pos: np.ndarray, pd: _PlateData):
+    d = np.empty(N_ROWS)
+    p = np.empty((N_ROWS, 3))
+    e = np.empty((N_ROWS, 3))
+    idx = np.empty(N_ROWS, dtype=int)
+    d[:6], p[:6], e[:6], idx[:6] = _link_link_exact(seg)
+    d[6:], p[6:], e[6:], idx[6:] = _link_plate_exact(_monitored(seg), rot, pos, pd)
+    return d, p, e, idx
+
+
+def _sampled(seg: np.ndarray, plates, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    c, u, v, h = _plate_arrays(plates)
+    n_pl = c.shape[0]
+    d = np.empty(N_ROWS)
+    p = np.empty((N_ROWS, 3))
+    e = np.empty((N_ROWS, 3))
+    idx = np.empty(N_ROWS, dtype=int)
+    ra = seg[1, 1:]
+    lb = seg[0]
+    d[:6], p[:6], e[:6] = algorithm1_segment(ra[:, 0], ra[:, 1], lb[None, :, 0], lb[None, :, 1], n)
+    mon = _monitored(seg)
+    shp = (12, n_pl)
+    d[6:], p[6:], e[6:] = algorithm1_rectangle(
+        mon[:, 0],
+        mon[:, 1],
+        np.broadcast_to(c, (*shp, 3)),
+        np.broadcast_to(u, (*shp, 3)),
+        np.broadcast_to(v, (*shp, 3)),
+        np.broadcast_to(h, (*shp, 2)),
+        n,
+    )
+    # which obstacle: recover from the closest point (the obstacle nearest to E)
+    dl, _ = point_segment(e[:6, None], lb[None, :, 0], lb[None, :, 1])
+    idx[:6] = np.argmin(dl, axis=1)
+    dp, _ = point_rectangle(e[6:, None], c, u, v, h)
+    idx[6:] = np.argmin(dp, axis=1)
+    return d, p, e, idx
+
+
+def compute_distances(kin, method: str = "exact", n: int = 20) -> DistanceResult:
+    """The 18 distances of the current state of ``kin`` (a :class:`uvdms_gym.kinematics.KinematicModel`).
+
+    The link axes come from ``kin.link_segments()``. The plates are ``kin.params.plates`` placed with the
+    vehicle pose ``kin.frame_placement("vehicle")`` (the same rectangles as ``kin.plates()``, whose
+    body-frame constants are prepared once); ``"sampled"`` reads ``kin.plates()``.
+
+    Args:
+        kin: kinematic model after ``set_state``.
+        method: ``"exact"`` (analytic) or ``"sampled"`` (Algorithm 1 with ``n`` intervals per link).
+        n: number of sampling intervals for ``"sampled"`` (``n + 1`` points including both ends).
+
+    Returns:
+        The :class:`DistanceResult`.
+    """
+    seg = kin.link_segments()
+    if method == "exact":
+        pos, rot = kin.frame_placement("vehicle")
+        d, p, e, idx = _exact(seg, rot, pos, _plate_data(kin.params))
+    elif method == "sampled":
+        d, p, e, idx = _sampled(seg, kin.plates(), n)
+    else:
+        raise ValueError(f"method must be 'exact' or 'sampled', got {method!r}")
+    obst = tuple(_LEFT_FRAMES[j] for j in idx[:6]) + _PLATE_ROWS_FRAMES
+    return DistanceResult(d, p, e, obst, LINK_FRAMES, idx, method)
+
+
+# --------------------------------------------------------------------------------------------------------
+# Distance Jacobian
+# --------------------------------------------------------------------------------------------------------
+_MASK_CACHE: dict[int, tuple] = {}
+
+
+def _row_masks(model, res: DistanceResult) -> np.ndarray:
+    """``mask(link_frame[i]) - mask(obstacle_frame[i])`` per row (18, nv): +1 moves P only, -1 E only.
+
+    ``mask(frame)`` flags the velocity columns of the joints supporting the frame's body (Pinocchio's
+    ``model.supports``); cached per model and per row layout.
+    """
+    hit = _MASK_CACHE.get(id(model))
+    if hit is None or hit[0] is not model:
+        masks = {}
+        for f in model.frames:
+            mask = np.zeros(model.nv)
+            for j in model.supports[f.parentJoint]:
+                if j > 0:
+                    mask[model.idx_vs[j] : model.idx_vs[j] + model.nvs[j]] = 1.0
+            masks[f.name] = mask
+        hit = _MASK_CACHE[id(model)] = (model, masks, {})
+    _, masks, rows = hit
+    key = (res.link_frame, res.obstacle_frame)
+    out = rows.get(key)
+    if out is None:
+        out = rows[key] = np.array([masks[f] for f in res.link_frame]) - np.array(
+            [masks[f] for f in res.obstacle_frame]
+        )
+    return out
+
+
+def distance_jacobian(kin, res: DistanceResult) -> np.ndarray:
+    """``J_dis`` (18, 18): row ``i`` is ``n_i^T (J_P,i - J_E,i)``, so ``v_dis = J_dis zeta`` and ``d_dot = -v_dis``.
+
+    ``J_P,i`` (``J_E,i``) is the Jacobian of the material point at ``P_i`` (``E_i``) rigidly attached to the
+    body carrying ``link_frame[i]`` (``obstacle_frame[i]``). With Pinocchio's world-frame joint Jacobian
+    columns ``[v_k; w_k]`` (``kin.data.J``, filled by ``kin.set_state``) the point velocity column is
+    ``v_k + w_k x P`` for every joint ``k`` supporting the body, so
+    ``n^T J_P[:, k] = n . v_k + (P x n) . w_k``, and ``E x n = P x n`` (``E - P`` is parallel to ``n``):
+    a column supporting both bodies cancels exactly. The base columns therefore vanish identically (both
+    points ride on the vehicle); ``tests/test_distances.py`` checks this against the full point Jacobians of
+    ``KinematicModel.point_jacobian`` and against finite differences of ``d``.
+    Rows with ``E = P`` (``d = 0``, axes intersecting) have no direction and are zero.
+
+    Args:
+        kin: the :class:`uvdms_gym.kinematics.KinematicModel` at the state of ``res``.
+        res: distances from :func:`compute_distances` or :func:`pybullet_distances` at that state.
+
+    Returns:
+        ``J_dis`` (18, 18), columns acting on ``zeta = [nu; qdot_l; qdot_r]``.
+    """
+    sel = _row_masks(kin.model, res)
+    jac = kin.data.J  # (6, nv) [v_k; w_k] at the NED origin
+    nrm = res.normals
+    # E x n = P x n because E - P is parallel to n: columns supporting both bodies cancel exactly.
+    return sel * (nrm @ jac[:3] + _cross(res.p, nrm) @ jac[3:])
+
+
+# --------------------------------------------------------------------------------------------------------
+# PyBullet closest points
+# --------------------------------------------------------------------------------------------------------
+def pybullet_distances(client, body_id: int, link_index: dict[str, int], params, max_distance: float = 1.0):
+    """The 18 distances from PyBullet closest-point queries on a loaded UVDMS multibody.
+
+    The body is the URDF of :func:`uvdms_gym.model.build_urdf` (loaded with ``URDF_USE_INERTIA_FROM_FILE``).
+    One ``getClosestPoints(bodyA=b, bodyB=b, linkIndexA=i, linkIndexB=j)`` per candidate pair (42 link-link,
+    48 link-plate; queries within one body work, see PITFALLS). PyBullet reports surface distances and
+    surface points in its z-up world; they are converted to NED (:func:`uvdms_gym.frames.world_to_ned`) and
+    to the axis/core convention: ``d = d_surface + 2 r`` (link-link), ``d_surface + r + t/2`` (link-plate),
+    ``P = P_s + r n_B``, ``E = E_s - rho n_B`` (``n_B`` PyBullet's normal from B to A, ``rho`` the obstacle's
+    core offset). URDF capsule ``length`` is the distance between the cap centres (measured), so the axis
+    is exactly :func:`uvdms_gym.model.link_segment`. The plates' collision shape is the rectangle swept by a
+    ball of radius ``t/2`` (a box plus four edge capsules, see ``model.build_urdf``), so
+    ``d_surface + r + t/2`` equals the exact core distance everywhere, including near plate edges.
+
+    Args:
+        client: a ``pybullet_utils.bullet_client.BulletClient``, or an ``int`` physics client id.
+        body_id: the UVDMS body.
+        link_index: PyBullet link index per link name (``"right_link3"``, ``"left_link0"``,
+            ``"plate_front"``...).
+        params: :class:`uvdms_gym.params.UVDMSParams` (radius, plate thickness).
+        max_distance: surface distance beyond which PyBullet reports nothing; a row with no pair within it
+            gets ``d = inf`` and NaN points.
+
+    Returns:
+        :class:`DistanceResult` with ``method="pybullet"``.
+    """
+    if isinstance(client, (int, np.integer)):
+        import pybullet
+
+        cid = int(client)
+
+        def closest(a, b, i, j):
+            return pybullet.getClosestPoints(a, b, max_distance, i, j, physicsClientId=cid)
+    else:
+
+        def closest(a, b, i, j):
+            return client.getClosestPoints(a, b, max_distance, i, j)
+
+    r = params.arm.link_radius
+    plates = [(link_index[f"plate_{pl.name}"], 0.5 * pl.thickness) for pl in params.plates]
+    d = np.full(N_ROWS, np.inf)
+    pw = np.full((N_ROWS, 3), np.nan)
+    ew = np.full((N_ROWS, 3), np.nan)
+    idx = np.zeros(N_ROWS, dtype=int)
+
+    def scan(row, link_a, obstacles):
+        ia = link_index[link_a]
+        for k, (ib, rho) in enumerate(obstacles):
+            for cp in closest(body_id, body_id, ia, ib):
+                dist = cp[8] + r + rho
+                if dist < d[row]:
+                    nb = cp[7]
+                    d[row] = dist
+                    pw[row] = [cp[5][i] + r * nb[i] for i in range(3)]
+                    ew[row] = [cp[6][i] - rho * nb[i] for i in range(3)]
+                    idx[row] = k
+
+    left = [(link_index[f], r) for f in _LEFT_FRAMES]
+    for k in range(6):
+        scan(k, f"right_link{k + 1}", left)
+        scan(6 + k, f"right_link{k + 1}", plates)
+        scan(12 + k, f"left_link{k + 1}", plates)
+    obst = tuple(_LEFT_FRAMES[j] for j in idx[:6]) + _PLATE_ROWS_FRAMES
+    return DistanceResult(d, frames.world_to_ned(pw), frames.world_to_ned(ew), obst, LINK_FRAMES, idx, "pybullet")
+
+
+def pybullet_link_indices(client, body_id: int) -> dict[str, int]:
+    """Map every link name of a PyBullet body to its link index (the base link gets -1).
+
+    Args:
+        client: a ``BulletClient`` or an ``int`` physics client id.
+        body_id: the body.
+    """
+    if isinstance(client, (int, np.integer)):
+        import pybullet
+
+        cid = int(client)
+        n = pybullet.getNumJoints(body_id, physicsClientId=cid)
+        infos = [pybullet.getJointInfo(body_id, i, physicsClientId=cid) for i in range(n)]
+        base = pybullet.getBodyInfo(body_id, physicsClientId=cid)[0]
+    else:
+        n = client.getNumJoints(body_id)
+        infos = [client.getJointInfo(body_id, i) for i in range(n)]
+        base = client.getBodyInfo(body_id)[0]
+    out = {base.decode(): -1}
+    out.update({info[12].decode(): info[0] for info in infos})
+    return out
