@@ -54,7 +54,7 @@ def test_bias_adds_damping_and_added_mass_terms():
     d = (np.array(v.linear_damping) + np.array(v.quadratic_damping) * np.abs(nu)) * nu
     b = nd.bias()
     rigid = kin.nonlinear_effects() + nd.hydrostatics()
-    assert np.allclose(b[6:], rigid[6:])
+    assert np.allclose(b[6:], rigid[6:] + kin.params.arm.joint_friction * zeta[6:])
     # residual added mass is diag(31.7, 0.9, 0, 0, 0, 0): C_A nu = [w x a1; v x a1]
     a1 = np.array(v.residual_added_mass[:3]) * nu[:3]
     ca = np.concatenate([np.cross(nu[3:], a1), np.cross(nu[:3], a1)])

@@ -153,9 +153,7 @@ def _plate_edges(plate) -> str:
     return "".join(out)
 
 
-def build_urdf(
-    params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: bool = True, arms: bool = True
-) -> str:
+def build_urdf(params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: bool = True, arms: bool = True) -> str:
     """URDF text of the vehicle, frame plates and both arms.
 
     Args:
@@ -207,6 +205,9 @@ def build_urdf(
             axis = link_axis(params, i)
             mid = 0.5 * (a + b)
             inertia = _cylinder_inertia(arm.link_mass[i], arm.link_radius, arm.link_length[i], axis)
+            if i > 0:  # the drive's rotor (a disk on the joint axis, link-frame z): J about z, J/2 transverse
+                j_rot = arm.rotor_inertia  # (a physical tensor: PyBullet zeroes one that breaks the triangle rule)
+                inertia = (inertia[0] + 0.5 * j_rot, inertia[1] + 0.5 * j_rot, inertia[2] + j_rot)
             # PyBullet's capsule (and cylinder) lies along the local z axis of its origin.
             cap_rpy = (0.0, 0.0, 0.0) if abs(axis[2]) > 0.5 else (math.copysign(math.pi / 2, -axis[1]), 0.0, 0.0)
             geom = f'<geometry><capsule radius="{arm.link_radius:.12g}" length="{arm.link_length[i]:.12g}"/></geometry>'
@@ -226,7 +227,7 @@ def build_urdf(
                     f'<origin xyz="0 0 {arm.dh_d[i - 1]:.12g}" rpy="{arm.dh_alpha[i - 1]:.12g} 0 0"/>'
                     f'<axis xyz="0 0 1"/><limit lower="{lo:.12g}" upper="{hi:.12g}" '
                     f'effort="{arm.tau_max[i - 1]:.12g}" velocity="{arm.qdot_max[i - 1]:.12g}"/>'
-                    '<dynamics damping="0" friction="0"/></joint>'
+                    f'<dynamics damping="{arm.joint_friction:.12g}" friction="0"/></joint>'
                 )
         p_ee, r_ee = ee_offset(params)
         parts.append(_tiny_link(f"{side}_ee"))

@@ -5,9 +5,9 @@
 * ``M_n`` = Pinocchio's rigid-body mass matrix (which already holds the isotropic added mass and the
   rotational added inertia as the virtual ``added_mass`` body, see :mod:`uvdms_gym.params`) plus the
   residual anisotropic added mass on the vehicle block;
-* ``b_n`` = rigid-body Coriolis and gravity + residual added-mass Coriolis ``C_A,res(nu) nu`` + vehicle
-  damping ``D(nu) nu`` + hydrostatics (buoyancy of the hull at ``r_b`` and of every link at its centre of
-  volume).
+* ``b_n`` = rigid-body Coriolis and gravity + residual added-mass Coriolis ``C_A,res(nu) nu``
+  + vehicle damping ``D(nu) nu`` + joint gear friction ``b qdot`` + hydrostatics (buoyancy of the hull
+  at ``r_b`` and of every link at its centre of volume).
 
 Hydrostatics are computed with a second Pinocchio model whose bodies carry their *displaced* mass at their
 centre of volume under an upward gravity: its generalized gravity is exactly the generalized force that
@@ -79,6 +79,7 @@ class NominalDynamics:
             [veh.rigid_added_mass] * 3 + list(veh.added_mass[3:])
         )  # perturbation of the part the rigid virtual body carries
         self._base_added = self._residual_ma + extra
+        self._joint_friction = kin.params.arm.joint_friction
         self._lin = np.array(veh.linear_damping) * self.scale.damping
         self._quad = np.array(veh.quadratic_damping) * self.scale.damping
         self._bmodel = _buoyancy_model(kin, self.scale.buoyancy)
@@ -102,6 +103,10 @@ class NominalDynamics:
         """Vehicle damping ``D(nu) nu`` (6, body frame)."""
         return (self._lin + self._quad * np.abs(nu)) * nu
 
+    def joint_friction(self, qdot: np.ndarray) -> np.ndarray:
+        """Gear-train viscous friction torque ``b qdot`` (12)."""
+        return self._joint_friction * np.asarray(qdot)
+
     def added_mass_coriolis(self, nu: np.ndarray) -> np.ndarray:
         """Residual/perturbed added-mass Coriolis ``C_A(nu) nu`` (6) for the diagonal part in ``_base_added``."""
         a1 = self._base_added[:3] * nu[:3]
@@ -117,4 +122,5 @@ class NominalDynamics:
         b = self.kin.nonlinear_effects() + self.hydrostatics()
         nu = zeta[:6]
         b[:6] += self.damping(nu) + self.added_mass_coriolis(nu)
+        b[6:] += self.joint_friction(zeta[6:])
         return b

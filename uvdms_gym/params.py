@@ -113,6 +113,18 @@ class ArmParams:
     """Joint speed limits, rad/s [D] (typical of electric underwater manipulators)."""
     tau_max: tuple[float, ...] = _arr(60.0, 60.0, 40.0, 40.0, 20.0, 20.0)
     """Joint torque saturation, N m [D]: about 1.5x the worst static gravity load of the outstretched arm."""
+    rotor_inertia: float = 0.1
+    """Reflected rotor inertia of each joint's drive about its axis, kg m^2 [D] (a motor rotor of ~1e-5 kg m^2
+    behind a ~100:1 gear, typical of electric underwater arms). PyBullet has no joint armature, so it is added
+    to the driven link as a disk on the joint axis: ``J`` about the axis, ``J/2`` about the transverse axes
+    (the URDF inertia, shared by PyBullet and Pinocchio; a bare ``izz`` bump breaks the triangle inequality
+    and PyBullet silently zeroes such an inertia).
+    Without it a straight arm's roll joints (axial inertia ~5e-4 kg m^2) reach 100 rad/s in one 0.01 s step
+    under their torque limit."""
+    joint_friction: float = 2.0
+    """Viscous friction of each joint's gear train, N m s/rad [D] (PyBullet ``jointDamping``): bounds the joint
+    rates a torque command can reach (``tau_max / joint_friction``); explicit integration is stable since
+    ``joint_friction * dt / rotor_inertia = 0.2``."""
     drag_coefficient: float = 1.0
     """Cross-flow drag coefficient of a link (Morison, circular cylinder, Re ~ 1e4-1e5) [D]."""
     axial_drag_coefficient: float = 0.1

@@ -33,6 +33,7 @@ import numpy as np
 from uvdms_gym.distances import compute_distances, velocity_damper
 from uvdms_gym.envs.lowlevel import VelocityLoop
 from uvdms_gym.frames import rot_error
+from uvdms_gym.hydro import HydroScale
 from uvdms_gym.kinematics import KinematicModel
 from uvdms_gym.nominal import NominalDynamics
 from uvdms_gym.params import UVDMSParams
@@ -201,7 +202,7 @@ class UVDMSEnv(gym.Env):
             tau_applied, saturated = np.zeros(18), False
         self.t += self.control_dt
         if physics_error is not None:
-            info = dict(self._last_info)
+            info = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self._last_info.items()}
             info.update(self._physics_error_info(physics_error))
             return self._obs.copy(), PHYSICS_ERROR_REWARD, True, False, info
         obs, info = self._observe(contacts=contacts)
@@ -330,12 +331,10 @@ class UVDMSEnv(gym.Env):
     def _apply_hydro_randomization(self) -> None:
         s = self.hydro_randomization
         if s == 0.0:
-            self._sim.set_hydro_scale(None)
+            self._sim.set_hydro_scale(HydroScale())
             return
         lo, hi = 1.0 - s, 1.0 + s
         rng = self.np_random
-        from uvdms_gym.hydro import HydroScale
-
         self._sim.set_hydro_scale(
             HydroScale(
                 added_mass=float(rng.uniform(lo, hi)),

@@ -3,7 +3,7 @@
 It is part of the environment, not of any baseline: an agent or controller in velocity mode commands
 ``zeta_cmd`` and this loop turns it into the 18 generalized forces, every physics substep:
 
-``tau = g_n(q, eta2) + D_n(nu_cmd) nu_cmd + K_p (zeta_cmd - zeta) + K_i int (zeta_cmd - zeta) dt``
+``tau = g_n(q, eta2) + D_n(nu_cmd) nu_cmd + b qdot_cmd + K_p (zeta_cmd - zeta) + K_i int (zeta_cmd - zeta) dt``
 
 * ``g_n`` + ``D_n``: model-based feedforward from the nominal model (:mod:`uvdms_gym.nominal`: Pinocchio
   rigid body + nominal hydrostatics and vehicle damping), evaluated once per control step;
@@ -68,6 +68,7 @@ class VelocityLoop:
         self._ki = self._kp * self.omega * self.integral_ratio
         ff = self.nominal.static_force()
         ff[:6] += self.nominal.damping(self._cmd[:6])
+        ff[6:] += self.nominal.joint_friction(self._cmd[6:])
         self._ff = ff
 
     def torque(self, zeta: np.ndarray, dt: float) -> np.ndarray:

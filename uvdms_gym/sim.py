@@ -1,0 +1,827 @@
+"""The "true" plant: PyBullet rigid-body dynamics of the UVDMS plus the hydrodynamics of :mod:`uvdms_gym.hydro`.
+
+One :class:`UVDMSSim` owns exactly one PyBullet client (``DIRECT``, or ``GUI``) and one multibody: the
+vehicle base with the virtual ``added_mass`` link, the frame plates and both 6-joint arms, loaded from
+:func:`uvdms_gym.model.build_urdf` with ``URDF_USE_INERTIA_FROM_FILE``. Every public quantity is NED/FRD
+(:mod:`uvdms_gym.frames`); PyBullet's world is z-up (``p_W = diag(1, -1, -1) p_NED``).
+
+Physics set-up [D]:
+
+* gravity ``(0, 0, -9.81)`` in the z-up world, default joint motors disabled, linear/angular damping 0
+  on every link (PyBullet's default 0.04 would add an unmodelled damping), joint damping and friction 0;
+  no self-collision flag: links pass through each other, contacts are *reported* by distance queries.
+* joints in torque control; joint limits are PyBullet's URDF joint-limit constraints.
+* constraints (joint limits, the two grasp welds) are solved by PyBullet's direct MLCP solver
+  (``CONSTRAINT_SOLVER_LCP_DANTZIG``) with error reduction :data:`CONSTRAINT_ERP` = 0.8. The default
+  iterative solver (PGS, 50 iterations, ERP 0.2) converges poorly on the closed chain (a 9.9 kg object,
+  added mass included, between two arms whose distal links weigh 1.2-1.6 kg): 3-6 mm of grasp error
+  under moderate motion, and no better with 1000 iterations. The direct solver meets the velocity
+  constraints exactly; what remains is the second-order drift of the position integration
+  (``~ w^2 r dt^2`` per step), removed at 80 % per step: 0.2 mm and 0.02 deg at joint rates up to
+  5 rad/s (tested: < 1 mm, < 0.5 deg). Its cost is that of PGS within about 15 %: a physics step with the
+  gripped object costs about 45 µs instead of 12 µs, the closed chain's constraint solve either way.
+* ``physics_dt = 0.01 s`` by default: the hydrodynamic forces are explicit, and the stiffest explicit
+  term is the one-step-lagged residual added mass (ratio 0.24, independent of ``dt``, see
+  :mod:`uvdms_gym.hydro`); the damping terms are far below their explicit limit ``dt d / m < 2`` (vehicle
+  ``0.01 * 290 / 130``, links ``< 0.1`` below 10 m/s); the 1-DOF surge, heave and yaw responses match
+  their ODEs within about 1 % (the surge residue is the pitch coupling of the low centre of gravity,
+  unchanged at ``dt = 0.002``); the grasp welds stay within 0.2 mm (tested). Smaller ``dt`` costs
+  proportionally more and buys little; larger ``dt`` grows the grasp drift as ``dt^2``.
+* cost (same states, median): bare ``stepSimulation`` 12-17 µs, one physics step with hydrodynamics
+  about 40 µs (2.5x), of which about 22 µs are the state read, the arithmetic and the 14 force calls.
+* caution for controllers: at straight arms the roll joints 1, 3, 5 have tiny effective inertias
+  (``1 / (M^-1)_ii`` = 4e-4 to 8e-4 kg m^2), so torques near ``tau_max`` spin them beyond
+  :data:`QDOT_LIMIT` within one step (:class:`PhysicsError`).
+
+Per physics step (:meth:`UVDMSSim.step` runs ``n_substeps`` of them with the same ``tau``): one
+``getLinkStates`` call reads the body origin (the ``added_mass`` link sits there) and the 12 moving links
+with ``computeLinkVelocity=1, computeForwardKinematics=1``; the hydrodynamic loads are evaluated in plain
+float arithmetic; the vehicle wrench (control ``tau_v`` plus hydrodynamics, converted from the body frame)
+is applied at the body origin as a force and a torque in ``WORLD_FRAME``, each link's drag and buoyancy at
+its midpoint; joint torques via ``TORQUE_CONTROL``; then ``stepSimulation``. PyBullet clears external
+forces *and* joint torques after every ``stepSimulation``, so all are reapplied every physics step.
+
+Failures are never silent: an invalid ``tau`` raises :class:`ValueError`, saturation is reported in
+:class:`StepInfo`, and a state that is non-finite or beyond the sanity bounds :data:`NU_LIMIT`,
+:data:`QDOT_LIMIT`, :data:`POSITION_LIMIT` raises :class:`PhysicsError` (the simulator must then be
+reset).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from types import MappingProxyType, TracebackType
+
+import numpy as np
+import pybullet as pb
+from pybullet_utils import bullet_client
+
+from uvdms_gym import frames, model
+from uvdms_gym.hydro import HydroCoefficients, HydroScale, hydro_coefficients, object_wrench
+from uvdms_gym.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
+
+NU_LIMIT = 50.0
+"""Sanity bound on every component of ``nu`` (m/s, rad/s); beyond it the state is a blow-up."""
+QDOT_LIMIT = 100.0
+"""Sanity bound on every joint rate, rad/s."""
+POSITION_LIMIT = 1.0e4
+"""Sanity bound on the vehicle's and the object's NED position, m."""
+MAX_JOINT_VELOCITY = 10.0 * QDOT_LIMIT
+"""PyBullet's joint-rate clamp (default 100 rad/s, a silent non-physical cap) is raised above
+:data:`QDOT_LIMIT` so that the sanity check, not the clamp, decides."""
+GRASP_MAX_FORCE = 1.0e6
+"""Maximum force of each grasp constraint (PyBullet's default 500 N could let the chain slip), N."""
+GRASP_TOLERANCE = (1.0e-3, math.radians(0.5))
+"""Largest position (m) and angle (rad) mismatch between the two grasp frames accepted by
+``reset(..., with_object=True)``: the object is welded to both, so they must coincide."""
+MIN_VIRTUAL_MASS = model.TINY_MASS
+"""Floor on the virtual added-mass link's mass and inertia when :attr:`HydroScale.added_mass` is 0."""
+
+CONSTRAINT_ERP = 0.8
+"""Error reduction parameter of the (non-contact) constraints: the fraction of a position error of the
+grasp welds and joint limits removed per physics step [D] (PyBullet's default 0.2 leaves several times
+more drift, see the module docstring)."""
+CONSTRAINT_CFM = 1.0e-9
+"""Global constraint force mixing: a tiny regularisation for the direct solver at singular (e.g.
+straight-arm) configurations of the closed chain."""
+
+_WORLD = pb.WORLD_FRAME
+_TORQUE = pb.TORQUE_CONTROL
+_get_link_states = pb.getLinkStates
+_apply_force = pb.applyExternalForce
+_apply_torque = pb.applyExternalTorque
+_motor_array = pb.setJointMotorControlArray
+_step_simulation = pb.stepSimulation
+_base_pose = pb.getBasePositionAndOrientation
+_base_velocity = pb.getBaseVelocity
+_joint_states = pb.getJointStates
+_contact_points = pb.getContactPoints
+_perform_collision_detection = pb.performCollisionDetection
+
+
+@contextlib.contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    """Silence the C-level stdout (PyBullet prints solver changes there) for the duration of the block."""
+    try:
+        sys.stdout.flush()
+        fd = sys.stdout.fileno()
+        saved = os.dup(fd)
+    except (AttributeError, OSError, ValueError):  # no real stdout (e.g. redirected to a non-file)
+        yield
+        return
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), fd)
+            try:
+                yield
+            finally:
+                os.dup2(saved, fd)
+    finally:
+        os.close(saved)
+
+
+class PhysicsError(RuntimeError):
+    """The simulation blew up: a state became non-finite or left the documented sanity bounds.
+
+    Raised by :meth:`UVDMSSim.step` instead of ever returning NaN; the simulator must be reset.
+    """
+
+
+@dataclass(frozen=True)
+class SimState:
+    """State of the system in NED/FRD (SPEC section 1).
+
+    Attributes:
+        eta: vehicle pose ``[x y z phi theta psi]`` (NED position of the body origin, ZYX Euler).
+        nu: body velocity ``[u v w p q r]`` at the body origin (FRD).
+        q: joint angles ``[q_l; q_r]`` (12; empty for a bare vehicle).
+        qdot: joint rates, same order.
+        t: simulated time since the last reset, s.
+    """
+
+    eta: np.ndarray
+    nu: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    t: float
+
+    @property
+    def zeta(self) -> np.ndarray:
+        """System velocity ``[nu; qdot]`` (18)."""
+        return np.concatenate([self.nu, self.qdot])
+
+
+@dataclass(frozen=True)
+class StepInfo:
+    """What :meth:`UVDMSSim.step` applied.
+
+    Attributes:
+        tau: the generalized force actually applied (after saturation), ``[tau_v (6); tau_q (12)]``.
+        saturated: boolean mask, ``True`` where the requested component exceeded ``params.tau_max``.
+        t: simulated time after the step, s.
+        n_substeps: number of physics steps taken.
+    """
+
+    tau: np.ndarray
+    saturated: np.ndarray
+    t: float
+    n_substeps: int
+
+    @property
+    def any_saturated(self) -> bool:
+        """Whether any component was saturated."""
+        return bool(self.saturated.any())
+
+
+def _vector(value: object, n: int, name: str) -> np.ndarray:
+    """Validate a finite float vector of length ``n`` (``ValueError`` naming the problem)."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a numeric array of shape ({n},): {exc}") from None
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must have shape ({n},), got shape {arr.shape}")
+    if np.isnan(arr).any():
+        raise ValueError(f"{name} contains NaN at indices {np.flatnonzero(np.isnan(arr)).tolist()}")
+    if np.isinf(arr).any():
+        raise ValueError(f"{name} contains inf at indices {np.flatnonzero(np.isinf(arr)).tolist()}")
+    return arr
+
+
+class UVDMSSim:
+    """PyBullet simulation of the UVDMS with hydrodynamics (the benchmark's plant).
+
+    Args:
+        params: physical parameters (default :class:`UVDMSParams`).
+        physics_dt: physics time step, s.
+        gui: open PyBullet's GUI instead of a headless ``DIRECT`` client.
+        arms: ``False`` loads the bare vehicle (no arms; ``tau`` then has 6 components).
+        hydro_scale: model-mismatch factors (see :meth:`set_hydro_scale`).
+        self_collision: simulate contacts between non-adjacent robot links (arm-arm, arm-plate). ``False``
+            lets the links pass through each other (used by dynamics tests that compare with Pinocchio).
+
+    Use as a context manager or call :meth:`close` (idempotent).
+    """
+
+    def __init__(
+        self,
+        params: UVDMSParams | None = None,
+        *,
+        physics_dt: float = 0.01,
+        gui: bool = False,
+        arms: bool = True,
+        hydro_scale: HydroScale | None = None,
+        self_collision: bool = True,
+    ) -> None:
+        if not (math.isfinite(physics_dt) and physics_dt > 0.0):
+            raise ValueError(f"physics_dt must be finite and > 0, got {physics_dt!r}")
+        self._params = params or UVDMSParams()
+        self._arms = bool(arms)
+        self._self_collision = bool(self_collision)
+        self._dt = float(physics_dt)
+        self._inv_dt = 1.0 / self._dt
+        self._closed = True
+        if gui:
+            self._client = bullet_client.BulletClient(connection_mode=pb.GUI)
+        else:
+            with _quiet_stdout():  # DIRECT connect prints "argv[0]=" on the C stdout
+                self._client = bullet_client.BulletClient(connection_mode=pb.DIRECT)
+        self._closed = False
+        try:
+            self._setup(hydro_scale)
+        except BaseException:
+            self.close()
+            raise
+
+    def _setup(self, hydro_scale: HydroScale | None) -> None:
+        """Load the body and configure PyBullet (called once by the constructor)."""
+        self._cid: int = self._client._client
+        c = self._client
+        c.setGravity(0.0, 0.0, -GRAVITY)
+        with _quiet_stdout():  # switching the solver prints two lines on the C stdout
+            c.setPhysicsEngineParameter(
+                fixedTimeStep=self._dt,
+                constraintSolverType=pb.CONSTRAINT_SOLVER_LCP_DANTZIG,
+                globalCFM=CONSTRAINT_CFM,
+                erp=CONSTRAINT_ERP,
+            )
+        path = model.write_urdf(model.build_urdf(self._params, arms=self._arms))
+        # Self-collision between non-adjacent links is simulated: arm-arm and arm-plate contacts are physical,
+        # and count_contacts() reads them from the contact manifold PyBullet builds during each step.
+        flags = pb.URDF_USE_INERTIA_FROM_FILE
+        if self._self_collision:
+            flags |= pb.URDF_USE_SELF_COLLISION | pb.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
+        self._body: int = c.loadURDF(str(path), flags=flags)
+        names = {"vehicle": -1}
+        for j in range(c.getNumJoints(self._body)):
+            names[c.getJointInfo(self._body, j)[12].decode()] = j
+        self._link_index = MappingProxyType(names)
+        joint_names = JOINT_NAMES if self._arms else ()
+        by_joint = {c.getJointInfo(self._body, j)[1].decode(): j for j in range(c.getNumJoints(self._body))}
+        self._joints: list[int] = [by_joint[n] for n in joint_names]
+        self._n_joints = len(self._joints)
+        self._tau_max = np.asarray(self._params.tau_max, dtype=float)[: 6 + self._n_joints]
+        if self._joints:
+            c.setJointMotorControlArray(self._body, self._joints, pb.VELOCITY_CONTROL, forces=[0.0] * self._n_joints)
+        for link in names.values():
+            c.changeDynamics(self._body, link, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0)
+        for j in self._joints:  # gear-train viscous friction (params.ArmParams.joint_friction)
+            c.changeDynamics(self._body, j, jointDamping=self._params.arm.joint_friction)
+        for j in self._joints:  # PyBullet silently clamps joint rates at 100 rad/s: let PhysicsError see them
+            c.changeDynamics(self._body, j, maxJointVelocity=MAX_JOINT_VELOCITY)
+        self._am_link = names["added_mass"]
+        # moving links in the order of q (their link index equals their joint index)
+        self._state_links = [self._am_link, *self._joints]
+        self._r_g = np.array(self._params.vehicle.r_g, dtype=float)
+        self._obj: int | None = None
+        self._grasp_constraints: list[int] = []
+        self._contact_pairs: set[tuple[int, int]] = set()
+        self._needs_collision_pass = True
+        self._t = 0.0
+        self._nu_prev = (0.0, 0.0, 0.0)
+        self._obj_p_prev = (0.0, 0.0, 0.0)
+        self._scale = HydroScale()
+        self._hydro: HydroCoefficients = hydro_coefficients(self._params, self._scale, arms=self._arms)
+        self.set_hydro_scale(hydro_scale or HydroScale())
+        self.reset(np.zeros(6))
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def params(self) -> UVDMSParams:
+        """The physical parameters."""
+        return self._params
+
+    @property
+    def client(self) -> bullet_client.BulletClient:
+        """The PyBullet client (read-only use: queries such as ``getClosestPoints``)."""
+        self._check_open()
+        return self._client
+
+    @property
+    def body_id(self) -> int:
+        """PyBullet unique id of the UVDMS multibody."""
+        return self._body
+
+    @property
+    def object_id(self) -> int | None:
+        """PyBullet unique id of the gripped object, or ``None``."""
+        return self._obj
+
+    @property
+    def link_index(self) -> MappingProxyType[str, int]:
+        """Link name -> PyBullet link index (``"vehicle"`` is the base, -1)."""
+        return self._link_index
+
+    @property
+    def joint_indices(self) -> tuple[int, ...]:
+        """PyBullet joint indices in the order of ``q``."""
+        return tuple(self._joints)
+
+    @property
+    def n_joints(self) -> int:
+        """Number of arm joints (12, or 0 for the bare vehicle)."""
+        return self._n_joints
+
+    @property
+    def physics_dt(self) -> float:
+        """Physics time step, s."""
+        return self._dt
+
+    @property
+    def t(self) -> float:
+        """Simulated time since the last reset, s."""
+        return self._t
+
+    @property
+    def hydro_scale(self) -> HydroScale:
+        """The current model-mismatch factors."""
+        return self._scale
+
+    @property
+    def hydro(self) -> HydroCoefficients:
+        """The hydrodynamic coefficients in use."""
+        return self._hydro
+
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` was called."""
+        return self._closed
+
+    # ------------------------------------------------------------------ lifecycle
+    def close(self) -> None:
+        """Disconnect the PyBullet client (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._client.disconnect()  # the wrapper also forgets its id, so its __del__ will not reuse it
+        except pb.error:
+            pass
+
+    def __enter__(self) -> UVDMSSim:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("UVDMSSim is closed")
+
+    # ------------------------------------------------------------------ hydrodynamic model
+    def set_hydro_scale(self, scale: HydroScale) -> None:
+        """Change the hydrodynamic model-mismatch factors (e.g. once per episode).
+
+        Recomputes every coefficient and updates the virtual added-mass link (and the object, if present)
+        with ``changeDynamics``; takes effect at the next physics step.
+        """
+        self._check_open()
+        if not isinstance(scale, HydroScale):
+            raise TypeError(f"scale must be a HydroScale, got {type(scale).__name__}")
+        self._scale = scale
+        self._hydro = h = hydro_coefficients(self._params, scale, arms=self._arms)
+        self._client.changeDynamics(
+            self._body,
+            self._am_link,
+            mass=max(h.rigid_added_mass, MIN_VIRTUAL_MASS),
+            localInertiaDiagonal=[max(i, MIN_VIRTUAL_MASS) for i in h.rigid_added_inertia],
+        )
+        # the weight cancellation follows the mass actually set (floored), its centroid shift is negligible
+        self._up_force = h.up_force + (max(h.rigid_added_mass, MIN_VIRTUAL_MASS) - h.rigid_added_mass) * GRAVITY
+        self._up_centroid = h.up_centroid
+        self._link_consts = tuple(
+            (link, h.link_buoyancy[k], h.link_kn[k], h.link_kt[k], *h.link_axis[k])
+            for k, link in enumerate(self._joints)
+        )
+        if self._obj is not None:
+            self._set_object_dynamics()
+
+    def _set_object_dynamics(self) -> None:
+        o, h = self._params.obj, self._hydro
+        m = o.mass
+        i_t = m * (3.0 * o.radius**2 + o.length**2) / 12.0
+        i_ax = 0.5 * m * o.radius**2
+        self._client.changeDynamics(
+            self._obj,
+            -1,
+            mass=m + h.obj_added_mass,
+            localInertiaDiagonal=[i_t + h.obj_added_inertia, i_ax, i_t + h.obj_added_inertia],
+            linearDamping=0.0,
+            angularDamping=0.0,
+        )
+
+    # ------------------------------------------------------------------ reset / state
+    def reset(
+        self,
+        eta: np.ndarray,
+        nu: np.ndarray | None = None,
+        q: np.ndarray | None = None,
+        qdot: np.ndarray | None = None,
+        *,
+        with_object: bool = False,
+    ) -> SimState:
+        """Set the full state (NED/FRD) and the time to 0; optionally weld the object to both grippers.
+
+        Args:
+            eta: vehicle pose ``[x y z phi theta psi]``.
+            nu: body velocity (default 0).
+            q: joint angles ``[q_l; q_r]`` (default 0).
+            qdot: joint rates (default 0).
+            with_object: create the cylinder at the ``right_grasp`` frame, moving with it, and weld it to
+                both ``left_grasp`` and ``right_grasp`` (two fixed constraints). The two grasp frames must
+                coincide within :data:`GRASP_TOLERANCE` (e.g. equal joint angles, as at ``q = 0``).
+                Without it, any existing object and its constraints are removed.
+
+        Returns:
+            The state after the reset.
+        """
+        self._check_open()
+        nj = self._n_joints
+        eta = _vector(eta, 6, "eta")
+        nu = np.zeros(6) if nu is None else _vector(nu, 6, "nu")
+        q = np.zeros(nj) if q is None else _vector(q, nj, "q")
+        qdot = np.zeros(nj) if qdot is None else _vector(qdot, nj, "qdot")
+        if with_object and not self._arms:
+            raise ValueError("with_object=True needs the arms (arms=False was given)")
+        self._remove_object()
+        c = self._client
+        r_wb = frames.body_rot_ned_to_world(frames.euler_to_rot(eta[3:]))
+        r_g_w = r_wb @ self._r_g
+        p_com = frames.ned_to_world(eta[:3]) + r_g_w
+        w_w = r_wb @ nu[3:]
+        v_com = r_wb @ nu[:3] + np.cross(w_w, r_g_w)
+        c.resetBasePositionAndOrientation(self._body, p_com.tolist(), frames.rot_to_quat_xyzw(r_wb).tolist())
+        c.resetBaseVelocity(self._body, v_com.tolist(), w_w.tolist())
+        for k, j in enumerate(self._joints):
+            c.resetJointState(self._body, j, float(q[k]), float(qdot[k]))
+        self._t = 0.0
+        self._nu_prev = (float(nu[0]), float(nu[1]), float(nu[2]))
+        if with_object:
+            self._create_object()
+        self._needs_collision_pass = True
+        return self.state()
+
+    def _remove_object(self) -> None:
+        for cid in self._grasp_constraints:
+            self._client.removeConstraint(cid)
+        self._grasp_constraints = []
+        if self._obj is not None:
+            self._client.removeBody(self._obj)
+            self._obj = None
+
+    def _create_object(self) -> None:
+        c = self._client
+        grasp = {}
+        for side in ARM_SIDES:
+            ls = c.getLinkState(
+                self._body, self._link_index[f"{side}_grasp"], computeLinkVelocity=1, computeForwardKinematics=1
+            )
+            grasp[side] = ls
+        (pl, ol), (pr, orr) = (grasp["left"][4:6]), (grasp["right"][4:6])
+        dp = float(np.linalg.norm(np.subtract(pl, pr)))
+        r_rel = frames.quat_xyzw_to_rot(np.array(ol)).T @ frames.quat_xyzw_to_rot(np.array(orr))
+        dang = float(np.arccos(np.clip((np.trace(r_rel) - 1.0) / 2.0, -1.0, 1.0)))
+        if dp > GRASP_TOLERANCE[0] or dang > GRASP_TOLERANCE[1]:
+            raise ValueError(
+                f"with_object=True: the grasp frames differ by {dp * 1e3:.3f} mm and {math.degrees(dang):.3f} deg "
+                f"(tolerance {GRASP_TOLERANCE[0] * 1e3:.1f} mm, {math.degrees(GRASP_TOLERANCE[1]):.1f} deg); "
+                "give joint angles at which both grippers hold the object (e.g. q_left == q_right)"
+            )
+        path = model.write_urdf(model.build_object_urdf(self._params))
+        self._obj = c.loadURDF(str(path), basePosition=pr, baseOrientation=orr, flags=pb.URDF_USE_INERTIA_FROM_FILE)
+        c.setCollisionFilterGroupMask(self._obj, -1, 0, 0)
+        self._set_object_dynamics()
+        c.resetBaseVelocity(self._obj, grasp["right"][6], grasp["right"][7])
+        for side in ARM_SIDES:
+            cid = c.createConstraint(
+                self._body,
+                self._link_index[f"{side}_grasp"],
+                self._obj,
+                -1,
+                pb.JOINT_FIXED,
+                [0.0, 0.0, 0.0],
+                [0.0, 0.0, 0.0],
+                [0.0, 0.0, 0.0],
+                [0.0, 0.0, 0.0, 1.0],
+                [0.0, 0.0, 0.0, 1.0],
+            )
+            c.changeConstraint(cid, maxForce=GRASP_MAX_FORCE)
+            self._grasp_constraints.append(cid)
+        self._obj_p_prev = self._object_axial_momentum()
+
+    def _object_axial_momentum(self) -> tuple[float, float, float]:
+        """Axial added momentum ``m_a (v . e) e`` of the object (world frame)."""
+        _, (qx, qy, qz, qw) = _base_pose(self._obj, self._cid)
+        (vx, vy, vz), _ = _base_velocity(self._obj, self._cid)
+        ex, ey, ez = 2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw)
+        k = self._hydro.obj_added_mass * (vx * ex + vy * ey + vz * ez)
+        return (k * ex, k * ey, k * ez)
+
+    def state(self) -> SimState:
+        """The current state in NED/FRD (converted from PyBullet's base COM state)."""
+        self._check_open()
+        c = self._client
+        p_com, quat = c.getBasePositionAndOrientation(self._body)
+        v_com, w_w = c.getBaseVelocity(self._body)
+        r_wb = frames.quat_xyzw_to_rot(np.array(quat))
+        r_g_w = r_wb @ self._r_g
+        w_w = np.array(w_w)
+        eta = np.concatenate(
+            [frames.world_to_ned(np.array(p_com) - r_g_w), frames.rot_to_euler(frames.body_rot_world_to_ned(r_wb))]
+        )
+        nu = np.concatenate([r_wb.T @ (np.array(v_com) - np.cross(w_w, r_g_w)), r_wb.T @ w_w])
+        if self._joints:
+            js = c.getJointStates(self._body, self._joints)
+            q = np.array([s[0] for s in js])
+            qdot = np.array([s[1] for s in js])
+        else:
+            q = qdot = np.zeros(0)
+        return SimState(eta=eta, nu=nu, q=q, qdot=qdot, t=self._t)
+
+    def link_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """NED position and rotation matrix (``R_N,link``) of a link frame (e.g. ``"right_grasp"``)."""
+        self._check_open()
+        idx = self._link_index[name]
+        if idx < 0:
+            st = self.state()
+            return st.eta[:3], frames.euler_to_rot(st.eta[3:])
+        ls = self._client.getLinkState(self._body, idx, computeForwardKinematics=1)
+        r_w = frames.quat_xyzw_to_rot(np.array(ls[5]))
+        return frames.world_to_ned(np.array(ls[4])), frames.body_rot_world_to_ned(r_w)
+
+    def _require_object(self) -> int:
+        self._check_open()
+        if self._obj is None:
+            raise RuntimeError("no object: reset(..., with_object=True) first")
+        return self._obj
+
+    def object_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Object pose: NED position of its centre (3) and ZYX Euler angles ``[phi, theta, psi]`` (3)."""
+        obj = self._require_object()
+        p, quat = self._client.getBasePositionAndOrientation(obj)
+        r_n = frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(np.array(quat)))
+        return frames.world_to_ned(np.array(p)), frames.rot_to_euler(r_n)
+
+    def object_rotation(self) -> np.ndarray:
+        """Object orientation as a rotation matrix ``R_N,object`` (NED)."""
+        obj = self._require_object()
+        _, quat = self._client.getBasePositionAndOrientation(obj)
+        return frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(np.array(quat)))
+
+    def object_velocity(self) -> np.ndarray:
+        """Object twist ``[v; w]`` (6): velocity of its centre and angular velocity, both in NED."""
+        obj = self._require_object()
+        v, w = self._client.getBaseVelocity(obj)
+        return np.concatenate([frames.world_to_ned(np.array(v)), frames.world_to_ned(np.array(w))])
+
+    def grasp_forces(self) -> np.ndarray:
+        """Wrenches exerted by the end effectors on the object, ``(2, 6)`` rows ``[left; right]``.
+
+        Each row is ``[force (3); moment (3)]`` in NED, about the object's centre (the grasp point), from
+        the last physics step's constraint impulses (``getConstraintState``, impulse / dt). These are the
+        paper's ``F_e``. Zeros without an object.
+        """
+        self._check_open()
+        out = np.zeros((2, 6))
+        for k, cid in enumerate(self._grasp_constraints):
+            f = np.array(self._client.getConstraintState(cid), dtype=float)
+            side = ARM_SIDES[k]
+            ls = self._client.getLinkState(self._body, self._link_index[f"{side}_grasp"], computeForwardKinematics=1)
+            r_w = frames.quat_xyzw_to_rot(np.array(ls[5]))  # angular rows act about the grasp frame's axes
+            out[k, :3] = frames.S @ (_GRASP_SIGN * f[:3])
+            out[k, 3:] = frames.S @ (r_w @ (_GRASP_SIGN * f[3:6]))
+        return out
+
+    def zeta(self) -> np.ndarray:
+        """System velocity ``[nu; qdot]`` (a cheaper :meth:`state` for velocity loops)."""
+        self._check_open()
+        cid = self._cid
+        ls = _get_link_states(self._body, [self._am_link], 1, 1, cid)[0]  # body frame at the origin
+        r_wb = frames.quat_xyzw_to_rot(np.array(ls[1]))
+        out = np.empty(6 + self._n_joints)
+        out[:3] = r_wb.T @ np.array(ls[6])
+        out[3:6] = r_wb.T @ np.array(ls[7])
+        if self._joints:
+            out[6:] = [s[1] for s in _joint_states(self._body, self._joints, cid)]
+        return out
+
+    def count_contacts(self) -> int:
+        """Number of touching robot-part pairs: right-arm vs left-arm links, and arm links vs frame plates.
+
+        Read from the contact manifold PyBullet built in the last physics step (self-collision is simulated
+        between non-adjacent links), so it costs a few µs and can be called every substep. After a reset with
+        no step yet, one collision-detection pass is run first. Pairs within one arm and the object (which has
+        no collision shape) are not counted: these are the pairs the 18 distances of SPEC section 4 monitor.
+        """
+        self._check_open()
+        if not self._contact_pairs:
+            li = self._link_index
+            plates = [li[f"plate_{pl.name}"] for pl in self._params.plates]
+            n = self._params.arm.n_links if self._arms else 0
+            pairs = {(li[f"right_link{i}"], li[f"left_link{j}"]) for i in range(n) for j in range(n)}
+            pairs |= {(li[f"{s}_link{i}"], p) for s in ARM_SIDES for i in range(1, n) for p in plates}
+            self._contact_pairs = pairs | {(b, a) for a, b in pairs}
+        b, cid = self._body, self._cid
+        if self._needs_collision_pass:
+            _perform_collision_detection(cid)
+            self._needs_collision_pass = False
+        touching = {
+            (cp[3], cp[4]) for cp in _contact_points(b, b, physicsClientId=cid) if cp[8] <= 0.0
+        } & self._contact_pairs
+        return len({tuple(sorted(pair)) for pair in touching})
+
+    def render_rgb(self, width: int = 320, height: int = 240) -> np.ndarray:
+        """An ``(height, width, 3)`` uint8 image from a camera beside and above the vehicle (headless)."""
+        self._check_open()
+        c = self._client
+        st = self.state()
+        target = frames.ned_to_world(st.eta[:3]).tolist()
+        view = c.computeViewMatrixFromYawPitchRoll(target, 2.5, 45.0 + math.degrees(-st.eta[5]), -25.0, 0.0, 2)
+        proj = c.computeProjectionMatrixFOV(60.0, width / height, 0.05, 50.0)
+        img = c.getCameraImage(int(width), int(height), view, proj, renderer=pb.ER_TINY_RENDERER)
+        rgba = np.reshape(np.asarray(img[2], dtype=np.uint8), (int(height), int(width), 4))
+        return np.ascontiguousarray(rgba[:, :, :3])
+
+    # ------------------------------------------------------------------ stepping
+    def bare_step(self) -> None:
+        """One ``stepSimulation`` with no hydrodynamics and no inputs (for benchmarks; advances ``t``)."""
+        _step_simulation(self._cid)
+        self._t += self._dt
+
+    def step(self, tau: np.ndarray, n_substeps: int = 1) -> StepInfo:
+        """Apply the generalized force ``tau`` for ``n_substeps`` physics steps.
+
+        Args:
+            tau: ``[tau_v (6, body-frame wrench about the body origin); tau_q left (6); tau_q right (6)]``
+                (6 components for the bare vehicle). Saturated at ``params.tau_max``.
+            n_substeps: number of physics steps (``>= 1``) with this input.
+
+        Returns:
+            What was applied (saturated components are reported, never silently clipped).
+
+        Raises:
+            ValueError: ``tau`` has the wrong shape or contains NaN/inf; bad ``n_substeps``.
+            PhysicsError: the state became non-finite or left the sanity bounds (reset required).
+        """
+        self._check_open()
+        try:
+            tau = np.array(tau, dtype=float)  # a copy: the caller's array is never modified
+        except (TypeError, ValueError):
+            pass  # _vector below names the problem
+        if not isinstance(tau, np.ndarray) or tau.shape != self._tau_max.shape or not np.isfinite(tau).all():
+            tau = _vector(tau, self._tau_max.size, "tau")  # raises the detailed ValueError
+        if int(n_substeps) != n_substeps or n_substeps < 1:
+            raise ValueError(f"n_substeps must be an integer >= 1, got {n_substeps!r}")
+        saturated = np.abs(tau) > self._tau_max
+        if saturated.any():
+            tau = np.clip(tau, -self._tau_max, self._tau_max)
+        tau_v = tau[:6].tolist()
+        tau_q = tau[6:].tolist()
+        for _ in range(int(n_substeps)):
+            self._substep(tau_v, tau_q)
+        self._needs_collision_pass = False
+        self._check_state()
+        return StepInfo(tau=tau, saturated=saturated, t=self._t, n_substeps=int(n_substeps))
+
+    def _substep(self, tau_v: list[float], tau_q: list[float]) -> None:
+        """One physics step: read state, evaluate hydrodynamics (see :mod:`uvdms_gym.hydro`), apply, step."""
+        cid, body, h = self._cid, self._body, self._hydro
+        st = _get_link_states(body, self._state_links, 1, 1, cid)
+        origin, (qx, qy, qz, qw), _, _, _, _, (vx, vy, vz), (wx, wy, wz) = st[0]
+        # R_WB of the body (the added_mass link's frame is the body frame at the origin)
+        xx, yy, zz, xy, xz, yz = qx * qx, qy * qy, qz * qz, qx * qy, qx * qz, qy * qz
+        sx, sy, sz = qw * qx, qw * qy, qw * qz
+        r00, r01, r02 = 1.0 - 2.0 * (yy + zz), 2.0 * (xy - sz), 2.0 * (xz + sy)
+        r10, r11, r12 = 2.0 * (xy + sz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - sx)
+        r20, r21, r22 = 2.0 * (xz - sy), 2.0 * (yz + sx), 1.0 - 2.0 * (xx + yy)
+        # body velocity nu = R^T v (velocity of the origin, angular velocity)
+        u = r00 * vx + r10 * vy + r20 * vz
+        v = r01 * vx + r11 * vy + r21 * vz
+        w = r02 * vx + r12 * vy + r22 * vz
+        p = r00 * wx + r10 * wy + r20 * wz
+        q = r01 * wx + r11 * wy + r21 * wz
+        r = r02 * wx + r12 * wy + r22 * wz
+        if not abs(u) + abs(v) + abs(w) + abs(p) + abs(q) + abs(r) < 6.0 * NU_LIMIT:
+            self._fail(f"body velocity out of bounds or non-finite: nu = {[u, v, w, p, q, r]}")
+        # vehicle: damping + residual added mass (hydro.vehicle_wrench, inlined) + control
+        inv_dt = self._inv_dt
+        u0, v0, w0 = self._nu_prev
+        self._nu_prev = (u, v, w)
+        dl, dq = h.d_lin, h.d_quad
+        a1, a2, a3 = h.a_res
+        p1, p2, p3 = a1 * u, a2 * v, a3 * w
+        fx = tau_v[0] - (dl[0] + dq[0] * abs(u)) * u - a1 * (u - u0) * inv_dt + (p2 * r - p3 * q)
+        fy = tau_v[1] - (dl[1] + dq[1] * abs(v)) * v - a2 * (v - v0) * inv_dt + (p3 * p - p1 * r)
+        fz = tau_v[2] - (dl[2] + dq[2] * abs(w)) * w - a3 * (w - w0) * inv_dt + (p1 * q - p2 * p)
+        mx = tau_v[3] - (dl[3] + dq[3] * abs(p)) * p + (p2 * w - p3 * v)
+        my = tau_v[4] - (dl[4] + dq[4] * abs(q)) * q + (p3 * u - p1 * w)
+        mz = tau_v[5] - (dl[5] + dq[5] * abs(r)) * r + (p1 * v - p2 * u)
+        # upward hydrostatic force at its body-fixed centroid (world z up)
+        up = self._up_force
+        cx, cy, cz = self._up_centroid
+        ox = r00 * cx + r01 * cy + r02 * cz
+        oy = r10 * cx + r11 * cy + r12 * cz
+        _apply_force(
+            body,
+            -1,
+            (r00 * fx + r01 * fy + r02 * fz, r10 * fx + r11 * fy + r12 * fz, r20 * fx + r21 * fy + r22 * fz + up),
+            origin,
+            _WORLD,
+            cid,
+        )
+        _apply_torque(
+            body,
+            -1,
+            (
+                r00 * mx + r01 * my + r02 * mz + oy * up,
+                r10 * mx + r11 * my + r12 * mz - ox * up,
+                r20 * mx + r21 * my + r22 * mz,
+            ),
+            _WORLD,
+            cid,
+        )
+        # arm links: buoyancy at the midpoint (= COM) + Morison drag (hydro.link_force, inlined)
+        k = 1
+        for link, fb, kn, kt, ex, ey, ez in self._link_consts:
+            pos, (qx, qy, qz, qw), _, _, _, _, (vx, vy, vz), _ = st[k]
+            k += 1
+            tx = 2.0 * (qy * ez - qz * ey)
+            ty = 2.0 * (qz * ex - qx * ez)
+            tz = 2.0 * (qx * ey - qy * ex)
+            ax = ex + qw * tx + qy * tz - qz * ty
+            ay = ey + qw * ty + qz * tx - qx * tz
+            az = ez + qw * tz + qx * ty - qy * tx
+            vt = vx * ax + vy * ay + vz * az
+            nx, ny, nz = vx - vt * ax, vy - vt * ay, vz - vt * az
+            kvn = kn * math.sqrt(nx * nx + ny * ny + nz * nz)
+            kvt = kt * abs(vt) * vt
+            _apply_force(
+                body,
+                link,
+                (-kvn * nx - kvt * ax, -kvn * ny - kvt * ay, fb - kvn * nz - kvt * az),
+                pos,
+                _WORLD,
+                cid,
+            )
+        if self._joints:
+            _motor_array(body, self._joints, _TORQUE, forces=tau_q, physicsClientId=cid)
+        if self._obj is not None:
+            self._object_hydro()
+        _step_simulation(cid)
+        self._t += self._dt
+
+    def _object_hydro(self) -> None:
+        """Apply the object's hydrodynamic wrench (see :func:`uvdms_gym.hydro.object_wrench`)."""
+        cid, obj, h = self._cid, self._obj, self._hydro
+        pos, (qx, qy, qz, qw) = _base_pose(obj, cid)
+        vel, _ = _base_velocity(obj, cid)
+        e = (2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw))
+        k = h.obj_added_mass * (vel[0] * e[0] + vel[1] * e[1] + vel[2] * e[2])
+        p_ax = (k * e[0], k * e[1], k * e[2])
+        p0 = self._obj_p_prev
+        self._obj_p_prev = p_ax
+        inv_dt = self._inv_dt
+        rate = ((p_ax[0] - p0[0]) * inv_dt, (p_ax[1] - p0[1]) * inv_dt, (p_ax[2] - p0[2]) * inv_dt)
+        force, moment = object_wrench(vel, e, rate, h)
+        _apply_force(obj, -1, force, pos, _WORLD, cid)
+        _apply_torque(obj, -1, moment, _WORLD, cid)
+
+    def _fail(self, message: str) -> None:
+        raise PhysicsError(f"simulation blew up at t = {self._t:.4f} s: {message}; reset() required")
+
+    def _check_state(self) -> None:
+        """Raise :class:`PhysicsError` if the state is non-finite or beyond the documented sanity bounds."""
+        cid, body = self._cid, self._body
+        pos, _ = _base_pose(body, cid)
+        vel, ang = _base_velocity(body, cid)
+        # cheap conservative pre-check on PyBullet's COM velocity (components below NU_LIMIT / 2 imply
+        # |nu_i| <= sqrt(3) NU_LIMIT / 2 + |w| |r_G| < NU_LIMIT); the exact check only if it fails
+        if not (max(map(abs, (*vel, *ang))) < 0.5 * NU_LIMIT and max(map(abs, pos)) < 0.5 * POSITION_LIMIT):
+            st = self.state()
+            if not (np.isfinite(st.eta).all() and np.isfinite(st.nu).all()):
+                self._fail(f"non-finite state: eta = {st.eta}, nu = {st.nu}")
+            if np.abs(st.nu).max() > NU_LIMIT:
+                self._fail(f"|nu| > {NU_LIMIT}: nu = {st.nu}")
+            if np.abs(st.eta[:3]).max() > POSITION_LIMIT:
+                self._fail(f"|position| > {POSITION_LIMIT}: eta = {st.eta}")
+        if self._joints:
+            qdot = [s[1] for s in _joint_states(body, self._joints, cid)]
+            if not max(map(abs, qdot)) <= QDOT_LIMIT:
+                self._fail(f"|qdot| > {QDOT_LIMIT} or non-finite: qdot = {qdot}")
+        if self._obj is not None:
+            p, _ = _base_pose(self._obj, cid)
+            v, w = _base_velocity(self._obj, cid)
+            if not (max(map(abs, (*v, *w))) < NU_LIMIT + QDOT_LIMIT and max(map(abs, p)) < POSITION_LIMIT):
+                self._fail(f"object state out of bounds or non-finite: position {p}, velocity {v}, {w}")
+
+
+_GRASP_SIGN = -1.0
+"""``getConstraintState`` reports the constraint force on the parent (the grasp link); the force on the
+object (the child) is its opposite (checked against the object's momentum balance in the tests)."""
