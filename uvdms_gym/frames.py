@@ -132,3 +132,31 @@ def rot_error(r_des: np.ndarray, r: np.ndarray) -> np.ndarray:
         axis[np.arange(3) != i] = (re[i, np.arange(3) != i] + re[np.arange(3) != i, i]) / (4.0 * axis[i])
         return angle * axis / np.linalg.norm(axis)
     return angle * v / (2.0 * s)
+
+
+def euler_to_rot_batch(rpy: np.ndarray) -> np.ndarray:
+    """Vectorised :func:`euler_to_rot`: ``(N, 3)`` Euler angles -> ``(N, 3, 3)`` rotations."""
+    rpy = np.asarray(rpy, dtype=float)
+    cf, sf = np.cos(rpy[:, 0]), np.sin(rpy[:, 0])
+    ct, st = np.cos(rpy[:, 1]), np.sin(rpy[:, 1])
+    cp, sp = np.cos(rpy[:, 2]), np.sin(rpy[:, 2])
+    out = np.empty((rpy.shape[0], 3, 3))
+    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st
+    out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf
+    out[:, 2, 0], out[:, 2, 1], out[:, 2, 2] = -st, ct * sf, ct * cf
+    return out
+
+
+def rot_error_batch(r_des: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Vectorised :func:`rot_error` for ``(N, 3, 3)`` desired rotations and one current rotation ``r``."""
+    re = r_des @ r.T
+    cos_a = np.clip((np.trace(re, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    angle = np.arccos(cos_a)
+    v = np.stack([re[:, 2, 1] - re[:, 1, 2], re[:, 0, 2] - re[:, 2, 0], re[:, 1, 0] - re[:, 0, 1]], axis=1)
+    s = np.sin(angle)
+    out = np.empty_like(v)
+    regular = s >= 1e-9
+    out[regular] = (angle[regular] / (2.0 * s[regular]))[:, None] * v[regular]
+    for i in np.flatnonzero(~regular):  # identity or a half turn: the scalar version handles both
+        out[i] = rot_error(r_des[i], r)
+    return out

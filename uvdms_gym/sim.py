@@ -53,7 +53,7 @@ import contextlib
 import math
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from types import MappingProxyType, TracebackType
 
@@ -165,12 +165,15 @@ class StepInfo:
         saturated: boolean mask, ``True`` where the requested component exceeded ``params.tau_max``.
         t: simulated time after the step, s.
         n_substeps: number of physics steps taken.
+        contacts: with ``track_contacts``, the largest :meth:`UVDMSSim.count_contacts` over the substeps
+            (else 0).
     """
 
     tau: np.ndarray
     saturated: np.ndarray
     t: float
     n_substeps: int
+    contacts: int = 0
 
     @property
     def any_saturated(self) -> bool:
@@ -525,20 +528,30 @@ class UVDMSSim:
         return (k * ex, k * ey, k * ez)
 
     def state(self) -> SimState:
-        """The current state in NED/FRD (converted from PyBullet's base COM state)."""
+        """The current state in NED/FRD, converted from PyBullet's base (COM) pose and velocity.
+
+        (Double precision: ``getLinkStates`` would be one query but returns single-precision values.)
+        """
         self._check_open()
-        c = self._client
-        p_com, quat = c.getBasePositionAndOrientation(self._body)
-        v_com, w_w = c.getBaseVelocity(self._body)
-        r_wb = frames.quat_xyzw_to_rot(np.array(quat))
+        cid, body = self._cid, self._body
+        p_com, quat = _base_pose(body, cid)
+        v_com, w_w = _base_velocity(body, cid)
+        r_wb = frames.quat_xyzw_to_rot(quat)
         r_g_w = r_wb @ self._r_g
-        w_w = np.array(w_w)
-        eta = np.concatenate(
-            [frames.world_to_ned(np.array(p_com) - r_g_w), frames.rot_to_euler(frames.body_rot_world_to_ned(r_wb))]
-        )
-        nu = np.concatenate([r_wb.T @ (np.array(v_com) - np.cross(w_w, r_g_w)), r_wb.T @ w_w])
+        w = np.array(w_w)
+        eta = np.empty(6)
+        eta[:3] = frames.world_to_ned(np.array(p_com) - r_g_w)
+        eta[3:] = frames.rot_to_euler(frames.body_rot_world_to_ned(r_wb))
+        # v_origin = v_com - w x r_g
+        v = np.array(v_com)
+        v[0] -= w[1] * r_g_w[2] - w[2] * r_g_w[1]
+        v[1] -= w[2] * r_g_w[0] - w[0] * r_g_w[2]
+        v[2] -= w[0] * r_g_w[1] - w[1] * r_g_w[0]
+        nu = np.empty(6)
+        nu[:3] = r_wb.T @ v
+        nu[3:] = r_wb.T @ w
         if self._joints:
-            js = c.getJointStates(self._body, self._joints)
+            js = _joint_states(body, self._joints, cid)
             q = np.array([s[0] for s in js])
             qdot = np.array([s[1] for s in js])
         else:
@@ -655,13 +668,25 @@ class UVDMSSim:
         _step_simulation(self._cid)
         self._t += self._dt
 
-    def step(self, tau: np.ndarray, n_substeps: int = 1) -> StepInfo:
+    def step(
+        self,
+        tau: np.ndarray,
+        n_substeps: int = 1,
+        feedback: Callable[[np.ndarray], np.ndarray] | None = None,
+        track_contacts: bool = False,
+    ) -> StepInfo:
         """Apply the generalized force ``tau`` for ``n_substeps`` physics steps.
 
         Args:
             tau: ``[tau_v (6, body-frame wrench about the body origin); tau_q left (6); tau_q right (6)]``
                 (6 components for the bare vehicle). Saturated at ``params.tau_max``.
             n_substeps: number of physics steps (``>= 1``) with this input.
+            feedback: optional ``zeta -> tau`` law evaluated at every physics step on the velocity the step
+                reads anyway (a velocity loop at the physics rate without a second state query). ``tau`` is
+                then only the input of a controller that ignores it (pass zeros); the returned ``tau`` is the
+                last substep's and ``saturated`` the union over substeps.
+            track_contacts: count touching robot-part pairs after every substep (see :meth:`count_contacts`)
+                and report the largest count in :attr:`StepInfo.contacts`.
 
         Returns:
             What was applied (saturated components are reported, never silently clipped).
@@ -684,13 +709,37 @@ class UVDMSSim:
             tau = np.clip(tau, -self._tau_max, self._tau_max)
         tau_v = tau[:6].tolist()
         tau_q = tau[6:].tolist()
+        self._fb_saturated = saturated
+        contacts = 0
         for _ in range(int(n_substeps)):
-            self._substep(tau_v, tau_q)
-        self._needs_collision_pass = False
+            self._substep(tau_v, tau_q, feedback)
+            self._needs_collision_pass = False
+            if track_contacts:
+                contacts = max(contacts, self.count_contacts())
+        if feedback is not None:
+            tau, saturated = self._fb_tau, self._fb_saturated
         self._check_state()
-        return StepInfo(tau=tau, saturated=saturated, t=self._t, n_substeps=int(n_substeps))
+        return StepInfo(tau=tau, saturated=saturated, t=self._t, n_substeps=int(n_substeps), contacts=contacts)
 
-    def _substep(self, tau_v: list[float], tau_q: list[float]) -> None:
+    def _feedback(self, feedback: Callable[[np.ndarray], np.ndarray], nu: tuple[float, ...]) -> tuple[list, list]:
+        """Evaluate a per-substep feedback law at ``zeta = [nu; qdot]``; validate and saturate its output."""
+        z = np.empty(6 + self._n_joints)
+        z[:6] = nu
+        if self._joints:
+            z[6:] = [js[1] for js in _joint_states(self._body, self._joints, self._cid)]
+        t = np.asarray(feedback(z), dtype=float)
+        if t.shape != self._tau_max.shape or not np.isfinite(t).all():
+            raise ValueError(f"feedback must return a finite tau of shape {self._tau_max.shape}, got {t!r}")
+        sat = np.abs(t) > self._tau_max
+        if sat.any():
+            t = np.clip(t, -self._tau_max, self._tau_max)
+            self._fb_saturated = self._fb_saturated | sat
+        self._fb_tau = t
+        return t[:6].tolist(), t[6:].tolist()
+
+    def _substep(
+        self, tau_v: list[float], tau_q: list[float], feedback: Callable[[np.ndarray], np.ndarray] | None = None
+    ) -> None:
         """One physics step: read state, evaluate hydrodynamics (see :mod:`uvdms_gym.hydro`), apply, step."""
         cid, body, h = self._cid, self._body, self._hydro
         st = _get_link_states(body, self._state_links, 1, 1, cid)
@@ -710,6 +759,8 @@ class UVDMSSim:
         r = r02 * wx + r12 * wy + r22 * wz
         if not abs(u) + abs(v) + abs(w) + abs(p) + abs(q) + abs(r) < 6.0 * NU_LIMIT:
             self._fail(f"body velocity out of bounds or non-finite: nu = {[u, v, w, p, q, r]}")
+        if feedback is not None:
+            tau_v, tau_q = self._feedback(feedback, (u, v, w, p, q, r))
         # vehicle: damping + residual added mass (hydro.vehicle_wrench, inlined) + control
         inv_dt = self._inv_dt
         u0, v0, w0 = self._nu_prev

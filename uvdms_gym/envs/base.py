@@ -32,7 +32,7 @@ import numpy as np
 
 from uvdms_gym.distances import compute_distances, velocity_damper
 from uvdms_gym.envs.lowlevel import VelocityLoop
-from uvdms_gym.frames import rot_error
+from uvdms_gym.frames import euler_to_rot_batch, rot_error_batch
 from uvdms_gym.hydro import HydroScale
 from uvdms_gym.kinematics import KinematicModel
 from uvdms_gym.nominal import NominalDynamics
@@ -135,6 +135,7 @@ class UVDMSEnv(gym.Env):
         self.task: Any = None
         self.t = 0.0
         self._obs = np.zeros(OBS_DIM, np.float32)
+        self._preview_times = np.asarray(PREVIEW_TIMES)
         self._closed = False
 
     # ----------------------------------------------------------------- task hooks
@@ -149,8 +150,12 @@ class UVDMSEnv(gym.Env):
         """Tracked output ``y`` (6) at the kinematic model's state."""
         raise NotImplementedError
 
-    def _errors(self, y: np.ndarray, y_ref: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
-        """Observation error block (6, body frame, unscaled), position error (m), orientation error (rad)."""
+    def _errors(self, y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """Observation error blocks for the preview references ``refs`` (P, 6).
+
+        Returns the (6 P,) scaled body-frame errors, and the position (m) and orientation (rad) errors at the
+        first (current) reference.
+        """
         raise NotImplementedError  # pragma: no cover - abstract
 
     def _success(self, pos_err: float, ori_err: float) -> bool:
@@ -241,24 +246,15 @@ class UVDMSEnv(gym.Env):
         return (np.clip(a, -1.0, 1.0) if clipped else a), clipped
 
     def _apply(self, a: np.ndarray) -> tuple[np.ndarray, bool, int]:
-        sim, dt = self._sim, self.physics_dt
-        contacts = 0
-        saturated = False
+        """Run the control step's physics substeps; return applied tau, saturation flag, contact count."""
+        n, dt = self.n_substeps, self.physics_dt
         if self.action_mode == "torque":
-            tau = a * self.tau_max
-            for _ in range(self.n_substeps):
-                res = sim.step(tau, 1)
-                saturated |= bool(np.any(res.saturated))
-                contacts = max(contacts, self._sim_contacts())
-            return tau, saturated, contacts
-        self._loop.begin(a * self.zeta_max)  # kinematic model holds the current state (from _observe)
-        tau = np.zeros(18)
-        for _ in range(self.n_substeps):
-            tau = self._loop.torque(sim.zeta(), dt)
-            res = sim.step(tau, 1)
-            saturated |= bool(np.any(res.saturated))
-            contacts = max(contacts, self._sim_contacts())
-        return np.clip(tau, -self.tau_max, self.tau_max), saturated, contacts
+            res = self._sim.step(a * self.tau_max, n, track_contacts=True)
+        else:
+            loop = self._loop
+            loop.begin(a * self.zeta_max)  # the kinematic model holds the current state (from _observe)
+            res = self._sim.step(np.zeros(ACTION_DIM), n, feedback=lambda z: loop.torque(z, dt), track_contacts=True)
+        return res.tau, bool(np.any(res.saturated)), res.contacts
 
     def _sim_contacts(self) -> int:
         return self._sim.count_contacts()
@@ -268,18 +264,11 @@ class UVDMSEnv(gym.Env):
         self._kin.set_state(st.eta, st.q, st.zeta)
         dist = compute_distances(self._kin, "exact")
         y = self._output()
-        times = self.t + np.asarray(PREVIEW_TIMES)
-        refs = self.task.reference(times)
+        refs = self.task.reference(self.t + self._preview_times)
         r_nb = self._kin.frame_placement("vehicle")[1]
-        blocks = []
-        pos_err = ori_err = 0.0
-        for k, y_ref in enumerate(refs):
-            blk, p_e, o_e = self._errors(y, y_ref, r_nb)
-            blocks.append(blk)
-            if k == 0:
-                pos_err, ori_err = p_e, o_e
+        blocks, pos_err, ori_err = self._errors(y, refs, r_nb)
         obs = np.empty(OBS_DIM)
-        obs[0:18] = np.concatenate(blocks)
+        obs[0:18] = blocks
         obs[18:20] = st.eta[3:5]
         obs[20:26] = st.nu / self.zeta_max[:6]
         obs[26:38] = np.sin(st.q)
@@ -350,18 +339,16 @@ class UVDMSEnv(gym.Env):
         return replace(self.params, **changes)
 
 
-def errors_positions(y: np.ndarray, y_ref: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """Circle tracking: both end-effector position errors in the body frame; mean error norm."""
-    e = (y_ref - y).reshape(2, 3)
-    blk = (e @ r_nb).reshape(6) / POS_SCALE  # r_nb^T e for each row
-    return blk, float(np.linalg.norm(e, axis=1).mean()), 0.0
+def errors_positions(y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Circle tracking: both end-effector position errors in the body frame; mean error norm (now)."""
+    e = (refs - y).reshape(-1, 3)  # (2 P, 3): left, right for each preview time
+    blk = (e @ r_nb).reshape(-1) / POS_SCALE  # rows r_nb^T e
+    return blk, float(0.5 * (np.linalg.norm(e[0]) + np.linalg.norm(e[1]))), 0.0
 
 
-def errors_pose(
-    p: np.ndarray, r: np.ndarray, y_ref: np.ndarray, r_nb: np.ndarray, r_ref: np.ndarray
-) -> tuple[np.ndarray, float, float]:
+def errors_pose(p: np.ndarray, r: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
     """Object transport: position error and orientation error (rotation vector), both in the body frame."""
-    e_p = y_ref[:3] - p
-    e_o = rot_error(r_ref, r)
-    blk = np.concatenate([r_nb.T @ e_p / POS_SCALE, r_nb.T @ e_o])
-    return blk, float(np.linalg.norm(e_p)), float(np.linalg.norm(e_o))
+    e_p = refs[:, :3] - p
+    e_o = rot_error_batch(euler_to_rot_batch(refs[:, 3:]), r)
+    blk = np.concatenate([e_p @ r_nb / POS_SCALE, e_o @ r_nb], axis=1).reshape(-1)
+    return blk, float(np.linalg.norm(e_p[0])), float(np.linalg.norm(e_o[0]))

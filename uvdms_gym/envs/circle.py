@@ -106,5 +106,5 @@ class CircleTrackEnv(UVDMSEnv):
     def _output(self) -> np.ndarray:
         return self._kin.ee_positions().reshape(6)
 
-    def _errors(self, y: np.ndarray, y_ref: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
-        return errors_positions(y, y_ref, r_nb)
+    def _errors(self, y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
+        return errors_positions(y, refs, r_nb)

@@ -105,8 +105,8 @@ class TransportEnv(UVDMSEnv):
         self._obj_rot = euler_to_rot(rpy)
         return np.concatenate([pos, rpy])
 
-    def _errors(self, y: np.ndarray, y_ref: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
-        return errors_pose(y[:3], self._obj_rot, y_ref, r_nb, euler_to_rot(y_ref[3:]))
+    def _errors(self, y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
+        return errors_pose(y[:3], self._obj_rot, refs, r_nb)
 
     def _success(self, pos_err: float, ori_err: float) -> bool:
         return self.t >= self.task.move_time and pos_err < SUCCESS_POSITION and ori_err < SUCCESS_ORIENTATION
