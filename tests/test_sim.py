@@ -592,3 +592,17 @@ def test_render_rgb(sim):
     img = sim.render_rgb(64, 48)
     assert img.shape == (48, 64, 3) and img.dtype == np.uint8
     assert img.std() > 0  # not a blank frame
+
+
+def test_count_contacts_agrees_with_simulated_self_collision():
+    # the same penetrating configurations, reported by closest-point queries (default) and by the contact
+    # manifold of a simulator that simulates self-collision
+    qs = (np.r_[np.zeros(6), 1.57, 1.0, 0, 0, 0, 0], np.tile([0, 0.6, 0, 0, 0, 0], 2), np.zeros(12))
+    with UVDMSSim(P) as a, UVDMSSim(P, self_collision=True) as b:
+        for q in qs:
+            a.reset(np.zeros(6), q=q)
+            b.reset(np.zeros(6), q=q)
+            assert a.count_contacts() == b.count_contacts()
+        assert a.count_contacts([("right_link1", "left_link1")]) == 0
+        with pytest.raises(ValueError, match="unknown link"):
+            a.count_contacts([("right_link9", "left_link1")])

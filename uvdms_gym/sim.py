@@ -53,7 +53,7 @@ import contextlib
 import math
 import os
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType, TracebackType
 
@@ -100,6 +100,7 @@ _step_simulation = pb.stepSimulation
 _base_pose = pb.getBasePositionAndOrientation
 _base_velocity = pb.getBaseVelocity
 _joint_states = pb.getJointStates
+_closest_points = pb.getClosestPoints
 _contact_points = pb.getContactPoints
 _perform_collision_detection = pb.performCollisionDetection
 
@@ -165,15 +166,12 @@ class StepInfo:
         saturated: boolean mask, ``True`` where the requested component exceeded ``params.tau_max``.
         t: simulated time after the step, s.
         n_substeps: number of physics steps taken.
-        contacts: with ``track_contacts``, the largest :meth:`UVDMSSim.count_contacts` over the substeps
-            (else 0).
     """
 
     tau: np.ndarray
     saturated: np.ndarray
     t: float
     n_substeps: int
-    contacts: int = 0
 
     @property
     def any_saturated(self) -> bool:
@@ -205,8 +203,9 @@ class UVDMSSim:
         gui: open PyBullet's GUI instead of a headless ``DIRECT`` client.
         arms: ``False`` loads the bare vehicle (no arms; ``tau`` then has 6 components).
         hydro_scale: model-mismatch factors (see :meth:`set_hydro_scale`).
-        self_collision: simulate contacts between non-adjacent robot links (arm-arm, arm-plate). ``False``
-            lets the links pass through each other (used by dynamics tests that compare with Pinocchio).
+        self_collision: simulate contact forces between non-adjacent robot links (arm-arm, arm-plate). Off by
+            default: the links pass through each other and contacts are *reported* by closest-point queries
+            (:meth:`count_contacts`); simulating them costs 10-30 µs per physics step (``docs/DECISIONS.md``).
 
     Use as a context manager or call :meth:`close` (idempotent).
     """
@@ -219,7 +218,7 @@ class UVDMSSim:
         gui: bool = False,
         arms: bool = True,
         hydro_scale: HydroScale | None = None,
-        self_collision: bool = True,
+        self_collision: bool = False,
     ) -> None:
         if not (math.isfinite(physics_dt) and physics_dt > 0.0):
             raise ValueError(f"physics_dt must be finite and > 0, got {physics_dt!r}")
@@ -254,8 +253,8 @@ class UVDMSSim:
                 erp=CONSTRAINT_ERP,
             )
         path = model.write_urdf(model.build_urdf(self._params, arms=self._arms))
-        # Self-collision between non-adjacent links is simulated: arm-arm and arm-plate contacts are physical,
-        # and count_contacts() reads them from the contact manifold PyBullet builds during each step.
+        # With self_collision, contacts between non-adjacent links are simulated (physical contact forces) and
+        # count_contacts() reads them from the contact manifold PyBullet builds during each step.
         flags = pb.URDF_USE_INERTIA_FROM_FILE
         if self._self_collision:
             flags |= pb.URDF_USE_SELF_COLLISION | pb.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
@@ -625,29 +624,39 @@ class UVDMSSim:
             out[6:] = [s[1] for s in _joint_states(self._body, self._joints, cid)]
         return out
 
-    def count_contacts(self) -> int:
-        """Number of touching robot-part pairs: right-arm vs left-arm links, and arm links vs frame plates.
+    def count_contacts(self, pairs: Sequence[tuple[str, str]] | None = None) -> int:
+        """Number of touching robot-part pairs (PyBullet's closest-point or contact report).
 
-        Read from the contact manifold PyBullet built in the last physics step (self-collision is simulated
-        between non-adjacent links), so it costs a few µs and can be called every substep. After a reset with
-        no step yet, one collision-detection pass is run first. Pairs within one arm and the object (which has
-        no collision shape) are not counted: these are the pairs the 18 distances of SPEC section 4 monitor.
+        Args:
+            pairs: link-name pairs to check (e.g. the pairs whose exact distance is near contact); default: all
+                monitored pairs, i.e. right-arm vs left-arm links and arm links 1-6 vs frame plates (97 pairs,
+                the pairs the 18 distances of SPEC section 4 watch).
+
+        Without simulated self-collision each pair is one ``getClosestPoints`` query with a zero distance
+        threshold (about 2 µs a pair). With it, the pairs are read from the contact manifold of the last step.
         """
         self._check_open()
-        if not self._contact_pairs:
-            li = self._link_index
-            plates = [li[f"plate_{pl.name}"] for pl in self._params.plates]
-            n = self._params.arm.n_links if self._arms else 0
-            pairs = {(li[f"right_link{i}"], li[f"left_link{j}"]) for i in range(n) for j in range(n)}
-            pairs |= {(li[f"{s}_link{i}"], p) for s in ARM_SIDES for i in range(1, n) for p in plates}
-            self._contact_pairs = pairs | {(b, a) for a, b in pairs}
-        b, cid = self._body, self._cid
+        li, b, cid = self._link_index, self._body, self._cid
+        if pairs is None:
+            if not self._contact_pairs:
+                plates = [li[f"plate_{pl.name}"] for pl in self._params.plates]
+                n = self._params.arm.n_links if self._arms else 0
+                monitored = {(li[f"right_link{i}"], li[f"left_link{j}"]) for i in range(n) for j in range(n)}
+                monitored |= {(li[f"{s}_link{i}"], p) for s in ARM_SIDES for i in range(1, n) for p in plates}
+                self._contact_pairs = monitored
+            idx = self._contact_pairs
+        else:
+            try:
+                idx = {(li[a], li[c]) for a, c in pairs}
+            except KeyError as exc:
+                raise ValueError(f"unknown link name {exc.args[0]!r} in pairs") from None
+        if not self._self_collision:
+            return sum(1 for a, c in idx if _closest_points(b, b, 0.0, a, c, physicsClientId=cid))
         if self._needs_collision_pass:
             _perform_collision_detection(cid)
             self._needs_collision_pass = False
-        touching = {
-            (cp[3], cp[4]) for cp in _contact_points(b, b, physicsClientId=cid) if cp[8] <= 0.0
-        } & self._contact_pairs
+        both = idx | {(c, a) for a, c in idx}
+        touching = {(cp[3], cp[4]) for cp in _contact_points(b, b, physicsClientId=cid) if cp[8] <= 0.0} & both
         return len({tuple(sorted(pair)) for pair in touching})
 
     def render_rgb(self, width: int = 320, height: int = 240) -> np.ndarray:
@@ -673,7 +682,6 @@ class UVDMSSim:
         tau: np.ndarray,
         n_substeps: int = 1,
         feedback: Callable[[np.ndarray], np.ndarray] | None = None,
-        track_contacts: bool = False,
     ) -> StepInfo:
         """Apply the generalized force ``tau`` for ``n_substeps`` physics steps.
 
@@ -685,8 +693,6 @@ class UVDMSSim:
                 reads anyway (a velocity loop at the physics rate without a second state query). ``tau`` is
                 then only the input of a controller that ignores it (pass zeros); the returned ``tau`` is the
                 last substep's and ``saturated`` the union over substeps.
-            track_contacts: count touching robot-part pairs after every substep (see :meth:`count_contacts`)
-                and report the largest count in :attr:`StepInfo.contacts`.
 
         Returns:
             What was applied (saturated components are reported, never silently clipped).
@@ -710,16 +716,13 @@ class UVDMSSim:
         tau_v = tau[:6].tolist()
         tau_q = tau[6:].tolist()
         self._fb_saturated = saturated
-        contacts = 0
         for _ in range(int(n_substeps)):
             self._substep(tau_v, tau_q, feedback)
-            self._needs_collision_pass = False
-            if track_contacts:
-                contacts = max(contacts, self.count_contacts())
+        self._needs_collision_pass = False
         if feedback is not None:
             tau, saturated = self._fb_tau, self._fb_saturated
         self._check_state()
-        return StepInfo(tau=tau, saturated=saturated, t=self._t, n_substeps=int(n_substeps), contacts=contacts)
+        return StepInfo(tau=tau, saturated=saturated, t=self._t, n_substeps=int(n_substeps))
 
     def _feedback(self, feedback: Callable[[np.ndarray], np.ndarray], nu: tuple[float, ...]) -> tuple[list, list]:
         """Evaluate a per-substep feedback law at ``zeta = [nu; qdot]``; validate and saturate its output."""

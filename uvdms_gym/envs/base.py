@@ -30,7 +30,7 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from uvdms_gym.distances import compute_distances, velocity_damper
+from uvdms_gym.distances import compute_distances, contact_thresholds, velocity_damper
 from uvdms_gym.envs.lowlevel import VelocityLoop
 from uvdms_gym.frames import euler_to_rot_batch, rot_error_batch
 from uvdms_gym.hydro import HydroScale
@@ -49,6 +49,8 @@ D1, D2 = 0.05, 0.12
 CLEARANCE_CLIP = 0.3
 OBS_DIM = 80
 ACTION_DIM = 18
+CONTACT_MARGIN = 0.01
+"""Rows whose exact distance is within this of contact (m) are checked with PyBullet for contact."""
 PHYSICS_ERROR_REWARD = -100.0
 """Reward of the step on which the physics blew up (the episode then terminates)."""
 
@@ -136,6 +138,7 @@ class UVDMSEnv(gym.Env):
         self.t = 0.0
         self._obs = np.zeros(OBS_DIM, np.float32)
         self._preview_times = np.asarray(PREVIEW_TIMES)
+        self._contact_d = contact_thresholds(self.params)
         self._closed = False
 
     # ----------------------------------------------------------------- task hooks
@@ -191,7 +194,7 @@ class UVDMSEnv(gym.Env):
         self._loop.reset()
         self.t = 0.0
         self._last_action = np.zeros(ACTION_DIM)
-        obs, info = self._observe(contacts=self._sim_contacts())
+        obs, info = self._observe()
         info.update({f"reward_{k}": 0.0 for k in self.weights})
         return obs, info
 
@@ -199,9 +202,8 @@ class UVDMSEnv(gym.Env):
         """Apply the action over ``control_dt``, then observe, score and check the episode end."""
         a, clipped = self._validate_action(action)
         physics_error = None
-        contacts = 0
         try:
-            tau_applied, saturated, contacts = self._apply(a)
+            tau_applied, saturated = self._apply(a)
         except PhysicsError as exc:
             physics_error = str(exc)
             tau_applied, saturated = np.zeros(18), False
@@ -210,12 +212,14 @@ class UVDMSEnv(gym.Env):
             info = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self._last_info.items()}
             info.update(self._physics_error_info(physics_error))
             return self._obs.copy(), PHYSICS_ERROR_REWARD, True, False, info
-        obs, info = self._observe(contacts=contacts)
+        obs, info = self._observe()
         terms = self._reward_terms(a, info)
         reward = float(sum(terms.values()))
         info.update({f"reward_{k}": v for k, v in terms.items()})
         info.update(tau=tau_applied, tau_saturated=saturated, action_clipped=clipped)
-        terminated = (self.terminate_on_contact and contacts > 0) or info["tracking_error"] > self.max_tracking_error
+        terminated = (self.terminate_on_contact and info["contacts"] > 0) or (
+            info["tracking_error"] > self.max_tracking_error
+        )
         self._last_action = a
         self._last_info = info
         if self.render_mode == "human":
@@ -245,24 +249,39 @@ class UVDMSEnv(gym.Env):
         clipped = bool(np.any(np.abs(a) > 1.0))
         return (np.clip(a, -1.0, 1.0) if clipped else a), clipped
 
-    def _apply(self, a: np.ndarray) -> tuple[np.ndarray, bool, int]:
-        """Run the control step's physics substeps; return applied tau, saturation flag, contact count."""
+    def _apply(self, a: np.ndarray) -> tuple[np.ndarray, bool]:
+        """Run the control step's physics substeps; return the applied tau and the saturation flag."""
         n, dt = self.n_substeps, self.physics_dt
         if self.action_mode == "torque":
-            res = self._sim.step(a * self.tau_max, n, track_contacts=True)
+            res = self._sim.step(a * self.tau_max, n)
         else:
             loop = self._loop
             loop.begin(a * self.zeta_max)  # the kinematic model holds the current state (from _observe)
-            res = self._sim.step(np.zeros(ACTION_DIM), n, feedback=lambda z: loop.torque(z, dt), track_contacts=True)
-        return res.tau, bool(np.any(res.saturated)), res.contacts
+            res = self._sim.step(np.zeros(ACTION_DIM), n, feedback=lambda z: loop.torque(z, dt))
+        return res.tau, bool(np.any(res.saturated))
 
-    def _sim_contacts(self) -> int:
-        return self._sim.count_contacts()
+    def _contacts(self, dist) -> int:
+        """PyBullet's contact report for the rows whose exact distance is within a margin of contact.
 
-    def _observe(self, contacts: int) -> tuple[np.ndarray, dict[str, Any]]:
+        Only the closest obstacle of a monitored link can touch it first, so checking each near row's pair is
+        enough; far rows (almost always all of them) cost nothing.
+        """
+        near = np.flatnonzero(dist.d < self._contact_d + CONTACT_MARGIN)
+        if near.size == 0:
+            return 0
+        pairs = [(dist.link_frame[i], self._obstacle_link(dist, i)) for i in near]
+        return self._sim.count_contacts(pairs)
+
+    def _obstacle_link(self, dist, i: int) -> str:
+        if dist.obstacle_frame[i] == "vehicle":  # plate rows: E lies on plate obstacle_index[i]
+            return f"plate_{self.params.plates[int(dist.obstacle_index[i])].name}"
+        return dist.obstacle_frame[i]
+
+    def _observe(self) -> tuple[np.ndarray, dict[str, Any]]:
         st = self._sim.state()
         self._kin.set_state(st.eta, st.q, st.zeta)
         dist = compute_distances(self._kin, "exact")
+        contacts = self._contacts(dist)
         y = self._output()
         refs = self.task.reference(self.t + self._preview_times)
         r_nb = self._kin.frame_placement("vehicle")[1]
