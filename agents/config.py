@@ -152,6 +152,13 @@ class TrainConfig:
         noise_std: Standard deviation of the exploration noise (in normalised action units).
         save_replay_buffer: Save the replay buffer with the final model and the latest checkpoint, so that
             ``--resume`` continues with a filled buffer (large files: buffer_size x transition size).
+        max_episode_steps: Episode length limit passed to ``gymnasium.make`` for training and evaluation
+            environments (``None``: the registered limit). Useful for short test runs.
+        alive_bonus: Constant added to every training/evaluation-callback reward (a training-side shaping
+            wrapper; the environment itself is unchanged). The uvdms rewards are negative on every step
+            (-tracking error, ...) while a contact costs only -10 and ends the episode, so without a bonus
+            ending the episode early is the return-maximising behaviour. Monitor logs record the shaped
+            return; the environment's return is ``r - alive_bonus * l``.
     """
 
     algo: str
@@ -170,6 +177,8 @@ class TrainConfig:
     noise_type: str | None = None
     noise_std: float = 0.1
     save_replay_buffer: bool = False
+    max_episode_steps: int | None = None
+    alive_bonus: float = 0.0
 
     # ----------------------------------------------------------------------------------------------
     def to_entry(self) -> dict[str, Any]:
@@ -635,6 +644,10 @@ def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
     for key, low in minimum.items():
         if key in values and values[key] < low:
             raise ConfigError(f"{where}: key {key!r} must be >= {low}, got {values[key]}")
+    if values.get("max_episode_steps") is not None and values["max_episode_steps"] < 1:
+        raise ConfigError(f"{where}: key 'max_episode_steps' must be >= 1 or null, got {values['max_episode_steps']}")
+    if not math.isfinite(values.get("alive_bonus", 0.0)):
+        raise ConfigError(f"{where}: key 'alive_bonus' must be a finite number")
     if values.get("n_envs", 1) > 1000:
         raise ConfigError(f"{where}: key 'n_envs' must be <= 1000 (seed scheme), got {values['n_envs']}")
     if values.get("noise_std", 0.0) < 0:

@@ -55,6 +55,10 @@ AGENT_JSON = "agent.json"
 WEIGHTS_FILE = "policy.pt"
 NORMALIZATION_FILE = "normalization.npz"
 _DTYPES = {"float32": np.float32, "float64": np.float64}
+SHIPPED_MODEL = "model.zip"
+"""Model file of a shipped agent folder (``trained_agents/<name>/``, written by :mod:`agents.ship`)."""
+SHIPPED_STATS = "vecnormalize.pkl"
+"""VecNormalize statistics of a shipped agent folder."""
 _SPACE_ARGS = ("observation_space", "action_space", "lr_schedule")
 
 Which = Literal["final", "best"]
@@ -247,10 +251,12 @@ def load_agent(
     """Load a trained agent for evaluation.
 
     Args:
-        path: A weights-only export directory (no trust needed), a run directory, or an SB3 zip
+        path: A weights-only export directory (no trust needed), a shipped agent folder (``model.zip`` and
+            ``vecnormalize.pkl``, see :mod:`agents.ship`), a run directory, or an SB3 zip
             (``final_model.zip``, ``best_model.zip``, ``checkpoints/rl_model_<N>_steps.zip``) whose
             VecNormalize statistics sit beside it with the names written by ``agents.train``.
-        which: For a run directory: ``final`` (``final_model.zip``) or ``best`` (``best_model.zip``).
+        which: For a run directory: ``final`` (``final_model.zip``) or ``best`` (``best_model.zip``);
+            ignored for a shipped agent folder (one model).
         trust: Allow unpickling the run's files (see :func:`load_sb3_zip`).
         algo: Algorithm name if it cannot be read from ``config.yml`` or the zip.
 
@@ -264,7 +270,9 @@ def load_agent(
     path = Path(path)
     if path.is_dir() and (path / AGENT_JSON).is_file():
         return load_weights_only(path)
-    if path.is_dir():
+    if path.is_dir() and (path / SHIPPED_MODEL).is_file():
+        model_path = path / SHIPPED_MODEL
+    elif path.is_dir():
         if which not in ("final", "best"):
             raise ValueError(f"which must be 'final' or 'best', got {which!r}")
         model_path = path / f"{which}_model.zip"
@@ -296,6 +304,8 @@ def _stats_path(model_path: Path) -> Path | None:
         candidate = model_path.with_name("vecnormalize.pkl")
     elif name == "best_model.zip":
         candidate = model_path.with_name("best_vecnormalize.pkl")
+    elif name == SHIPPED_MODEL:
+        candidate = model_path.with_name(SHIPPED_STATS)
     elif name.startswith("rl_model_") and name.endswith("_steps.zip"):
         steps = name[len("rl_model_") : -len("_steps.zip")]
         candidate = model_path.with_name(f"rl_model_vecnormalize_{steps}_steps.pkl")

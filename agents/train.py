@@ -35,7 +35,6 @@ the files of DIR (SB3 zips and VecNormalize pickles): only resume runs you trust
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import datetime
 import difflib
@@ -65,13 +64,12 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
 from agents.algos import ALGOS, is_off_policy
+from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
 from agents.config import ConfigError, TrainConfig, default_config_path, load_config, parse_entry
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_GYM_PACKAGES: tuple[str, ...] = ("uvdms_gym",)
 SEGMENT_SEED_STRIDE = 1000
 EVAL_SEED_OFFSET = 1_000_000
-VEC_ENV_TYPES = ("dummy", "subproc")
 CHECKPOINT_PREFIX = "rl_model"
 _VERSION_DISTRIBUTIONS = {
     "numpy": "numpy",
@@ -151,18 +149,44 @@ class EnvFactory:
         env_kwargs: Keyword arguments of ``gymnasium.make``.
         gym_packages: Packages imported first (in the worker process) to register the id.
         monitor_file: ``Monitor`` log file (``None``: no file).
+        max_episode_steps: ``gymnasium.make``'s episode length limit (``None``: the registered one).
+        alive_bonus: Constant added to every reward inside the ``Monitor`` (0: no wrapper).
     """
 
     env_id: str
     env_kwargs: Mapping[str, Any]
     gym_packages: tuple[str, ...] = DEFAULT_GYM_PACKAGES
     monitor_file: str | None = None
+    max_episode_steps: int | None = None
+    alive_bonus: float = 0.0
 
     def __call__(self) -> gym.Env:
-        """Create the environment wrapped in a ``Monitor``."""
+        """Create the environment wrapped in a ``Monitor`` (and the alive bonus inside it)."""
         check_env_id(self.env_id, self.gym_packages)
-        env = gym.make(self.env_id, **dict(self.env_kwargs))
+        make_kwargs = dict(self.env_kwargs)
+        if self.max_episode_steps is not None:
+            make_kwargs["max_episode_steps"] = self.max_episode_steps
+        env = gym.make(self.env_id, **make_kwargs)
+        if self.alive_bonus:
+            env = AliveBonus(env, self.alive_bonus)
         return Monitor(env, filename=self.monitor_file)
+
+
+class AliveBonus(gym.RewardWrapper):
+    """Adds a constant to every reward (training-side shaping; see ``TrainConfig.alive_bonus``).
+
+    Args:
+        env: The environment.
+        bonus: Constant added to each step's reward.
+    """
+
+    def __init__(self, env: gym.Env, bonus: float) -> None:
+        super().__init__(env)
+        self.bonus = float(bonus)
+
+    def reward(self, reward: float) -> float:
+        """Shaped reward."""
+        return float(reward) + self.bonus
 
 
 def train_env_seed(seed: int, segment: int, rank: int) -> int:
@@ -452,12 +476,26 @@ def _run_segment(
     model_seed = train_env_seed(seed, segment, 0)
     (run_dir / "monitor").mkdir(exist_ok=True)
     train_factories = [
-        EnvFactory(env_id, cfg.env_kwargs, gym_packages, str(run_dir / "monitor" / f"seg{segment}_train_{i}"))
+        EnvFactory(
+            env_id,
+            cfg.env_kwargs,
+            gym_packages,
+            str(run_dir / "monitor" / f"seg{segment}_train_{i}"),
+            cfg.max_episode_steps,
+            cfg.alive_bonus,
+        )
         for i in range(cfg.n_envs)
     ]
     eval_kwargs = {**cfg.env_kwargs, **cfg.eval_env_kwargs}
     eval_factories = [
-        EnvFactory(env_id, eval_kwargs, gym_packages, str(run_dir / "monitor" / f"seg{segment}_eval_{i}"))
+        EnvFactory(
+            env_id,
+            eval_kwargs,
+            gym_packages,
+            str(run_dir / "monitor" / f"seg{segment}_eval_{i}"),
+            cfg.max_episode_steps,
+            cfg.alive_bonus,
+        )
         for i in range(cfg.n_eval_envs)
     ]
     record: dict[str, Any] = {
@@ -727,50 +765,6 @@ def parse_key_values(items: Sequence[str] | None, option: str = "--env-kwargs") 
         except yaml.YAMLError as exc:
             raise ConfigError(f"{option}: cannot parse the value of {key!r} as YAML: {exc}") from exc
     return out
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """Argument parser of ``python -m agents.train``."""
-    parser = argparse.ArgumentParser(
-        prog="python -m agents.train",
-        description="Train a Stable-Baselines3 agent from train_configs/<algo>.yml.",
-        epilog="Run directory layout and seed scheme: see the docstring of agents/train.py.",
-    )
-    parser.add_argument("--algo", choices=sorted(ALGOS), help="algorithm (required unless --resume)")
-    parser.add_argument("--env", dest="env_id", help="Gymnasium env id (required unless --resume)")
-    parser.add_argument(
-        "--env-kwargs",
-        nargs="*",
-        metavar="K=V",
-        default=[],
-        help="gymnasium.make keyword arguments, values parsed as YAML (case=1 goal=paper)",
-    )
-    parser.add_argument("--config", type=Path, help="YAML config (default: train_configs/<algo>.yml)")
-    parser.add_argument(
-        "--hyperparams",
-        nargs="*",
-        metavar="K=V",
-        default=[],
-        help="override config keys, values parsed as YAML (learning_rate=1.0e-4)",
-    )
-    parser.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
-    parser.add_argument(
-        "--total-timesteps", type=int, help="fresh run: total steps (default: n_timesteps); resume: additional steps"
-    )
-    parser.add_argument("--n-envs", type=int, help="number of training envs (default: from the config)")
-    parser.add_argument("--out", type=Path, default=Path("runs"), help="root of run directories (runs)")
-    parser.add_argument("--resume", type=Path, metavar="DIR", help="continue training the run in DIR")
-    parser.add_argument("--vec-env", choices=VEC_ENV_TYPES, default="dummy", help="vectorised env type")
-    parser.add_argument(
-        "--gym-packages",
-        nargs="*",
-        default=list(DEFAULT_GYM_PACKAGES),
-        metavar="PKG",
-        help="packages imported to register env ids (default: uvdms_gym)",
-    )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity (1 prints training tables)")
-    return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,10 +1,15 @@
-"""Timing of the CAMPC control step and an OSQP replay of the same QP sequence.
+"""Timing of the CAMPC control step, an OSQP replay of the same QP sequence, and the closed-loop real-time factor.
 
-:func:`benchmark_mpc` runs CAMPC in closed loop on the *kinematic* model of the circle task (the command is
-integrated exactly with ``pin.integrate``, no dynamics simulator needed), times every control step
-(kinematics + distances + ``J_dis`` + QP build + warm-started ProxSuite solve) and then replays the recorded
-QP sequence with OSQP (set up once, warm-started, matrices updated in place) at the same absolute
-tolerance. :class:`OSQPReplay` is also the independent solver used by the tests.
+* :func:`benchmark_env_campc` runs the ``campc`` baseline on the simulator (``uvdms/CircleTrack-v0``, Case 1),
+  times every control step (kinematics + distances + ``J_dis`` + QP build + warm-started ProxSuite solve, as
+  :meth:`~baselines.campc.MPCController.step` measures it) and replays the recorded QP sequence with OSQP (set up
+  once, warm-started, matrices updated in place) at the same absolute tolerance;
+* :func:`benchmark_mpc` does the same on the *kinematic* model alone (the command integrated exactly with
+  ``pin.integrate``, no simulator);
+* :func:`real_time_factor` runs ``campc-nndi`` on ``uvdms/Transport-v0`` (simulated seconds / wall seconds);
+* :func:`benchmark_all` is what ``uvdms bench mpc`` prints.
+
+:class:`OSQPReplay` is also the independent solver used by the tests.
 """
 
 from __future__ import annotations
@@ -123,11 +128,11 @@ def benchmark_mpc(
     """
     import pinocchio as pin
 
-    from baselines.campc import MPCController
+    from baselines.campc import MPCController, task_config
     from uvdms_gym.envs.tasks import make_circle_task
     from uvdms_gym.frames import quat_xyzw_to_rot, rot_to_euler
 
-    cfg = config or MPCConfig()
+    cfg = config or task_config("circle")
     task = make_circle_task(case)
     ctl = MPCController("ee_positions", cfg)
     kin = ctl.kin
@@ -175,21 +180,8 @@ def benchmark_mpc(
     }
     if osqp_compare:
         eps = cfg.eps_abs if osqp_eps_abs is None else osqp_eps_abs
-        out["osqp_eps_abs"] = eps
-        rep = OSQPReplay(ctl.mpc, eps_abs=eps, eps_rel=cfg.eps_rel, polishing=False, max_iter=20000)
-        o_us, o_it, o_bad, diff = [], [], 0, 0.0
-        for m, x in zip(mats, xs):
-            xo, status, it, us = rep.solve(m)
-            o_us.append(us)
-            o_it.append(it)
-            err = float(np.max(np.abs(xo - x)))
-            o_bad += status != "solved" or not np.isfinite(err)
-            diff = max(diff, err) if np.isfinite(err) else diff
-        out["osqp_us_median"] = float(np.median(o_us[1:] if len(o_us) > 1 else o_us))
-        out["osqp_iterations_median"] = float(np.median(o_it))
-        out["osqp_unsolved"] = int(o_bad)
+        out.update(_osqp_replay(ctl.mpc, mats, xs, eps, cfg.eps_rel))
         out["osqp_over_proxsuite"] = out["osqp_us_median"] / out["solve_us_median"]
-        out["max_solution_diff"] = diff
     return out
 
 
@@ -231,3 +223,180 @@ def benchmark_di(n_steps: int = 500, use_nn: bool = True) -> dict[str, float | i
         times.append((time.perf_counter() - t0) * 1e6)
     arr = np.array(times[10:])
     return {"di_us_median": float(np.median(arr)), "di_us_p90": float(np.percentile(arr, 90)), "n_steps": n_steps}
+
+
+def _osqp_replay(mpc: KinematicMPC, mats: list[QPMatrices], xs: list[np.ndarray], eps_abs: float, eps_rel: float):
+    """Replay a recorded QP sequence with OSQP; return its timing/accuracy figures."""
+    rep = OSQPReplay(mpc, eps_abs=eps_abs, eps_rel=eps_rel, polishing=False, max_iter=20000)
+    o_us, o_it, o_bad, diff = [], [], 0, 0.0
+    for m, x in zip(mats, xs):
+        xo, status, it, us = rep.solve(m)
+        o_us.append(us)
+        o_it.append(it)
+        err = float(np.max(np.abs(xo - x)))
+        o_bad += status != "solved" or not np.isfinite(err)
+        diff = max(diff, err) if np.isfinite(err) else diff
+    return {
+        "osqp_eps_abs": eps_abs,
+        "osqp_us_median": float(np.median(o_us[1:] if len(o_us) > 1 else o_us)),
+        "osqp_iterations_median": float(np.median(o_it)),
+        "osqp_unsolved": int(o_bad),
+        "max_solution_diff": diff,
+    }
+
+
+def benchmark_env_campc(n_steps: int = 500, case: int = 1, warmup: int = 10, osqp_compare: bool = True) -> dict:
+    """CAMPC control-step cost in closed loop on the simulator, and the same QP sequence on OSQP.
+
+    Args:
+        n_steps: environment steps (at most one episode, 500).
+        case: circle case.
+        warmup: first steps left out of the timing (cold start).
+        osqp_compare: replay the recorded QPs with OSQP at ProxSuite's ``eps_abs``.
+
+    Returns:
+        ``step_us_median`` (kinematics + distances + ``J_dis`` + QP build + solve), ``step_us_p90``,
+        ``solve_us_median``, ``build_us_median``, ``model_us_median``, ``iterations_median``, ``unsolved``,
+        ``max_slack``, QP sizes, and the OSQP figures with ``osqp_over_proxsuite`` (ratio of median solve times).
+    """
+    import gymnasium as gym
+
+    import uvdms_gym  # noqa: F401
+    from baselines.controllers import make_controller
+
+    env = gym.make("uvdms/CircleTrack-v0", case=case, action_mode="velocity", terminate_on_contact=False)
+    try:
+        ctl = make_controller("campc", env)
+        obs, info = env.reset(seed=0)
+        ctl.reset(0)
+        mpc = ctl.mpc
+        steps, solves, builds, iters, statuses, slack = [], [], [], [], [], 0.0
+        mats: list[QPMatrices] = []
+        xs: list[np.ndarray] = []
+        for k in range(min(n_steps + warmup, 500)):
+            action = ctl.predict(obs, info)
+            rec = ctl.last_mpc
+            if k >= warmup:
+                steps.append(rec.total_us)
+                solves.append(rec.solve_us)
+                builds.append(rec.build_us)
+                iters.append(rec.iterations)
+                statuses.append(rec.status)
+                slack = max(slack, rec.max_slack)
+                if osqp_compare:
+                    assert mpc.last_problem is not None
+                    mats.append(mpc.mpc.qp_matrices(mpc.last_problem))
+                    xs.append(mpc.mpc.qp.results.x.copy())
+            obs, _, term, trunc, info = env.step(action)
+            if term or trunc:
+                break
+    finally:
+        env.close()
+    cfg = mpc.config
+    steps_a, solves_a, builds_a = np.array(steps), np.array(solves), np.array(builds)
+    out: dict = {
+        "case": case,
+        "n_steps": len(steps),
+        "n_c": cfg.n_c,
+        "n_p": cfg.n_p,
+        "n": mpc.mpc.n,
+        "n_eq": mpc.mpc.n_eq,
+        "n_in": mpc.mpc.n_in,
+        "eps_abs": cfg.eps_abs,
+        "step_us_median": float(np.median(steps_a)),
+        "step_us_p90": float(np.percentile(steps_a, 90)),
+        "solve_us_median": float(np.median(solves_a)),
+        "build_us_median": float(np.median(builds_a)),
+        "model_us_median": float(np.median(steps_a - solves_a - builds_a)),
+        "iterations_median": float(np.median(iters)),
+        "unsolved": int(sum(s != "solved" for s in statuses)),
+        "max_slack": float(slack),
+    }
+    if osqp_compare:
+        out.update(_osqp_replay(mpc.mpc, mats, xs, cfg.eps_abs, cfg.eps_rel))
+        out["osqp_over_proxsuite"] = out["osqp_us_median"] / out["solve_us_median"]
+    return out
+
+
+def real_time_factor(controller: str = "campc-nndi", env_id: str = "uvdms/Transport-v0", steps: int | None = None):
+    """Closed-loop real-time factor: simulated seconds / wall seconds of controller + environment steps.
+
+    Args:
+        controller: baseline name.
+        env_id: environment.
+        steps: number of steps (``None``: one whole episode).
+
+    Returns:
+        ``{"controller", "env_id", "sim_s", "wall_s", "real_time_factor", "controller_ms_median", "env_ms_median"}``.
+    """
+    import time
+
+    import gymnasium as gym
+
+    import uvdms_gym  # noqa: F401
+    from baselines.controllers import BASELINES, make_controller
+
+    env = gym.make(env_id, action_mode=BASELINES[controller]["action_mode"])
+    try:
+        ctl = make_controller(controller, env)
+        obs, info = env.reset(seed=0)
+        ctl.reset(0)
+        c_ms, e_ms = [], []
+        t_start = time.perf_counter()
+        n = 0
+        while steps is None or n < steps:
+            t0 = time.perf_counter()
+            action = ctl.predict(obs, info)
+            t1 = time.perf_counter()
+            obs, _, term, trunc, info = env.step(action)
+            t2 = time.perf_counter()
+            c_ms.append((t1 - t0) * 1e3)
+            e_ms.append((t2 - t1) * 1e3)
+            n += 1
+            if term or trunc:
+                break
+        wall = time.perf_counter() - t_start
+        sim_s = float(info["t"])
+    finally:
+        env.close()
+    return {
+        "controller": controller,
+        "env_id": env_id,
+        "steps": n,
+        "sim_s": sim_s,
+        "wall_s": wall,
+        "real_time_factor": sim_s / wall,
+        "controller_ms_median": float(np.median(c_ms)),
+        "env_ms_median": float(np.median(e_ms)),
+    }
+
+
+def benchmark_all(quick: bool = False) -> dict:
+    """What ``uvdms bench mpc --json`` prints: CAMPC step cost, OSQP ratio, DI cost and the real-time factor.
+
+    Args:
+        quick: fewer steps (150 CAMPC steps, 200 DI ticks, 200 transport steps instead of whole episodes).
+
+    Returns:
+        ``{"campc_env": ..., "campc_kinematic": ..., "di": ..., "di_nn": ..., "real_time_factor": ...}`` plus the
+        headline numbers at the top level: ``campc_step_us_median``, ``osqp_over_proxsuite``,
+        ``campc_nndi_transport_real_time_factor``.
+    """
+    env_res = benchmark_env_campc(n_steps=150 if quick else 490)
+    kin_res = benchmark_mpc(n_steps=100 if quick else 300)
+    di_res = benchmark_di(n_steps=200 if quick else 1000, use_nn=False)
+    nn_res = benchmark_di(n_steps=200 if quick else 1000, use_nn=True)
+    rtf = real_time_factor(steps=200 if quick else None)
+    return {
+        "campc_step_us_median": env_res["step_us_median"],
+        "campc_solve_us_median": env_res["solve_us_median"],
+        "osqp_solve_us_median": env_res.get("osqp_us_median"),
+        "osqp_over_proxsuite": env_res.get("osqp_over_proxsuite"),
+        "campc_nndi_transport_real_time_factor": rtf["real_time_factor"],
+        "campc_env": env_res,
+        "campc_kinematic": kin_res,
+        "di": di_res,
+        "di_nn": nn_res,
+        "real_time_factor": rtf,
+        "quick": quick,
+    }

@@ -100,7 +100,9 @@ class MPCController:
         y = np.concatenate([p, np.zeros(3)])
         return y, kin.object_jacobian("right"), r
 
-    def make_problem(self, eta: np.ndarray, q: np.ndarray, y_ref: np.ndarray) -> MPCProblem:
+    def make_problem(
+        self, eta: np.ndarray, q: np.ndarray, y_ref: np.ndarray, zeta: np.ndarray | None = None
+    ) -> MPCProblem:
         """Set the kinematic state and assemble the step's problem (kinematics, distances, ``J_dis``).
 
         Args:
@@ -108,6 +110,8 @@ class MPCController:
             q: joint angles (12).
             y_ref: reference at ``t + j T_c``, ``j = 1..N_p``, shape ``(N_p, 6)``: ``[p_l; p_r]`` or
                 ``[x y z phi theta psi]`` (ZYX Euler, rad) for ``"object_pose"``.
+            zeta: measured velocity (18), optional: gives the measured distance rates for the collision
+                lookahead (:attr:`~baselines.mpc.MPCConfig.lookahead`).
 
         Returns:
             The problem (also kept as :attr:`last_problem`).
@@ -145,25 +149,30 @@ class MPCController:
             res = distances.compute_distances(kin, cfg.distance_method, cfg.distance_samples)
             problem.d = res.d
             problem.j_dis = distances.distance_jacobian(kin, res)
+            if zeta is not None:
+                problem.v_dis = problem.j_dis @ np.asarray(zeta, dtype=float)
             self.last_distances = res
         if cfg.closed_chain:
             problem.j_eq = kin.object_jacobian("left") - kin.object_jacobian("right")
         self.last_problem = problem
         return problem
 
-    def step(self, eta: np.ndarray, q: np.ndarray, y_ref: np.ndarray) -> MPCStepRecord:
+    def step(
+        self, eta: np.ndarray, q: np.ndarray, y_ref: np.ndarray, zeta: np.ndarray | None = None
+    ) -> MPCStepRecord:
         """One control step: kinematics, distances, QP build and warm-started solve.
 
         Args:
             eta: vehicle pose (6).
             q: joint angles (12).
             y_ref: the reference window (see :meth:`make_problem`).
+            zeta: measured velocity (18), optional (collision lookahead).
 
         Returns:
             The step record; ``total_us`` covers the whole step, ``d`` the distances used (CAMPC).
         """
         t0 = time.perf_counter()
-        problem = self.make_problem(eta, q, y_ref)
+        problem = self.make_problem(eta, q, y_ref, zeta)
         rec = self.mpc.solve(problem)
         rec.total_us = (time.perf_counter() - t0) * 1e6
         rec.d = problem.d
@@ -196,12 +205,37 @@ def resample_reference(t_grid: np.ndarray, y_grid: np.ndarray, times: np.ndarray
     return out
 
 
+CIRCLE_R_WEIGHT: tuple[float, ...] = (1.0, 1.0, 1.0, 200.0, 200.0, 200.0) + (0.001, 0.5, 5.0, 0.005, 2.0, 0.005) * 2
+"""[D] Velocity weight ``R`` of the circle tasks, ``[nu (6); qdot_l (6); qdot_r (6)]``, per arm
+``[shoulder roll, shoulder pitch, elbow roll, elbow pitch, wrist roll, wrist pitch]``.
+
+The vehicle translates freely (1) but hardly turns (200: its attitude stays level); each arm resolves its
+redundancy with the cheap shoulder roll (0.001) and elbow/wrist pitch joints (0.005), uses the shoulder pitch
+moderately (0.5) and keeps the elbow and wrist roll joints nearly still (5, 2). The arms then swing sideways about
+their shoulders to follow the circles. Chosen on the simulator (``docs/REPRODUCTION.md``) among weightings that
+track to the millimetre: with it, plain MPC reproduces both collisions of the paper's Fig. 6 and 9 (Case 1: right
+link 3 into the right frame; Case 2: right link 5 into the left arm), which the earlier weighting (vehicle 1/2,
+joints 0.05, resolving the redundancy mostly with the vehicle) did not; CAMPC avoids both with the same weights."""
+
+TRANSPORT_Q_WEIGHT = 100.0
+"""[D] Output weight ``Q`` of the transport task (1/m^2, 1/rad^2). Lower than the circle tasks' 1e3: the
+transport is carried by the vehicle, whose velocity loop is slow (bandwidth 3-4 rad/s in velocity mode, the
+reference model ``K_rm`` in torque mode), and a high-gain kinematic loop on top of it oscillates in pitch."""
+
+TRANSPORT_ATTITUDE_WEIGHT = 10.0
+"""[D] Weight of the vehicle roll/pitch regulation outputs in transport (the paper regulates both to zero)."""
+
+
 def task_config(task: Literal["circle", "transport"], collision: bool = True, **overrides: object) -> MPCConfig:
     """The MPC settings used for a task (SPEC section 5); ``overrides`` replace any field.
 
-    * ``"circle"``: end-effector positions, no closed chain, no posture term.
-    * ``"transport"``: object pose with the closed-chain equality and a weak posture term
-      (``posture_weight = 1``) so that the vehicle carries the object and the arms correct its pose.
+    * ``"circle"``: end-effector positions, ``Q = 1e3``, ``R =`` :data:`CIRCLE_R_WEIGHT`, no attitude or posture
+      outputs, no closed chain.
+    * ``"transport"``: object pose with the closed-chain equality, ``Q =`` :data:`TRANSPORT_Q_WEIGHT`, vehicle roll
+      and pitch regulated (:data:`TRANSPORT_ATTITUDE_WEIGHT`) and a weak posture term (``posture_weight = 1``) so
+      that the vehicle carries the object and the arms correct its pose.
+
+    Both tuned on the simulator at ``T_c = 0.04`` s (``docs/REPRODUCTION.md``).
 
     Args:
         task: ``"circle"`` or ``"transport"``.
@@ -212,9 +246,15 @@ def task_config(task: Literal["circle", "transport"], collision: bool = True, **
         The configuration.
     """
     if task == "circle":
-        cfg = MPCConfig(collision=collision)
+        cfg = MPCConfig(collision=collision, r_weight=CIRCLE_R_WEIGHT, attitude_weight=0.0)
     elif task == "transport":
-        cfg = MPCConfig(collision=collision, closed_chain=True, posture_weight=1.0)
+        cfg = MPCConfig(
+            collision=collision,
+            closed_chain=True,
+            q_weight=TRANSPORT_Q_WEIGHT,
+            attitude_weight=TRANSPORT_ATTITUDE_WEIGHT,
+            posture_weight=1.0,
+        )
     else:
         raise ValueError(f"task must be 'circle' or 'transport', got {task!r}")
     return replace(cfg, **overrides)  # type: ignore[arg-type]

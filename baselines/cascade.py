@@ -2,8 +2,12 @@
 
 :class:`CascadeController` calls the MPC on every ``round(T_c / dt)``-th tick and holds its command
 ``zeta_cmd`` in between; the dynamic inversion (with or without the RBF network) turns the held command into
-the generalized force ``tau`` at every tick. This is the ``campc-di`` / ``campc-nndi`` baseline; plain ``mpc`` /
-``campc`` in the environment's velocity action mode use :class:`~baselines.campc.MPCController` alone.
+the generalized force ``tau`` at every tick. The measured velocity goes to the MPC too (collision lookahead), and
+with a closed chain (transport) the MPC's constraint matrix ``J_o,left - J_o,right`` goes to the inversion, which
+then commands no internal force (:meth:`~baselines.di.DynamicInversionController.step`). The environments'
+torque baselines run both loops at the same rate (``ratio = 1``, :mod:`baselines.controllers`). This is the
+``campc-di`` / ``campc-nndi`` baseline; plain ``mpc`` / ``campc`` in the environment's velocity action mode
+use :class:`~baselines.campc.MPCController` alone.
 """
 
 from __future__ import annotations
@@ -55,6 +59,7 @@ class CascadeController:
         self.ratio = round(ratio)
         self.tick = 0
         self.zeta_cmd = np.zeros(18)
+        self.a_eq: np.ndarray | None = None
 
     def reset(self, tau0: np.ndarray | None = None) -> None:
         """Start an episode (both loops reset; the MPC runs on the next tick).
@@ -66,6 +71,7 @@ class CascadeController:
         self.di.reset(tau0)
         self.tick = 0
         self.zeta_cmd = np.zeros(18)
+        self.a_eq = None
 
     def mpc_due(self) -> bool:
         """Whether the next :meth:`step` runs the MPC (then it needs the reference window)."""
@@ -87,8 +93,10 @@ class CascadeController:
         if self.mpc_due():
             if y_ref is None:
                 raise ValueError("the MPC runs on this tick: y_ref is required")
-            rec = self.mpc.step(eta, q, y_ref)
+            rec = self.mpc.step(eta, q, y_ref, zeta)
             self.zeta_cmd = rec.zeta_cmd
-        out = self.di.step(self.zeta_cmd, eta, q, zeta)
+            problem = self.mpc.last_problem
+            self.a_eq = None if problem is None else problem.j_eq
+        out = self.di.step(self.zeta_cmd, eta, q, zeta, self.a_eq)
         self.tick += 1
         return CascadeOutput(tau=out.tau, zeta_cmd=self.zeta_cmd.copy(), mpc=rec, di=out)

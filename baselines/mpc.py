@@ -17,7 +17,8 @@ The controller is split into four parts, each usable on its own:
     already outside its limits gets the limit relaxed just enough to stay feasible (never tightened);
   - the velocity box ``max(-qdot_max, eps_v (q_min - q)) <= qdot_j <= min(qdot_max, eps_v (q_max - q))`` and
     ``|nu_j| <= nu_max`` for every ``j``;
-  - CAMPC only: the 18 collision rows ``J_dis zeta_j - s <= S(d) vbar - k_esc max(0, d1 - d)`` for
+  - CAMPC only: the 18 collision rows ``J_dis zeta_j - s <= S(d) vbar - k_esc max(0, d1 - d)`` (``d`` optionally
+    shortened by the measured approach over a lookahead time, see below) for
     ``j = 0 .. collision_steps - 1`` (default: the whole control horizon), with **one slack per distance
     row** ``s >= 0`` shared across the steps and penalised by ``rho_1 sum s + rho_2 |s|^2 / 2`` (an exact
     penalty: ``s = 0`` whenever the hard rows are feasible and ``rho_1`` exceeds their multipliers). The
@@ -37,7 +38,10 @@ The controller is split into four parts, each usable on its own:
 Discrete-time safety of the damper: with ``d_{k+1} = d_k - T_c v_dis`` and ``v_dis <= S(d_k) vbar`` the
 distance can never jump below ``d1`` if ``T_c vbar max_x S(x)/(x - d1) <= 1``, i.e.
 ``T_c vbar <= (d2 - d1) / (0.7246 pi / 2) ~= 0.88 (d2 - d1)`` (0.061 m for the defaults; the defaults give
-``T_c vbar = 0.015 m``).
+``T_c vbar = 0.012 m``). On the real plant the command is followed with a lag (the environment's velocity loop,
+or the dynamic inversion's reference model), and the approach already under way continues during it: with the
+measured velocity the damper is evaluated at the distance that remains after ``lookahead`` seconds of the
+current approach (:attr:`MPCConfig.lookahead`), which restores the margin on the simulator.
 
 QP form (ProxSuite): ``min 1/2 x^T H x + g^T x`` s.t. ``A x = b``, ``l <= C x <= u`` (and ``l_box <= x <=
 u_box``), ``x = [U; s]``; the objective is half the cost above (plus a constant) plus the slack penalty
@@ -85,8 +89,9 @@ class MPCConfig:
     Attributes:
         n_c: control horizon ``N_c`` (decision blocks) [SPEC: 5].
         n_p: prediction horizon ``N_p >= N_c`` [SPEC: 10].
-        t_c: control period ``T_c`` in s. [D] 0.05 s (20 Hz): the horizon then previews 0.5 s, and the damper's
-            discrete-time safety condition holds with margin (module docstring).
+        t_c: control period ``T_c`` in s. [D] 0.04 s (25 Hz), the environments' ``control_dt``: the MPC runs once
+            per environment step and the horizon previews 0.4 s; the damper's discrete-time safety condition holds
+            with margin (module docstring).
         q_weight: output weight ``Q`` (scalar or one per output row), 1/m^2 or 1/rad^2. [D] 1e3: with
             ``T_c^2 Q ~ 2.5`` the Hessian is well scaled and tracking dominates the velocity penalty.
         r_weight: velocity weight ``R`` (18): ``[nu (6); qdot (12)]``. [D] vehicle 1 (linear) and 2 (angular),
@@ -99,6 +104,12 @@ class MPCConfig:
         d2: anti-collision-zone threshold, m [SPEC 0.12].
         k_escape: escape gain inside the collision zone, 1/s: the row becomes ``v_dis <= -k_esc (d1 - d)``
             [D] 1.0 (SPEC's optional improvement; 0 disables it).
+        lookahead: collision lookahead ``T_look``, s: when the problem carries the *measured* distance rates
+            ``v_now = J_dis zeta_measured``, the damper is evaluated at ``d_eff = d - T_look max(0, v_now)``
+            instead of ``d``. The low-level velocity loop (or the dynamic inversion's reference model) does not
+            follow a new command at once; during its lag the current approach continues, and the damper must
+            brake that much earlier. [D] 0.3 s (about three time constants of the velocity loops it covers; see
+            ``docs/REPRODUCTION.md``); it only acts when the caller passes the measured velocity.
         slack_linear: linear slack penalty ``rho_1`` per unit slack (m/s) [D] 1e4 (exact penalty).
         slack_quadratic: quadratic slack penalty ``rho_2`` [D] 1e4 (keeps the QP strictly convex).
         eps_v: joint-limit velocity gain ``eps_v`` in 1/s [D] 1.0: velocity towards a limit is at most
@@ -123,7 +134,7 @@ class MPCConfig:
 
     n_c: int = 5
     n_p: int = 10
-    t_c: float = 0.05
+    t_c: float = 0.04
     q_weight: float | tuple[float, ...] = 1.0e3
     r_weight: tuple[float, ...] = field(default_factory=_default_r)
     collision: bool = True
@@ -132,6 +143,7 @@ class MPCConfig:
     d1: float = 0.05
     d2: float = 0.12
     k_escape: float = 1.0
+    lookahead: float = 0.3
     slack_linear: float = 1.0e4
     slack_quadratic: float = 1.0e4
     eps_v: float = 1.0
@@ -180,6 +192,8 @@ class MPCProblem:
         j_dis: distance Jacobian ``J_dis`` (18, 18), ``v_dis = J_dis zeta`` (CAMPC only).
         d: the 18 distances, m (CAMPC only).
         j_eq: closed-chain matrix ``J_o,left - J_o,right`` (n_eq_rows, 18) (transport only).
+        v_dis: measured distance rates ``J_dis zeta_measured`` (18), positive approaching (optional; used with
+            ``config.lookahead``).
     """
 
     e0: np.ndarray
@@ -188,6 +202,7 @@ class MPCProblem:
     j_dis: np.ndarray | None = None
     d: np.ndarray | None = None
     j_eq: np.ndarray | None = None
+    v_dis: np.ndarray | None = None
 
 
 @dataclass
@@ -408,16 +423,21 @@ class KinematicMPC:
         hi[6:] = np.maximum(hi_q, -qd_max)
         return lo, hi
 
-    def collision_bound(self, d: np.ndarray) -> np.ndarray:
+    def collision_bound(self, d: np.ndarray, v_now: np.ndarray | None = None) -> np.ndarray:
         """Right-hand side of the collision rows: ``S(d) vbar - k_esc max(0, d1 - d)`` (18).
 
         Args:
             d: the 18 distances, m.
+            v_now: measured distance rates (18, positive approaching); with ``config.lookahead > 0`` the bound is
+                evaluated at ``d - lookahead max(0, v_now)``.
 
         Returns:
             The bound on ``v_dis`` for each row, m/s.
         """
         cfg = self.config
+        d = np.asarray(d, dtype=float)
+        if v_now is not None and cfg.lookahead > 0.0:
+            d = d - cfg.lookahead * np.maximum(0.0, np.asarray(v_now, dtype=float))
         x = np.clip((np.asarray(d, dtype=float) - cfg.d1) / (cfg.d2 - cfg.d1), 0.0, 1.0)
         s = np.sin(0.5 * np.pi * x) ** 2
         return s * cfg.vbar - cfg.k_escape * np.maximum(0.0, cfg.d1 - d)
@@ -485,7 +505,7 @@ class KinematicMPC:
             if p.j_dis is None or p.d is None:
                 raise ValueError("CAMPC needs j_dis and d in the problem")
             jd = np.asarray(p.j_dis, dtype=float)
-            rhs = self.collision_bound(p.d)
+            rhs = self.collision_bound(p.d, p.v_dis)
             r0 = self._col_rows.start
             for j in range(cfg.n_collision_steps):
                 self._C[r0 + N_DIS * j : r0 + N_DIS * (j + 1), N_DOF * j : N_DOF * (j + 1)] = jd

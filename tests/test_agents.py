@@ -1,7 +1,8 @@
 """Tests of the agents package: configs, training runs, resume, loading and weights-only export.
 
-The environments under test are listed in TEST_ENVS; add the uvdms ids (with small env_kwargs, e.g. a
-short ``max_episode_steps``) once they are registered by ``import uvdms_gym``.
+The environments under test are listed in TEST_ENVS: two Gymnasium classics and the uvdms ids with short
+episodes (``max_episode_steps`` is passed to ``gymnasium.make``), so every algorithm trains for a few
+hundred steps on every env id.
 """
 
 from __future__ import annotations
@@ -43,10 +44,12 @@ from agents.train import (
 
 REPO = Path(__file__).resolve().parents[1]
 
-# (env id, gymnasium.make kwargs). Extend with e.g. ("uvdms/CircleTrack-v0", {"max_episode_steps": 60}).
+# (env id, gymnasium.make kwargs).
 TEST_ENVS: list[tuple[str, dict]] = [
     ("Pendulum-v1", {"max_episode_steps": 100}),
     ("MountainCarContinuous-v0", {"max_episode_steps": 100}),
+    ("uvdms/CircleTrack-v0", {"case": 1, "max_episode_steps": 60}),
+    ("uvdms/Transport-v0", {"goal": "paper", "max_episode_steps": 60}),
 ]
 ALGO_NAMES = sorted(ALGOS)
 UVDMS_IDS = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0")
@@ -554,3 +557,123 @@ def test_subproc_vec_env(tmp_path, config_dir):
     assert meta["segments"][0]["vec_env"] == "subproc"
     assert meta["segments"][0]["status"] == "completed"
     assert (run_dir / "monitor" / "seg0_train_1.monitor.csv").is_file()
+
+
+# ------------------------------------------------------------------------------------------------------
+# Training-side options, the uvdms subcommands, shipped agent folders
+# ------------------------------------------------------------------------------------------------------
+def test_algo_names_of_the_light_parser_match_algos():
+    from agents.args import ALGO_NAMES as PARSER_ALGOS
+
+    assert list(PARSER_ALGOS) == ALGO_NAMES
+
+
+def test_max_episode_steps_and_alive_bonus(tmp_path, config_dir):
+    """Both fields reach the training/evaluation envs; Monitor logs hold the shaped return."""
+    env_id = "Pendulum-v1"
+    run_dir = train(
+        "ppo",
+        env_id,
+        None,
+        config_dir / "ppo.yml",
+        out_dir=tmp_path,
+        progress=False,
+        total_timesteps=128,
+        hyperparams={"max_episode_steps": 16, "alive_bonus": 20.0, "checkpoint_freq": 0, "eval_freq": 64},
+    )
+    resolved = yaml.safe_load((run_dir / "config.yml").read_text())["config"]
+    assert resolved["max_episode_steps"] == 16 and resolved["alive_bonus"] == 20.0
+    assert parse_entry(resolved, "ppo").alive_bonus == 20.0
+    from agents.ship import read_monitor_episodes
+
+    episodes = read_monitor_episodes(run_dir)
+    assert len(episodes["l"]) >= 4 and set(episodes["l"]) == {16}
+    # Pendulum rewards are in [-16.3, 0]: with +20 per step every shaped return is positive.
+    assert np.all(episodes["r"] > 0) and np.all(episodes["r"] - 20.0 * episodes["l"] <= 0)
+    assert read_monitor_episodes(run_dir, "eval")["l"].tolist()[0] == 16
+    with pytest.raises(ConfigError, match="'max_episode_steps'"):
+        parse_entry({"n_timesteps": 10, "max_episode_steps": 0}, "ppo")
+    with pytest.raises(ConfigError, match="'alive_bonus'"):
+        parse_entry({"n_timesteps": 10, "alive_bonus": "lots"}, "ppo")
+
+
+def test_uvdms_train_and_export_agent_commands(tmp_path, config_dir, capsys):
+    from uvdms_gym.cli import main as uvdms_main
+
+    with pytest.raises(SystemExit) as info:
+        uvdms_main(["train", "--help"])
+    assert info.value.code == 0
+    assert "--total-timesteps" in capsys.readouterr().out
+    argv = ["train", "--algo", "ppo", "--env", "uvdms/CircleTrack-v0", "--env-kwargs", "case=2"]
+    argv += ["max_episode_steps=40", "--config", str(config_dir / "ppo.yml"), "--seed", "3"]
+    argv += ["--total-timesteps", "128", "--out", str(tmp_path / "runs"), "--no-progress"]
+    assert uvdms_main(argv) == 0
+    run_dir = run_dir_for(tmp_path / "runs", "uvdms/CircleTrack-v0", "ppo", 3)
+    assert capsys.readouterr().out.strip() == str(run_dir)
+    assert yaml.safe_load((run_dir / "config.yml").read_text())["config"]["env_kwargs"] == {
+        "case": 2,
+        "max_episode_steps": 40,
+    }
+    before = zip_num_timesteps(run_dir / "final_model.zip")
+    assert uvdms_main(["train", "--resume", str(run_dir), "--total-timesteps", "128", "--no-progress"]) == 0
+    assert zip_num_timesteps(run_dir / "final_model.zip") >= before + 128
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        uvdms_main(["train", "--env", "uvdms/CircleTrack-v0"])  # --algo missing
+    capsys.readouterr()
+
+    assert uvdms_main(["export-agent", str(run_dir), str(tmp_path / "exp")]) == 2  # untrusted pickles
+    assert "trust" in capsys.readouterr().err
+    assert uvdms_main(["export-agent", str(run_dir), str(tmp_path / "exp"), "--which", "final", "--trust"]) == 0
+    exported = load_weights_only(tmp_path / "exp")
+    best = load_agent(run_dir, which="final", trust=True)
+    obs = _observations("uvdms/CircleTrack-v0", {"case": 2}, n=3)
+    for o in obs:
+        np.testing.assert_array_equal(exported.predict(o), best.predict(o))
+
+
+def test_shipped_agent_folder(runs, tmp_path, monkeypatch):
+    """agents.ship packages a run; load_agent loads the folder (trusted inside trained_agents/)."""
+    from agents.ship import package_run
+
+    env_id, env_kwargs = TEST_ENVS[2]
+    run_dir = runs["sac", env_id]
+    trusted = tmp_path / "trained_agents"
+    folder = package_run(run_dir, trusted / "circle_case1_sac", which="best")
+    names = {p.name for p in folder.iterdir()}
+    assert {"model.zip", "vecnormalize.pkl", "config.yml", "meta.json", "training_curve.png", "training_logs"} <= names
+    assert (folder / "model.zip").stat().st_size < 5 * 2**20
+    meta = json.loads((folder / "meta.json").read_text())
+    shipped = meta["shipped"]
+    assert shipped["which"] == "best" and shipped["seed"] == 7 and shipped["budget_timesteps"] == 300
+    assert shipped["wall_time_s"] > 0 and shipped["env_kwargs"] == env_kwargs
+    assert re.fullmatch(r"[0-9a-f]{40}", shipped["packaged_with"]["git"]["revision"])
+    with pytest.raises(FileExistsError):
+        package_run(run_dir, folder)
+
+    with pytest.raises(UntrustedFileError):
+        load_agent(folder)
+    monkeypatch.setattr(agent_policy, "TRUSTED_DIR", trusted)
+    agent = load_agent(folder)
+    reference = load_agent(run_dir, which="best", trust=True)
+    assert agent.env_id == env_id and agent.env_kwargs == env_kwargs and agent.normalizer is not None
+    for obs in _observations(env_id, env_kwargs, n=5):
+        np.testing.assert_array_equal(agent.predict(obs), reference.predict(obs))
+
+
+def test_shipped_agents_load_and_act():
+    """Every folder of trained_agents/ loads without trust=True and acts on its own environment."""
+    folders = sorted(p for p in (REPO / "trained_agents").glob("*") if (p / "model.zip").is_file())
+    if not folders:
+        pytest.skip("no shipped agents")
+    for folder in folders:
+        assert (folder / "model.zip").stat().st_size < 5 * 2**20
+        for name in ("config.yml", "meta.json", "training_curve.png"):
+            assert (folder / name).is_file(), f"{folder.name}/{name}"
+        agent = load_agent(folder)
+        env = gym.make(agent.env_id, **agent.env_kwargs)
+        obs, info = env.reset(seed=1000)
+        agent.reset(seed=1000)
+        action = agent.predict(obs, info)
+        assert env.action_space.contains(action.astype(np.float32))
+        env.close()

@@ -216,8 +216,9 @@ def test_cascade_campc_nndi_avoids_collision_on_the_nominal_plant():
     task = make_circle_task(1)
     truth = UVDMSNominalModel()
     model = UVDMSNominalModel(scale=NominalScale(added_mass=0.7, damping=0.5, buoyancy=0.9))
-    casc = CascadeController(make_mpc_controller("circle"), DynamicInversionController(DIConfig(), model))
-    assert casc.ratio == 5
+    di = DynamicInversionController(DIConfig(dt=0.01, k_rm=5.0, kappa=50.0), model)  # a 100 Hz inner loop
+    casc = CascadeController(make_mpc_controller("circle"), di)
+    assert casc.ratio == 4
     eta, q, zeta = np.array(task.vehicle_start, dtype=float), task.q0.copy(), np.zeros(18)
     config = truth.kin.configuration(eta, q)
     casc.reset(truth.evaluate(eta, q, zeta)[1])
@@ -239,4 +240,4 @@ def test_cascade_campc_nndi_avoids_collision_on_the_nominal_plant():
             q = config[7:].copy()
     assert n_mpc == round(12.0 / casc.mpc.config.t_c)
     assert d_min >= 0.05 - 2e-3
-    assert np.sqrt(np.mean(np.square(errs[100:]))) < 3e-3
+    assert np.sqrt(np.mean(np.square(errs[round(5.0 / casc.mpc.config.t_c) :]))) < 5e-3  # after the 5 s transient

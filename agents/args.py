@@ -1,0 +1,60 @@
+"""The argument parser of ``python -m agents.train`` / ``uvdms train``, importable without torch or SB3.
+
+``uvdms`` builds its subcommand parsers at start-up, so this module must stay light (no torch, no SB3).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+ALGO_NAMES: tuple[str, ...] = ("ppo", "sac", "td3", "tqc")
+"""Names of :data:`agents.algos.ALGOS` (kept equal to its keys; checked by the tests)."""
+DEFAULT_GYM_PACKAGES: tuple[str, ...] = ("uvdms_gym",)
+"""Packages imported by default so that the env ids are registered."""
+VEC_ENV_TYPES: tuple[str, ...] = ("dummy", "subproc")
+"""Vectorised environment types of ``--vec-env``."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Argument parser of ``python -m agents.train``."""
+    parser = argparse.ArgumentParser(
+        prog="python -m agents.train",
+        description="Train a Stable-Baselines3 agent from train_configs/<algo>.yml.",
+        epilog="Run directory layout and seed scheme: see the docstring of agents/train.py.",
+    )
+    parser.add_argument("--algo", choices=ALGO_NAMES, help="algorithm (required unless --resume)")
+    parser.add_argument("--env", dest="env_id", help="Gymnasium env id (required unless --resume)")
+    parser.add_argument(
+        "--env-kwargs",
+        nargs="*",
+        metavar="K=V",
+        default=[],
+        help="gymnasium.make keyword arguments, values parsed as YAML (case=1 goal=paper)",
+    )
+    parser.add_argument("--config", type=Path, help="YAML config (default: train_configs/<algo>.yml)")
+    parser.add_argument(
+        "--hyperparams",
+        nargs="*",
+        metavar="K=V",
+        default=[],
+        help="override config keys, values parsed as YAML (learning_rate=1.0e-4)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
+    parser.add_argument(
+        "--total-timesteps", type=int, help="fresh run: total steps (default: n_timesteps); resume: additional steps"
+    )
+    parser.add_argument("--n-envs", type=int, help="number of training envs (default: from the config)")
+    parser.add_argument("--out", type=Path, default=Path("runs"), help="root of run directories (runs)")
+    parser.add_argument("--resume", type=Path, metavar="DIR", help="continue training the run in DIR")
+    parser.add_argument("--vec-env", choices=VEC_ENV_TYPES, default="dummy", help="vectorised env type")
+    parser.add_argument(
+        "--gym-packages",
+        nargs="*",
+        default=list(DEFAULT_GYM_PACKAGES),
+        metavar="PKG",
+        help="packages imported to register env ids (default: uvdms_gym)",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity (1 prints training tables)")
+    return parser

@@ -1,0 +1,100 @@
+"""``uvdms`` subcommands of the agents package: ``uvdms train`` and ``uvdms export-agent``.
+
+``uvdms_gym.cli`` imports this module when it exists and calls :func:`register` with its subparsers.
+``uvdms train`` takes exactly the arguments of ``python -m agents.train`` (the parser is shared);
+``uvdms export-agent RUN_DIR OUT`` writes the weights-only export of :func:`agents.policy.export_agent`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+_TRAIN_HELP = "train a Stable-Baselines3 agent from train_configs/<algo>.yml (same as python -m agents.train)"
+_EXPORT_HELP = "export a trained agent to the weights-only format (no pickles; loads with load_weights_only)"
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``train`` and ``export-agent`` to the ``uvdms`` subcommands.
+
+    Args:
+        subparsers: The ``add_subparsers()`` object of the ``uvdms`` parser.
+    """
+    from agents.args import build_parser
+
+    train_parser = build_parser()
+    train = subparsers.add_parser(
+        "train",
+        help=_TRAIN_HELP,
+        description=train_parser.description,
+        epilog=train_parser.epilog,
+        parents=[train_parser],
+        add_help=False,
+    )
+    train.set_defaults(func=_cmd_train, _train_parser=train)
+
+    export = subparsers.add_parser("export-agent", help=_EXPORT_HELP, description=_EXPORT_HELP)
+    export.add_argument(
+        "run_dir", type=Path, metavar="RUN_DIR", help="run directory, shipped agent folder or SB3 zip to export"
+    )
+    export.add_argument("out", type=Path, metavar="OUT", help="output directory (agent.json, policy.pt, ...)")
+    export.add_argument(
+        "--which", choices=("best", "final"), default="final", help="model of a run directory (default final)"
+    )
+    export.add_argument(
+        "--trust",
+        action="store_true",
+        help="allow unpickling the run's SB3 zip / VecNormalize files (implied inside trained_agents/)",
+    )
+    export.add_argument("--overwrite", action="store_true", help="replace the files of an existing export")
+    export.set_defaults(func=_cmd_export)
+
+
+def _train_argv(args: argparse.Namespace) -> list[str]:
+    """Rebuild the ``agents.train`` argument list from the parsed namespace (so ``main`` does the work)."""
+    argv: list[str] = []
+    if args.algo is not None:
+        argv += ["--algo", args.algo]
+    if args.env_id is not None:
+        argv += ["--env", args.env_id]
+    if args.env_kwargs:
+        argv += ["--env-kwargs", *args.env_kwargs]
+    if args.config is not None:
+        argv += ["--config", str(args.config)]
+    if args.hyperparams:
+        argv += ["--hyperparams", *args.hyperparams]
+    argv += ["--seed", str(args.seed)]
+    if args.total_timesteps is not None:
+        argv += ["--total-timesteps", str(args.total_timesteps)]
+    if args.n_envs is not None:
+        argv += ["--n-envs", str(args.n_envs)]
+    argv += ["--out", str(args.out)]
+    if args.resume is not None:
+        argv += ["--resume", str(args.resume)]
+    argv += ["--vec-env", args.vec_env]
+    argv += ["--gym-packages", *args.gym_packages]
+    if args.no_progress:
+        argv.append("--no-progress")
+    argv += ["--verbose", str(args.verbose)]
+    return argv
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from agents.train import main
+
+    if args.resume is None and (args.algo is None or args.env_id is None):
+        args._train_parser.error("--algo and --env are required unless --resume DIR is given")
+    return main(_train_argv(args))
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from agents.policy import UntrustedFileError, export_agent
+
+    try:
+        out = export_agent(args.run_dir, args.out, which=args.which, trust=args.trust, overwrite=args.overwrite)
+    except (UntrustedFileError, FileNotFoundError, FileExistsError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(out)
+    return 0

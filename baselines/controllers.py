@@ -1,0 +1,311 @@
+"""One controller interface for baselines and trained agents, and the named baselines built from an environment.
+
+A controller is anything with ``reset(seed)`` and ``predict(obs, info) -> action`` (the :class:`Controller`
+protocol), the action in the environment's normalised space ``[-1, 1]^18``. Baselines may expose
+``last_record`` (a dict with ``status``, ``iterations``, ``max_slack``, ``wall_us`` and more) after each
+``predict``; agents do not.
+
+Named baselines (:data:`BASELINES`; :func:`make_controller`):
+
+==============  ============  ===========================================================================
+name            action_mode   what
+==============  ============  ===========================================================================
+``mpc``         velocity      kinematic MPC without collision rows (SPEC section 6): ``a = zeta_cmd / zeta_max``
+``campc``       velocity      collision-avoidance MPC (the 18 velocity-damper rows), same action
+``campc-di``    torque        CAMPC + dynamic inversion without the RBF network (``a = tau / tau_max``)
+``campc-nndi``  torque        CAMPC + dynamic inversion with the RBF network: the paper's full stack
+==============  ============  ===========================================================================
+
+Timing. The MPC runs once per environment step with ``T_c = env.control_dt`` (0.04 s by default), on a
+reference window ``env.unwrapped.reference(t + j T_c)``, ``j = 1..N_p``. [D] In torque mode the dynamic
+inversion also runs once per environment step (``dt = control_dt``): the torque is held over the
+environment's physics substeps, exactly as an RL agent's torque action is, so the two compete on equal
+terms and the registered episode lengths (in steps) stay valid. The defaults of
+:class:`~baselines.di.DIConfig` were chosen for that 25 Hz rate on the simulator; ``dt`` is set to the
+environment's ``control_dt``.
+
+Information used. A controller sees ``obs``/``info`` (``t``, ``eta``, ``nu``, ``q``, ``qdot``), the task's
+reference through ``env.unwrapped.reference``, and public attributes of the environment (``params``,
+``zeta_max``, ``tau_max``, ``control_dt``, ``kinematic_model``, ``with_object``) — never the simulator.
+The MPC's outputs (end-effector positions, or the object pose through the right arm) are computed on the
+kinematic model from ``eta`` and ``q``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from baselines.campc import MPCController, task_config
+from baselines.di import DIConfig, DynamicInversionController, UVDMSNominalModel
+
+BASELINES: dict[str, dict[str, Any]] = {
+    "mpc": {"action_mode": "velocity", "collision": False},
+    "campc": {"action_mode": "velocity", "collision": True},
+    "campc-di": {"action_mode": "torque", "collision": True, "use_nn": False},
+    "campc-nndi": {"action_mode": "torque", "collision": True, "use_nn": True},
+}
+"""The named baselines: required action mode, collision rows, RBF network."""
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """What :func:`baselines.evaluate.run_episode` drives: baselines and trained agents alike."""
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start an episode (called right after ``env.reset(seed=seed)``)."""
+        ...
+
+    def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        """The action (18, in ``[-1, 1]``) for the current observation and ``info``."""
+        ...
+
+
+def task_of(env: Any) -> str:
+    """``"transport"`` for an environment with a gripped object, else ``"circle"``."""
+    return "transport" if getattr(env.unwrapped, "with_object", False) else "circle"
+
+
+def controller_config(task: str, collision: bool, control_dt: float, **overrides: Any):
+    """The MPC settings of a baseline on a task, with ``T_c`` equal to the environment's control period.
+
+    Args:
+        task: ``"circle"`` or ``"transport"``.
+        collision: CAMPC (``True``) or plain MPC.
+        control_dt: the environment's control period (``T_c``).
+        **overrides: further :class:`~baselines.mpc.MPCConfig` fields.
+
+    Returns:
+        The :class:`~baselines.mpc.MPCConfig`.
+    """
+    return task_config(task, collision, t_c=float(control_dt), **overrides)  # type: ignore[arg-type]
+
+
+class _MPCBase:
+    """Shared MPC part: reference window, kinematics, distances, QP (see module docstring)."""
+
+    def __init__(self, env: Any, collision: bool, mpc_overrides: dict[str, Any] | None = None) -> None:
+        u = env.unwrapped
+        self.task = task_of(env)
+        self.params = u.params
+        self.control_dt = float(u.control_dt)
+        self.zeta_max = np.asarray(u.zeta_max, dtype=float)
+        self.tau_max = np.asarray(u.tau_max, dtype=float)
+        self._env = u
+        cfg = controller_config(self.task, collision, self.control_dt, **(mpc_overrides or {}))
+        output = "object_pose" if self.task == "transport" else "ee_positions"
+        self.mpc = MPCController(output, cfg, self.params, kin=u.kinematic_model)
+        self.last_record: dict[str, Any] = {}
+        self.last_mpc = None
+
+    def _mpc_step(self, info: dict[str, Any]):
+        cfg = self.mpc.config
+        t = float(info["t"])
+        y_ref = self._env.reference(t + cfg.t_c * np.arange(1, cfg.n_p + 1))
+        zeta = np.concatenate([info["nu"], info["qdot"]]).astype(float)
+        rec = self.mpc.step(np.asarray(info["eta"], dtype=float), np.asarray(info["q"], dtype=float), y_ref, zeta)
+        self.last_mpc = rec
+        return rec
+
+    def _record(self, rec, wall_us: float, **extra: Any) -> None:
+        self.last_record = {
+            "status": rec.status,
+            "solved": rec.solved,
+            "iterations": rec.iterations,
+            "max_slack": rec.max_slack,
+            "retried": rec.retried,
+            "mpc_us": rec.total_us,
+            "wall_us": wall_us,
+            **extra,
+        }
+
+
+class MPCVelocityController(_MPCBase):
+    """``mpc`` / ``campc``: the MPC command is the velocity action, ``a = zeta_cmd / zeta_max``.
+
+    The command already lies in the MPC's velocity box, which is the action space's box, so clipping to
+    ``[-1, 1]`` only removes rounding; ``last_record["clipped"]`` flags a step where it changed anything by more
+    than 1e-9.
+    """
+
+    action_mode = "velocity"
+
+    def __init__(self, env: Any, collision: bool = True, mpc_overrides: dict[str, Any] | None = None) -> None:
+        """Build the controller for ``env`` (its action mode must be ``"velocity"``).
+
+        Args:
+            env: the environment (wrapped or not).
+            collision: CAMPC (``True``) or plain MPC.
+            mpc_overrides: :class:`~baselines.mpc.MPCConfig` fields replacing the task's defaults.
+        """
+        super().__init__(env, collision, mpc_overrides)
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start an episode: the next QP is solved cold (the QP object is kept)."""
+        self.mpc.reset()
+        self.last_record = {}
+
+    def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        """Action for the current state (``obs`` is unused: the MPC reads the state from ``info``)."""
+        t0 = time.perf_counter()
+        rec = self._mpc_step(info)
+        raw = rec.zeta_cmd / self.zeta_max
+        action = np.clip(raw, -1.0, 1.0)
+        clipped = bool(np.max(np.abs(action - raw)) > 1e-9)
+        self._record(rec, (time.perf_counter() - t0) * 1e6, clipped=clipped, zeta_cmd=rec.zeta_cmd)
+        return action.astype(np.float32)
+
+
+class CascadeTorqueController(_MPCBase):
+    """``campc-di`` / ``campc-nndi``: CAMPC command tracked by dynamic inversion, ``a = tau / tau_max``.
+
+    Both loops run once per environment step (module docstring). The nominal model is
+    :class:`~baselines.di.UVDMSNominalModel` of the environment's parameters (with the gripped object as a
+    payload for transport): the simulator's link drag, object hydrodynamics and any hydrodynamic randomisation
+    are the model error the network compensates.
+    """
+
+    action_mode = "torque"
+
+    def __init__(
+        self,
+        env: Any,
+        use_nn: bool = True,
+        collision: bool = True,
+        mpc_overrides: dict[str, Any] | None = None,
+        di_overrides: dict[str, Any] | None = None,
+    ) -> None:
+        """Build the controller for ``env`` (its action mode must be ``"torque"``).
+
+        Args:
+            env: the environment (wrapped or not).
+            use_nn: with the RBF network (``campc-nndi``) or without (``campc-di``).
+            collision: collision rows in the MPC.
+            mpc_overrides: :class:`~baselines.mpc.MPCConfig` fields replacing the task's defaults.
+            di_overrides: :class:`~baselines.di.DIConfig` fields replacing the defaults.
+        """
+        super().__init__(env, collision, mpc_overrides)
+        di_cfg = replace(DIConfig(), **{"dt": self.control_dt, "use_nn": use_nn, **(di_overrides or {})})
+        model = UVDMSNominalModel(self.params, payload=self.task == "transport")
+        self.di = DynamicInversionController(di_cfg, model, self.params, tau_max=self.tau_max, zeta_max=self.zeta_max)
+        self.last_di = None
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start an episode: MPC cold, network weights and integrators zero (``tau_prev`` set at the first step)."""
+        self.mpc.reset()
+        self.di.reset()
+        self._first = True
+        self.last_record = {}
+        self.last_di = None
+
+    def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        """Torque action for the current state."""
+        t0 = time.perf_counter()
+        eta = np.asarray(info["eta"], dtype=float)
+        q = np.asarray(info["q"], dtype=float)
+        zeta = np.concatenate([info["nu"], info["qdot"]]).astype(float)
+        if self._first:
+            # the network input's tau_prev starts at the static holding force of the nominal model
+            self.di.tau_prev = self.di.model.evaluate(eta, q, np.zeros(18))[1]
+            self._first = False
+        rec = self._mpc_step(info)
+        a_eq = self.mpc.last_problem.j_eq if self.task == "transport" else None
+        out = self.di.step(rec.zeta_cmd, eta, q, zeta, a_eq)
+        self.last_di = out
+        raw = out.tau / self.tau_max
+        action = np.clip(raw, -1.0, 1.0)
+        self._record(
+            rec,
+            (time.perf_counter() - t0) * 1e6,
+            clipped=bool(np.max(np.abs(action - raw)) > 1e-9),
+            zeta_cmd=rec.zeta_cmd,
+            nn_output=out.delta_hat,
+            tau_saturated=bool(out.saturated.any()),
+        )
+        return action.astype(np.float32)
+
+
+def _check_mode(name: str, env: Any, required: str) -> None:
+    mode = getattr(env.unwrapped, "action_mode", None)
+    if mode != required:
+        raise ValueError(
+            f"controller {name!r} needs action_mode={required!r} but the environment has action_mode={mode!r}; "
+            f"create it with env_kwargs action_mode={required}"
+        )
+
+
+def make_baseline(name: str, env: Any, **kwargs: Any) -> Controller:
+    """A named baseline for ``env``.
+
+    Args:
+        name: one of :data:`BASELINES`.
+        env: the environment.
+        **kwargs: ``mpc_overrides`` / ``di_overrides`` dictionaries.
+
+    Returns:
+        The controller.
+
+    Raises:
+        ValueError: unknown name, or the environment's action mode is not the one the baseline needs.
+    """
+    if name not in BASELINES:
+        raise ValueError(f"unknown baseline {name!r}; choose one of {sorted(BASELINES)} or give a path to an agent")
+    spec = BASELINES[name]
+    _check_mode(name, env, spec["action_mode"])
+    if spec["action_mode"] == "velocity":
+        return MPCVelocityController(env, collision=spec["collision"], **kwargs)
+    return CascadeTorqueController(env, use_nn=spec["use_nn"], collision=spec["collision"], **kwargs)
+
+
+def required_action_mode(spec: str) -> str | None:
+    """The action mode a baseline needs (``None`` for an agent path: the agent's own env kwargs decide)."""
+    return BASELINES[spec]["action_mode"] if spec in BASELINES else None
+
+
+def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) -> Controller:
+    """A controller from a baseline name or a path to a trained agent.
+
+    Args:
+        spec: a name of :data:`BASELINES`, or a path: a weights-only export directory, a run directory or an
+            SB3 zip (:func:`agents.policy.load_agent`).
+        env: the environment the controller will drive.
+        trust: allow unpickling an agent's SB3/VecNormalize files (see :mod:`agents.policy`).
+        **kwargs: baseline options (:func:`make_baseline`).
+
+    Returns:
+        The controller.
+
+    Raises:
+        ValueError: unknown name / missing path, or an action-mode or observation/action-space mismatch.
+    """
+    if spec in BASELINES:
+        return make_baseline(spec, env, **kwargs)
+    path = Path(spec)
+    if not path.exists():
+        raise ValueError(f"{spec!r} is neither a baseline ({', '.join(BASELINES)}) nor an existing agent path")
+    from agents.policy import load_agent
+
+    agent = load_agent(path, trust=trust)
+    check_agent(agent, env, spec)
+    return agent
+
+
+def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
+    """Check that a loaded agent fits ``env``: its action mode and its observation/action shapes.
+
+    Raises:
+        ValueError: on a mismatch (the message names the expected and found values).
+    """
+    mode = (getattr(agent, "env_kwargs", None) or {}).get("action_mode", "velocity")
+    _check_mode(f"agent {name}", env, mode)
+    if tuple(agent.observation_space.shape) != tuple(env.observation_space.shape):
+        raise ValueError(
+            f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "
+            f"{env.observation_space.shape}"
+        )
+    if tuple(agent.action_space.shape) != tuple(env.action_space.shape):
+        raise ValueError(f"agent {name} outputs actions of shape {agent.action_space.shape}")

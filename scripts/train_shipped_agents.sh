@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# Train the agents shipped in trained_agents/ (SAC and PPO on CircleTrack-v0 case 1, case 2 and
+# Transport-v0 goal=paper, velocity mode) in two parallel lanes, then package them.
+#
+#   scripts/train_shipped_agents.sh            # train into runs/shipped/<name>/, logs in runs/shipped/logs/
+#   scripts/train_shipped_agents.sh package    # copy the runs into trained_agents/<name>/ (agents.ship)
+#
+# Hyperparameters come from train_configs/{ppo,sac}.yml (uvdms entries); the budgets below override
+# n_timesteps. Seed 0: training envs use seeds 0 and 1, the evaluation callback seeds 1000000+
+# (agents/train.py). The shipped agents are evaluated on seeds 1000-1009 (README, "Train an agent").
+# A run whose directory already exists is skipped (resume it with `uvdms train --resume DIR`).
+# The machine has 2 cores: two lanes, nice 10, torch.set_num_threads(1) (agents.train does that).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-.venv/bin/python}
+OUT=${OUT:-runs/shipped}
+SEED=${SEED:-0}
+PPO_STEPS=${PPO_STEPS:-300000}
+SAC_STEPS=${SAC_STEPS:-60000}
+mkdir -p "$OUT/logs"
+
+# name algo env env-kwargs budget
+AGENTS_A=(
+  "circle_case1_ppo ppo uvdms/CircleTrack-v0 case=1 $PPO_STEPS"
+  "circle_case2_ppo ppo uvdms/CircleTrack-v0 case=2 $PPO_STEPS"
+  "transport_paper_ppo ppo uvdms/Transport-v0 goal=paper $PPO_STEPS"
+)
+AGENTS_B=(
+  "circle_case1_sac sac uvdms/CircleTrack-v0 case=1 $SAC_STEPS"
+  "circle_case2_sac sac uvdms/CircleTrack-v0 case=2 $SAC_STEPS"
+  "transport_paper_sac sac uvdms/Transport-v0 goal=paper $SAC_STEPS"
+)
+
+run_one() {
+  local name=$1 algo=$2 env=$3 kw=$4 steps=$5
+  if [[ -d "$OUT/$name" ]]; then
+    echo "[$(date -u +%FT%TZ)] skip $name ($OUT/$name exists)" >> "$OUT/logs/lanes.log"
+    return 0
+  fi
+  echo "[$(date -u +%FT%TZ)] start $name" >> "$OUT/logs/lanes.log"
+  nice -n 10 "$PY" -m agents.train --algo "$algo" --env "$env" --env-kwargs "$kw" --seed "$SEED" \
+    --total-timesteps "$steps" --out "$OUT/$name" --no-progress > "$OUT/logs/$name.log" 2>&1 ||
+    echo "FAILED $name" >> "$OUT/logs/lanes.log"
+  echo "[$(date -u +%FT%TZ)] end $name" >> "$OUT/logs/lanes.log"
+}
+
+lane() {
+  for spec in "$@"; do
+    # shellcheck disable=SC2086
+    run_one $spec
+  done
+}
+
+if [[ "${1:-train}" == "package" ]]; then
+  for spec in "${AGENTS_A[@]}" "${AGENTS_B[@]}"; do
+    read -r name algo _ _ _ <<< "$spec"
+    "$PY" -m agents.ship "$OUT/$name"/*/"${algo}_$SEED" "trained_agents/$name" --which "${WHICH:-best}" --overwrite
+  done
+  exit 0
+fi
+
+# WAIT_PID: an already running training process that lane A should wait for (used once, when
+# circle_case1_ppo had been started by an earlier version of this script).
+if [[ -n "${WAIT_PID:-}" ]]; then
+  (while kill -0 "$WAIT_PID" 2> /dev/null; do sleep 10; done; lane "${AGENTS_A[@]}") &
+else
+  lane "${AGENTS_A[@]}" &
+fi
+lane "${AGENTS_B[@]}" &
+wait

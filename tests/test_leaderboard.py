@@ -1,0 +1,513 @@
+"""Leaderboard: cache and resume, bootstrap CIs, ranking and ties, seed disjointness, safe submissions."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from uvdms_gym import leaderboard as lb
+from uvdms_gym.cli import main as uvdms_main
+
+CIRCLE = "uvdms/CircleTrack-v0"
+TINY_TASKS = (
+    lb.Task("case1", "Case 1", CIRCLE, {"case": 1}, paper=True, trajectory=True, max_episode_steps=3),
+    lb.Task("case2", "Case 2", CIRCLE, {"case": 2}, paper=True, trajectory=True, max_episode_steps=3),
+)
+
+
+# ------------------------------------------------------------------------------------------------------
+# A fake backend: no physics, deterministic per (controller, task, seed) metrics, and a call counter
+# ------------------------------------------------------------------------------------------------------
+class FakeEnv:
+    def __init__(self, spec):
+        self.spec_ = dict(spec)
+        self.closed = False
+
+    def close(self):
+        self.closed = True
+
+
+class FakeController:
+    def __init__(self, name):
+        self.name = name
+
+    def reset(self, seed=None):
+        pass
+
+
+CALLS: list[tuple[str, int]] = []
+
+
+def fake_make_env(spec):
+    return FakeEnv(spec)
+
+
+def fake_make_controller(spec, env, trust):
+    return FakeController(spec)
+
+
+def fake_run_episode(env, controller, seed, save_trajectory):
+    CALLS.append((controller.name, seed))
+    rng = np.random.default_rng([seed, sum(map(ord, controller.name)), env.spec_["env_kwargs"].get("case", 0)])
+    contacts = int(rng.integers(0, 2)) if controller.name == "mpc" else 0
+    result = {
+        "seed": seed,
+        "return": float(rng.normal(-50, 5)),
+        "cost": float(contacts),
+        "contacts": contacts,
+        "zone_steps": contacts,
+        "min_distance": float(rng.uniform(0.04, 0.1)),
+        "min_distance_by_pair": rng.uniform(0.04, 0.3, 18).tolist(),
+        "rmse_pos": float(rng.uniform(0.01, 0.02) * (1 + len(controller.name))),
+        "rmse_ori": None,
+        "final_pos_error": float(rng.uniform(0, 0.1)),
+        "final_ori_error": None,
+        "success": bool(rng.uniform() < 0.8),
+        "controller_ms_median": 1.0,
+        "qp_slack_max": 0.0,
+        "steps": 3,
+        "terminated": False,
+        "truncated": True,
+        "physics_error": None,
+    }
+    if save_trajectory:
+        t = np.arange(4) * 0.04
+        result["trajectory"] = {
+            "t": t,
+            "y": np.zeros((4, 6)),
+            "y_ref": np.zeros((4, 6)),
+            "distances": rng.uniform(0.04, 0.3, (4, 18)),
+            "tau": np.zeros((4, 18)),
+            "nn_output": None,
+        }
+    return result
+
+
+FAKE = lb.Backend(make_env=fake_make_env, make_controller=fake_make_controller, run_episode=fake_run_episode)
+BASELINE_ENTRIES = lb.resolve_entries(["baselines"])
+
+
+def _run(tmp_path, *, entries=BASELINE_ENTRIES, episodes=3, plots=False, **kwargs):
+    CALLS.clear()
+    return lb.run_leaderboard(
+        entries,
+        out_dir=tmp_path / "out",
+        tasks=TINY_TASKS,
+        episodes=episodes,
+        progress=False,
+        plots=plots,
+        backend=FAKE,
+        **kwargs,
+    )
+
+
+def _cache_files(tmp_path) -> list[Path]:
+    return sorted((tmp_path / "out" / "cache").rglob("*.json"))
+
+
+# ------------------------------------------------------------------------------------------------------
+# Cache and resume
+# ------------------------------------------------------------------------------------------------------
+def test_second_run_computes_nothing_and_outputs_are_written(tmp_path):
+    first = _run(tmp_path, plots=True)
+    n = len(BASELINE_ENTRIES) * len(TINY_TASKS) * 3
+    assert first.computed == n and first.cached == 0 and len(CALLS) == n
+    assert len(_cache_files(tmp_path)) == n
+    out = tmp_path / "out"
+    for name in ("leaderboard.md", "leaderboard.csv"):
+        assert (out / name).is_file()
+    assert {p.stem for p in (out / "entries").glob("*.json")} == set(lb.BASELINES)
+    pngs = {p.name for p in (out / "plots").glob("*.png")}
+    assert {"velocity_contact_free_success.png", "torque_rmse_pos.png", "min_distance_case1.png"} <= pngs
+    doc = json.loads((out / "entries" / "campc.json").read_text())
+    assert set(doc["tasks"]) == {"case1", "case2"} and len(doc["tasks"]["case1"]["episodes"]) == 3
+    markdown = (out / "leaderboard.md").read_text()
+
+    second = _run(tmp_path)
+    assert second.computed == 0 and second.cached == n and CALLS == []
+    assert lb.markdown_tables(second) == lb.markdown_tables(first)
+    assert "## Plots" in markdown and "plots/min_distance_case1.png" in markdown
+
+
+def test_deleting_one_cached_file_recomputes_only_that_one(tmp_path):
+    _run(tmp_path)
+    files = _cache_files(tmp_path)
+    victim = files[len(files) // 2]
+    victim.unlink()
+    again = _run(tmp_path)
+    assert again.computed == 1 and len(CALLS) == 1
+    assert victim.is_file()
+    entry_slug, _task, seed_part = victim.relative_to(tmp_path / "out" / "cache").parts
+    assert CALLS[0][0] == entry_slug and f"seed{CALLS[0][1]}-" in seed_part
+
+
+def test_truncated_cached_file_is_reported_and_recomputed(tmp_path, caplog):
+    first = _run(tmp_path)
+    victim = _cache_files(tmp_path)[0]
+    text = victim.read_text()
+    victim.write_text(text[: len(text) // 2])
+    with caplog.at_level(logging.WARNING, logger="uvdms.leaderboard"):
+        again = _run(tmp_path)
+    assert again.computed == 1 and again.corrupt == [victim]
+    assert any(str(victim) in rec.getMessage() for rec in caplog.records if rec.levelno == logging.WARNING)
+    assert json.loads(victim.read_text())["result"]["seed"] == CALLS[0][1]
+    assert lb.markdown_tables(again) == lb.markdown_tables(first)
+
+
+def test_cached_file_with_wrong_content_is_not_used(tmp_path, caplog):
+    _run(tmp_path)
+    victim = _cache_files(tmp_path)[0]
+    doc = json.loads(victim.read_text())
+    doc["key"] = "0" * 64
+    victim.write_text(json.dumps(doc))
+    with caplog.at_level(logging.WARNING, logger="uvdms.leaderboard"):
+        again = _run(tmp_path)
+    assert again.computed == 1 and victim.name in caplog.text
+
+
+def test_force_recomputes_everything(tmp_path):
+    first = _run(tmp_path)
+    again = _run(tmp_path, force=True)
+    assert again.computed == first.computed and len(CALLS) == first.computed
+
+
+def test_atomic_write_leaves_no_temporary_files(tmp_path):
+    lb.atomic_write_json(tmp_path / "a" / "x.json", {"v": 1})
+    assert [p.name for p in (tmp_path / "a").iterdir()] == ["x.json"]
+    with pytest.raises(ValueError):
+        lb.atomic_write_json(tmp_path / "a" / "x.json", {"v": math.nan})
+    assert [p.name for p in (tmp_path / "a").iterdir()] == ["x.json"]
+    assert json.loads((tmp_path / "a" / "x.json").read_text()) == {"v": 1}
+
+
+def test_cache_key_depends_on_entry_task_seed_and_version(monkeypatch):
+    entry, task = BASELINE_ENTRIES[0], TINY_TASKS[0]
+    base = lb.cache_key(lb.cache_material(entry, task, 1, False))
+    assert base == lb.cache_key(lb.cache_material(entry, task, 1, False))
+    assert base != lb.cache_key(lb.cache_material(entry, task, 2, False))
+    assert base != lb.cache_key(lb.cache_material(entry, TINY_TASKS[1], 1, False))
+    assert base != lb.cache_key(lb.cache_material(BASELINE_ENTRIES[1], task, 1, False))
+    monkeypatch.setattr(lb, "PACKAGE_VERSION", "9.9.9")
+    assert base != lb.cache_key(lb.cache_material(entry, task, 1, False))
+
+
+# ------------------------------------------------------------------------------------------------------
+# Statistics and ranking
+# ------------------------------------------------------------------------------------------------------
+def test_bootstrap_ci_contains_the_mean_and_is_reproducible():
+    x = np.random.default_rng(0).normal(3.0, 1.0, 20)
+    stat = lb.bootstrap_ci(x)
+    assert stat.n == 20 and stat.mean == pytest.approx(x.mean())
+    assert stat.low < stat.mean < stat.high
+    assert stat.high - stat.low < 2.0  # about 4 standard errors of 1/sqrt(20)
+    assert lb.bootstrap_ci(x) == stat
+    rate = lb.bootstrap_ci([1, 1, 0, 1, 0, 1, 1, 1])
+    assert 0.0 <= rate.low <= rate.mean <= rate.high <= 1.0
+    assert "±" in rate.format(".2f")
+
+
+def test_bootstrap_ci_degenerate_samples():
+    empty = lb.bootstrap_ci([])
+    assert empty.n == 0 and math.isnan(empty.mean) and empty.format() == "—"
+    one = lb.bootstrap_ci([0.3])
+    assert one.mean == 0.3 and math.isnan(one.low) and one.interval() == (0.3, 0.3)
+    assert one.format(".2f") == "0.30 (n=1)"
+    same = lb.bootstrap_ci([0.7, 0.7, 0.7])
+    assert (same.low, same.mean, same.high) == (0.7, 0.7, 0.7) and same.format(".2f") == "0.70 ± 0.00"
+    nan_dropped = lb.bootstrap_ci([1.0, math.nan, 3.0])
+    assert nan_dropped.n == 2 and nan_dropped.mean == 2.0
+    assert nan_dropped.low <= 2.0 <= nan_dropped.high
+
+
+def _row(name, cfs, rmse, n=5):
+    entry = lb.Entry(name=name, kind="baseline", spec=name, track="velocity")
+    stats = {
+        "contact_free_success": lb.Stat(cfs[0], cfs[1], cfs[2], n),
+        "rmse_pos": lb.Stat(rmse[0], rmse[1], rmse[2], n) if rmse else lb.Stat(math.nan, math.nan, math.nan, 0),
+    }
+    return lb.RankedRow(entry, TINY_TASKS[0], stats, [])
+
+
+def test_ranking_contact_free_success_first_then_rmse():
+    rows = [
+        _row("accurate-but-colliding", (0.2, 0.0, 0.4), (0.01, 0.009, 0.011)),
+        _row("safe", (1.0, 1.0, 1.0), (0.05, 0.04, 0.06)),
+        _row("safe-and-accurate", (1.0, 1.0, 1.0), (0.02, 0.015, 0.025)),
+    ]
+    ranked = lb.rank_rows(rows)
+    assert [r.entry.name for r in ranked] == ["safe-and-accurate", "safe", "accurate-but-colliding"]
+    assert [r.rank_label for r in ranked] == ["1", "2", "3"]
+
+
+def test_ties_when_both_intervals_overlap_competition_ranking():
+    rows = [
+        _row("a", (1.0, 1.0, 1.0), (0.020, 0.015, 0.030)),
+        _row("b", (1.0, 1.0, 1.0), (0.025, 0.018, 0.035)),  # RMSE overlaps a's: tie
+        _row("c", (0.9, 0.7, 1.0), (0.028, 0.026, 0.032)),  # both intervals overlap a's: tie
+        _row("d", (0.8, 0.6, 1.0), (0.100, 0.090, 0.110)),  # RMSE does not overlap a's: new group
+        _row("e", (0.8, 0.6, 1.0), (0.105, 0.095, 0.115)),  # tied with d
+        _row("f", (0.0, 0.0, 0.0), (0.010, 0.009, 0.011)),  # never succeeds without contact
+        _row("g", (0.0, 0.0, 0.0), None),  # no RMSE: after f
+    ]
+    ranked = lb.rank_rows(rows)
+    assert [(r.entry.name, r.rank_label) for r in ranked] == [
+        ("a", "1="),
+        ("b", "1="),
+        ("c", "1="),
+        ("d", "4="),
+        ("e", "4="),
+        ("f", "6"),
+        ("g", "7"),
+    ]
+
+
+def test_ties_are_judged_against_the_group_leader_not_chained():
+    rows = [
+        _row("a", (1.0, 1.0, 1.0), (0.020, 0.018, 0.022)),
+        _row("b", (1.0, 1.0, 1.0), (0.023, 0.021, 0.025)),  # overlaps a
+        _row("c", (1.0, 1.0, 1.0), (0.026, 0.024, 0.028)),  # overlaps b, not a: new group
+    ]
+    assert [r.rank_label for r in lb.rank_rows(rows)] == ["1=", "1=", "3"]
+
+
+def test_intervals_overlap_rules():
+    s = lb.Stat
+    assert lb.intervals_overlap(s(1, 0, 2, 3), s(2.5, 2, 3, 3))  # touching closed intervals
+    assert not lb.intervals_overlap(s(1, 0, 1.9, 3), s(2.5, 2, 3, 3))
+    assert lb.intervals_overlap(s(1, math.nan, math.nan, 1), s(1, math.nan, math.nan, 1))
+    assert not lb.intervals_overlap(s(1, math.nan, math.nan, 1), s(2, math.nan, math.nan, 1))
+    empty = s(math.nan, math.nan, math.nan, 0)
+    assert lb.intervals_overlap(empty, empty) and not lb.intervals_overlap(empty, s(1, 1, 1, 2))
+
+
+def test_rates_come_from_contacts_and_success():
+    episodes = [
+        {"contacts": 0, "success": True, "rmse_pos": 0.1},
+        {"contacts": 2, "success": True, "rmse_pos": 0.2},
+        {"contacts": 0, "success": False, "rmse_pos": None},
+        {"contacts": 0, "success": True, "rmse_pos": 0.3},
+    ]
+    stats = lb.aggregate(episodes)
+    assert stats["contact_free"].mean == 0.75
+    assert stats["contact_free_success"].mean == 0.5
+    assert stats["success"].mean == 0.75
+    assert stats["rmse_pos"].n == 3 and stats["rmse_pos"].mean == pytest.approx(0.2)
+    assert stats["rmse_ori"].n == 0
+
+
+def test_tracks_and_tables(tmp_path):
+    result = _run(tmp_path, episodes=2)
+    tables = lb.markdown_tables(result)
+    assert "### Velocity track" in tables and "### Torque track" in tables
+    velocity = tables.split("### Torque track")[0]
+    assert "campc" in velocity and "campc-nndi" not in velocity and "±" in velocity
+    csv_lines = (tmp_path / "out" / "leaderboard.csv").read_text().splitlines()
+    assert len(csv_lines) == 1 + len(BASELINE_ENTRIES) * len(TINY_TASKS)
+    assert all(r.entry.track == lb.BASELINES[r.entry.name] for r in result.rows)
+
+
+# ------------------------------------------------------------------------------------------------------
+# Seeds
+# ------------------------------------------------------------------------------------------------------
+def _agent_folder(root: Path, name: str, seed: int, env_kwargs=None) -> Path:
+    folder = root / name
+    folder.mkdir(parents=True)
+    (folder / "final_model.zip").write_bytes(b"not opened by these tests")
+    (folder / "config.yml").write_text(
+        json.dumps({"algo": "sac", "env_id": CIRCLE, "seed": seed, "config": {"env_kwargs": env_kwargs or {}}})
+    )
+    meta = {
+        "seed": seed,
+        "segments": [
+            {"model_seed": seed, "train_env_seeds": [seed, seed + 1], "eval_env_seeds": [seed + 1_000_000]},
+            {"model_seed": seed + 1000, "train_env_seeds": [seed + 1000, seed + 1001], "eval_env_seeds": []},
+        ],
+    }
+    (folder / "meta.json").write_text(json.dumps(meta))
+    return folder
+
+
+def test_training_seeds_are_read_and_evaluation_seeds_are_disjoint(tmp_path):
+    folder = _agent_folder(tmp_path, "sac_case1", seed=7)
+    assert lb.training_seeds(folder) == {7, 8, 1007, 1008, 1_000_007}
+    entry = lb.agent_entry(folder, trust=True)
+    assert entry.env_id == CIRCLE and entry.track == "velocity"
+    assert entry.training_seeds == {7, 8, 1007, 1008, 1_000_007}
+    seeds = lb.evaluation_seeds(10)
+    assert min(seeds) >= lb.SEED_BASE
+    lb.check_seed_disjointness(seeds, [entry])
+    # the agents.train scheme (seed + 1000 k + i, eval seed + 1_000_000 + i) never reaches SEED_BASE for seeds < 1e9
+    assert 999_999_999 + 1_000_000 + 1000 < lb.SEED_BASE
+
+
+def test_clashing_seed_is_refused(tmp_path):
+    folder = _agent_folder(tmp_path, "sac_clash", seed=lb.SEED_BASE + 1)
+    entry = lb.agent_entry(folder, trust=True)
+    with pytest.raises(ValueError, match="disjoint"):
+        lb.check_seed_disjointness(lb.evaluation_seeds(5), [entry])
+    with pytest.raises(ValueError, match="disjoint"):
+        _run(tmp_path, entries=[entry], episodes=3)
+
+
+def test_agent_track_and_tasks_follow_its_config(tmp_path):
+    torque = lb.agent_entry(_agent_folder(tmp_path, "ppo_torque", 1, {"action_mode": "torque"}), trust=True)
+    assert torque.track == "torque"
+    assert torque.runs_on(TINY_TASKS[0])
+    assert not torque.runs_on(lb.Task("transport", "T", "uvdms/Transport-v0"))
+    circle_tasks = [t.name for t in lb.TASKS if torque.runs_on(t)]
+    assert circle_tasks == ["case1", "case2", "circle-random"]
+
+
+def test_quick_selects_the_paper_tasks():
+    assert [t.name for t in lb.select_tasks(quick=True)] == ["case1", "case2", "transport"]
+    assert {t.env_kwargs.get("hydro_randomization") for t in lb.TASKS if not t.paper} == {0.3}
+    with pytest.raises(ValueError, match="unknown task"):
+        lb.select_tasks(["nope"])
+
+
+# ------------------------------------------------------------------------------------------------------
+# Safe submissions (real environment, real loading, 3-step episodes)
+# ------------------------------------------------------------------------------------------------------
+def _standin_run_episode(env, controller, seed, save_trajectory=False):
+    """Minimal episode loop with run_episode's keys (used only until baselines.evaluate exists)."""
+    obs, info = env.reset(seed=seed)
+    controller.reset(seed)
+    ret, contacts, zone, d_min, errors, steps = 0.0, 0, 0, math.inf, [], 0
+    terminated = truncated = False
+    while not (terminated or truncated):
+        obs, reward, terminated, truncated, info = env.step(controller.predict(obs, info))
+        ret += reward
+        contacts += int(info.get("contacts", 0) > 0)
+        zone += int(info.get("cost_zone", 0) > 0)
+        d_min = min(d_min, info.get("min_distance", math.inf))
+        errors.append(info.get("tracking_error", math.nan))
+        steps += 1
+    return {
+        "seed": seed,
+        "return": ret,
+        "cost": contacts + zone,
+        "contacts": contacts,
+        "zone_steps": zone,
+        "min_distance": d_min,
+        "rmse_pos": float(np.sqrt(np.mean(np.square(errors)))),
+        "rmse_ori": None,
+        "final_pos_error": errors[-1],
+        "final_ori_error": None,
+        "success": bool(info.get("is_success", False)),
+        "controller_ms_median": 0.0,
+        "qp_slack_max": None,
+        "steps": steps,
+        "terminated": terminated,
+        "truncated": truncated,
+        "physics_error": info.get("physics_error"),
+    }
+
+
+def _run_episode_backend():
+    try:
+        from baselines.evaluate import run_episode
+    except ModuleNotFoundError:
+        return _standin_run_episode
+
+    def run(env, controller, seed, save_trajectory):
+        return run_episode(env, controller, seed, save_trajectory=save_trajectory)
+
+    return run
+
+
+@pytest.fixture(scope="module")
+def tiny_policy_model():
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    import uvdms_gym  # noqa: F401  (registers the environments)
+
+    env = gym.make(CIRCLE, case=1)
+    model = PPO("MlpPolicy", env, policy_kwargs={"net_arch": [8]}, n_steps=8, batch_size=8, seed=0, device="cpu")
+    env.close()
+    return model
+
+
+def _export_submission(model, folder: Path) -> Path:
+    from agents.policy import AgentController, export_controller
+
+    agent = AgentController(model.policy, algo="ppo", env_id=CIRCLE, env_kwargs={"case": 1}, source="tiny")
+    return export_controller(agent, folder)
+
+
+def test_weights_only_submission_evaluates_and_ranks_without_trust(tmp_path, tiny_policy_model, monkeypatch):
+    import agents.policy
+
+    submission = _export_submission(tiny_policy_model, tmp_path / "submission")
+
+    def no_unpickling(*args, **kwargs):
+        raise AssertionError("a weights-only submission must not be unpickled")
+
+    monkeypatch.setattr(agents.policy, "load_sb3_zip", no_unpickling)
+    monkeypatch.setattr(agents.policy, "load_vecnormalize_stats", no_unpickling)
+    entries = lb.resolve_entries(["campc", str(submission)], trust=False)
+    assert entries[1].weights_only and entries[1].track == "velocity" and entries[1].env_id == CIRCLE
+    backend = lb.Backend(
+        make_env=lb.make_env, make_controller=lb._real_make_controller, run_episode=_run_episode_backend()
+    )
+    result = lb.run_leaderboard(
+        entries,
+        out_dir=tmp_path / "out",
+        tasks=TINY_TASKS[:1],
+        episodes=2,
+        progress=False,
+        plots=False,
+        backend=backend,
+        trust=False,
+    )
+    rows = {r.entry.name: r for r in result.rows}
+    assert set(rows) == {"campc", "submission"}
+    assert sorted(r.rank for r in rows.values())[0] == 1
+    assert all(len(r.episodes) == 2 for r in rows.values())
+    assert "submission" in lb.markdown_tables(result)
+
+
+def test_pickle_zip_from_outside_the_repo_is_refused_without_trust(tmp_path, tiny_policy_model, capsys):
+    from agents.policy import UntrustedFileError
+
+    zip_path = tmp_path / "elsewhere" / "model.zip"
+    zip_path.parent.mkdir()
+    tiny_policy_model.save(zip_path)
+    assert zip_path.is_file()
+    with pytest.raises(UntrustedFileError, match="--trust"):
+        lb.resolve_entries([str(zip_path)])
+    with pytest.raises(UntrustedFileError):
+        lb.resolve_entries(["agents"], agents_dir=tmp_path)  # the folder holds a zip outside trained_agents/
+    code = uvdms_main(["leaderboard", "--entries", str(zip_path), "--out", str(tmp_path / "out"), "--no-progress"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "refusing to load" in err and "--trust" in err and str(zip_path) in err
+    assert not (tmp_path / "out").exists()
+    entry = lb.resolve_entries([str(zip_path)], trust=True)[0]
+    assert entry.kind == "agent" and not entry.weights_only
+
+
+# ------------------------------------------------------------------------------------------------------
+# Command line (fake backend)
+# ------------------------------------------------------------------------------------------------------
+def test_cli_prints_ranked_tables_and_reuses_the_cache(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(lb, "DEFAULT_BACKEND", FAKE)
+    argv = ["leaderboard", "--quick", "--entries", "campc", "campc-nndi", "--tasks", "case1", "case2"]
+    argv += ["--out", str(tmp_path / "out"), "--no-progress", "--no-plots", "--agents-dir", str(tmp_path)]
+    CALLS.clear()
+    assert uvdms_main(argv) == 0
+    out = capsys.readouterr().out
+    assert "### Velocity track" in out and "### Torque track" in out and "±" in out
+    assert len(CALLS) == 2 * 2 * lb.QUICK_EPISODES
+    CALLS.clear()
+    assert uvdms_main(argv) == 0
+    assert CALLS == [] and capsys.readouterr().out == out
+    md = (tmp_path / "out" / "leaderboard.md").read_text()
+    assert "uvdms leaderboard --quick --entries campc campc-nndi" in md
+    assert uvdms_main(["leaderboard", "--entries", "nope", "--out", str(tmp_path / "x")]) == 2
+    assert "neither a baseline" in capsys.readouterr().err

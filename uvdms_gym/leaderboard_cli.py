@@ -1,0 +1,111 @@
+"""``uvdms leaderboard``: rank the baselines and trained agents (thin wrapper over :mod:`uvdms_gym.leaderboard`)."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import shlex
+import sys
+
+log = logging.getLogger("uvdms.leaderboard")
+
+DESCRIPTION = """\
+Evaluate the named baselines (mpc, campc: velocity track; campc-di, campc-nndi: torque track), every agent
+folder in --agents-dir and any agent given by path on the task suite (paper Case 1, Case 2, transport, and
+held-out randomised variants with hydro_randomization=0.3), on evaluation seeds disjoint from every training
+seed. Rank each track per task by contact-free success rate, then position RMSE (ties when the 95% bootstrap
+intervals overlap), print the tables and write leaderboard.md, leaderboard.csv, entries/*.json and plots/*.png
+to --out. Every episode is cached under --cache-dir and reused on re-runs."""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``leaderboard`` subcommand to ``uvdms``."""
+    p = subparsers.add_parser(
+        "leaderboard",
+        help="rank baselines and agents on collisions and tracking error, with bootstrap CIs",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="2 episodes per task (unless --episodes), paper tasks only",
+    )
+    p.add_argument("--out", default="leaderboard_out", help="output folder (default leaderboard_out/)")
+    p.add_argument("--cache-dir", default=None, help="per-episode cache (default <out>/cache)")
+    p.add_argument(
+        "--entries",
+        nargs="+",
+        metavar="NAME|PATH",
+        default=None,
+        help="entries to rank: baseline names (mpc campc campc-di campc-nndi), agent folders or SB3 zips, "
+        "'baselines' (all four) and 'agents' (every folder in --agents-dir); default: baselines agents",
+    )
+    p.add_argument("--agents-dir", default="trained_agents", help="shipped-agents folder (default trained_agents/)")
+    p.add_argument("--tasks", nargs="+", default=None, metavar="TASK", help="subset of the task suite (by name)")
+    p.add_argument("--episodes", type=int, default=None, help="episodes per entry and task (default 20; quick: 2)")
+    p.add_argument("--force", action="store_true", help="recompute every episode instead of using the cache")
+    p.add_argument(
+        "--trust",
+        action="store_true",
+        help="allow loading full SB3 zips (pickles) from outside the repository's trained_agents/ folder",
+    )
+    p.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.set_defaults(func=_cmd_leaderboard)
+
+
+def _cmd_leaderboard(args: argparse.Namespace) -> int:
+    from agents.policy import UntrustedFileError
+    from uvdms_gym import leaderboard as lb
+
+    try:
+        import torch
+
+        torch.set_num_threads(1)  # tiny MLP policies: one thread is fastest and leaves the other core free
+        tasks = lb.select_tasks(args.tasks, quick=args.quick)
+        episodes = args.episodes if args.episodes is not None else (lb.QUICK_EPISODES if args.quick else None)
+        entries = lb.resolve_entries(args.entries, agents_dir=args.agents_dir, trust=args.trust)
+        result = lb.run_leaderboard(
+            entries,
+            out_dir=args.out,
+            cache_dir=args.cache_dir,
+            tasks=tasks,
+            episodes=episodes if episodes is not None else lb.DEFAULT_EPISODES,
+            force=args.force,
+            trust=args.trust,
+            jobs=args.jobs,
+            progress=not args.no_progress,
+            plots=not args.no_plots,
+            command=_command_line(args),
+        )
+    except (UntrustedFileError, ValueError) as exc:
+        sys.stderr.write(f"uvdms leaderboard: error: {exc}\n")
+        return 2
+    sys.stdout.write(lb.markdown_tables(result) + "\n")
+    log.info(
+        "wrote %s (%d episodes computed, %d from cache%s)",
+        result.out_dir / "leaderboard.md",
+        result.computed,
+        result.cached,
+        f", {len(result.corrupt)} corrupt cache files recomputed" if result.corrupt else "",
+    )
+    return 0
+
+
+def _command_line(args: argparse.Namespace) -> str:
+    """The command as recorded in ``leaderboard.md`` (output-shaping options only)."""
+    parts = ["uvdms", "leaderboard"]
+    if args.quick:
+        parts.append("--quick")
+    if args.entries:
+        parts += ["--entries", *args.entries]
+    if args.agents_dir != "trained_agents":
+        parts += ["--agents-dir", args.agents_dir]
+    if args.tasks:
+        parts += ["--tasks", *args.tasks]
+    if args.episodes is not None:
+        parts += ["--episodes", str(args.episodes)]
+    parts += ["--out", args.out]
+    return shlex.join(parts)
