@@ -179,6 +179,7 @@ class TrainConfig:
     save_replay_buffer: bool = False
     max_episode_steps: int | None = None
     alive_bonus: float = 0.0
+    action_init_scale: float | None = None
 
     # ----------------------------------------------------------------------------------------------
     def to_entry(self) -> dict[str, Any]:
@@ -646,6 +647,9 @@ def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
             raise ConfigError(f"{where}: key {key!r} must be >= {low}, got {values[key]}")
     if values.get("max_episode_steps") is not None and values["max_episode_steps"] < 1:
         raise ConfigError(f"{where}: key 'max_episode_steps' must be >= 1 or null, got {values['max_episode_steps']}")
+    scale = values.get("action_init_scale")
+    if scale is not None and not (math.isfinite(scale) and 0.0 < scale <= 1.0):
+        raise ConfigError(f"{where}: key 'action_init_scale' must be in (0, 1] or null, got {scale}")
     if not math.isfinite(values.get("alive_bonus", 0.0)):
         raise ConfigError(f"{where}: key 'alive_bonus' must be a finite number")
     if values.get("n_envs", 1) > 1000:

@@ -539,6 +539,8 @@ def _run_segment(
                 verbose=verbose,
                 **kwargs,
             )
+            if cfg.action_init_scale is not None:
+                scale_action_layer(model, cfg.action_init_scale)
         else:
             if checkpoint.vecnormalize is not None:
                 venv = VecNormalize.load(str(checkpoint.vecnormalize), venv)
@@ -622,6 +624,39 @@ def _run_segment(
         for env in (venv, eval_venv):
             if env is not None:
                 env.close()
+
+
+def scale_action_layer(model: BaseAlgorithm, scale: float) -> torch.nn.Linear:
+    """Multiply the last action layer of a fresh model's policy by ``scale`` (``TrainConfig.action_init_scale``).
+
+    Args:
+        model: A freshly built SB3 model (PPO: ``policy.action_net``; SAC/TQC: ``actor.mu``; TD3: the last
+            ``Linear`` of ``actor.mu``, copied to ``actor_target``).
+        scale: The factor.
+
+    Returns:
+        The scaled layer.
+
+    Raises:
+        ConfigError: If the policy has no recognised action layer.
+    """
+    policy = model.policy
+    actor = getattr(policy, "actor", None)
+    if hasattr(policy, "action_net"):
+        layer = policy.action_net
+    elif actor is not None and isinstance(getattr(actor, "mu", None), torch.nn.Linear):
+        layer = actor.mu
+    elif actor is not None and isinstance(getattr(actor, "mu", None), torch.nn.Sequential):
+        layer = [m for m in actor.mu if isinstance(m, torch.nn.Linear)][-1]
+    else:
+        raise ConfigError(f"action_init_scale: no action layer found in {type(policy).__name__}")
+    with torch.no_grad():
+        layer.weight.mul_(scale)
+        if layer.bias is not None:
+            layer.bias.mul_(scale)
+    if getattr(policy, "actor_target", None) is not None:
+        policy.actor_target.load_state_dict(actor.state_dict())
+    return layer
 
 
 def _save_final(run_dir: Path, model: BaseAlgorithm, cfg: TrainConfig) -> None:

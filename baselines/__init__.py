@@ -4,7 +4,11 @@
 * :mod:`baselines.campc` — its model-based front end (:class:`MPCController`, :func:`make_mpc_controller`);
 * :mod:`baselines.di` — dynamic inversion with RBF compensation (:class:`DynamicInversionController`);
 * :mod:`baselines.cascade` — MPC outer loop + DI inner loop (:class:`CascadeController`);
-* :mod:`baselines.bench` — timings (:func:`benchmark_mpc`, :func:`benchmark_di`) and the OSQP replay.
+* :mod:`baselines.controllers` — the controller interface shared with agents and the named baselines ``mpc``,
+  ``campc``, ``campc-di``, ``campc-nndi`` (:func:`make_controller`);
+* :mod:`baselines.evaluate` — episodes -> JSON metrics (:func:`run_episode`, :func:`evaluate`; ``uvdms evaluate``);
+* :mod:`baselines.reproduce` — the paper's experiments, figures and acceptance checks (``uvdms reproduce``);
+* :mod:`baselines.bench` — timings (:func:`benchmark_all`: ``uvdms bench mpc``) and the OSQP replay.
 """
 
 from baselines.campc import MPCController, make_mpc_controller, task_config

@@ -157,9 +157,7 @@ class MPCController:
         self.last_problem = problem
         return problem
 
-    def step(
-        self, eta: np.ndarray, q: np.ndarray, y_ref: np.ndarray, zeta: np.ndarray | None = None
-    ) -> MPCStepRecord:
+    def step(self, eta: np.ndarray, q: np.ndarray, y_ref: np.ndarray, zeta: np.ndarray | None = None) -> MPCStepRecord:
         """One control step: kinematics, distances, QP build and warm-started solve.
 
         Args:

@@ -193,6 +193,7 @@ class CascadeTorqueController(_MPCBase):
         model = UVDMSNominalModel(self.params, payload=self.task == "transport")
         self.di = DynamicInversionController(di_cfg, model, self.params, tau_max=self.tau_max, zeta_max=self.zeta_max)
         self.last_di = None
+        self._first = True
 
     def reset(self, seed: int | None = None) -> None:
         """Start an episode: MPC cold, network weights and integrators zero (``tau_prev`` set at the first step)."""

@@ -128,7 +128,8 @@ class DIConfig:
         n_hidden: hidden Gaussian units [paper: 80].
         rbf_width: Gaussian width ``b`` on the normalised input [D] 3.
         center_range: centres uniform in ``[-center_range, center_range]^51`` [D] 0.5.
-        kappa: adaptation gain ``kappa`` [D] 20 at 25 Hz (module docstring: 50 destabilised the transport run).
+        kappa: adaptation gain ``kappa``, scalar or one per DOF (output column of the network) [D] 20 at 25 Hz
+            (module docstring: 50 destabilised the transport run).
         sigma: sigma-modification ``sigma`` (0 = the paper's law) [D] 0.01.
         q_lyap: ``Q = q_lyap I`` (36x36) of the Lyapunov equation [D] 1.
         seed: seed of the centre generator (fixed: the network is part of the controller, not the episode).

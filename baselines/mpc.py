@@ -126,7 +126,8 @@ class MPCConfig:
         warm_mu_in: if set, the proximal parameter ``mu_in`` is reset to this value at every warm update [D] 1e-2
             (``None``: ProxSuite keeps the previous step's value).
         attitude_weight: weight of the vehicle roll/pitch regulation outputs added by
-            :class:`baselines.campc.MPCController` (0 disables them) [D] 100 /rad^2.
+            :class:`baselines.campc.MPCController` (0 disables them) [D] 100 /rad^2 (the task settings of
+            :func:`baselines.campc.task_config` use 0 for the circles and 10 for transport).
         posture_weight: weight of joint-posture outputs ``q -> q_nominal`` (the joint angles at the episode's
             first step) added by :class:`baselines.campc.MPCController` (0 disables them) [D] 0; a small value
             keeps the redundant arms near their initial posture (used for transport).
@@ -386,6 +387,9 @@ class KinematicMPC:
         self.qp.settings.eps_rel = cfg.eps_rel
         self.qp.settings.max_iter = cfg.max_iter
         self.qp.settings.verbose = False
+        # ``update(..., mu_in=...)`` overwrites ``settings.default_mu_in``: restored before every cold init so that
+        # a reset episode repeats bit for bit
+        self._default_mu = (self.qp.settings.default_mu_in, self.qp.settings.default_mu_eq)
         self._initialised = False
         self.n_steps = 0
         self.n_cold_retries = 0
@@ -551,6 +555,7 @@ class KinematicMPC:
                 retried = True
         if not self._initialised:
             qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
+            qp.settings.default_mu_in, qp.settings.default_mu_eq = self._default_mu
             qp.init(h, g, a, b, c, lo, up, *box)
             qp.solve()
             qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT

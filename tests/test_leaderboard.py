@@ -275,6 +275,15 @@ def test_ties_are_judged_against_the_group_leader_not_chained():
     assert [r.rank_label for r in lb.rank_rows(rows)] == ["1=", "1=", "3"]
 
 
+def test_rmse_values_equal_at_printed_resolution_tie():
+    rows = [
+        _row("x", (1.0, 1.0, 1.0), (0.01000, 0.01000, 0.01000)),
+        _row("y", (1.0, 1.0, 1.0), (0.01005, 0.01005, 0.01005)),  # 0.05 mm worse: below TIE_TOLERANCE
+        _row("z", (1.0, 1.0, 1.0), (0.01030, 0.01030, 0.01030)),  # 0.3 mm worse
+    ]
+    assert [r.rank_label for r in lb.rank_rows(rows)] == ["1=", "1=", "3"]
+
+
 def test_intervals_overlap_rules():
     s = lb.Stat
     assert lb.intervals_overlap(s(1, 0, 2, 3), s(2.5, 2, 3, 3))  # touching closed intervals
@@ -373,53 +382,6 @@ def test_quick_selects_the_paper_tasks():
 # ------------------------------------------------------------------------------------------------------
 # Safe submissions (real environment, real loading, 3-step episodes)
 # ------------------------------------------------------------------------------------------------------
-def _standin_run_episode(env, controller, seed, save_trajectory=False):
-    """Minimal episode loop with run_episode's keys (used only until baselines.evaluate exists)."""
-    obs, info = env.reset(seed=seed)
-    controller.reset(seed)
-    ret, contacts, zone, d_min, errors, steps = 0.0, 0, 0, math.inf, [], 0
-    terminated = truncated = False
-    while not (terminated or truncated):
-        obs, reward, terminated, truncated, info = env.step(controller.predict(obs, info))
-        ret += reward
-        contacts += int(info.get("contacts", 0) > 0)
-        zone += int(info.get("cost_zone", 0) > 0)
-        d_min = min(d_min, info.get("min_distance", math.inf))
-        errors.append(info.get("tracking_error", math.nan))
-        steps += 1
-    return {
-        "seed": seed,
-        "return": ret,
-        "cost": contacts + zone,
-        "contacts": contacts,
-        "zone_steps": zone,
-        "min_distance": d_min,
-        "rmse_pos": float(np.sqrt(np.mean(np.square(errors)))),
-        "rmse_ori": None,
-        "final_pos_error": errors[-1],
-        "final_ori_error": None,
-        "success": bool(info.get("is_success", False)),
-        "controller_ms_median": 0.0,
-        "qp_slack_max": None,
-        "steps": steps,
-        "terminated": terminated,
-        "truncated": truncated,
-        "physics_error": info.get("physics_error"),
-    }
-
-
-def _run_episode_backend():
-    try:
-        from baselines.evaluate import run_episode
-    except ModuleNotFoundError:
-        return _standin_run_episode
-
-    def run(env, controller, seed, save_trajectory):
-        return run_episode(env, controller, seed, save_trajectory=save_trajectory)
-
-    return run
-
-
 @pytest.fixture(scope="module")
 def tiny_policy_model():
     import gymnasium as gym
@@ -452,9 +414,6 @@ def test_weights_only_submission_evaluates_and_ranks_without_trust(tmp_path, tin
     monkeypatch.setattr(agents.policy, "load_vecnormalize_stats", no_unpickling)
     entries = lb.resolve_entries(["campc", str(submission)], trust=False)
     assert entries[1].weights_only and entries[1].track == "velocity" and entries[1].env_id == CIRCLE
-    backend = lb.Backend(
-        make_env=lb.make_env, make_controller=lb._real_make_controller, run_episode=_run_episode_backend()
-    )
     result = lb.run_leaderboard(
         entries,
         out_dir=tmp_path / "out",
@@ -462,7 +421,7 @@ def test_weights_only_submission_evaluates_and_ranks_without_trust(tmp_path, tin
         episodes=2,
         progress=False,
         plots=False,
-        backend=backend,
+        backend=lb.DEFAULT_BACKEND,  # the real environment, make_controller and run_episode
         trust=False,
     )
     rows = {r.entry.name: r for r in result.rows}

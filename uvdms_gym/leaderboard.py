@@ -24,9 +24,11 @@ Statistics
     Per entry and task, every per-episode metric of :func:`baselines.evaluate.run_episode` is aggregated as
     its mean with a 95 % bootstrap confidence interval (:func:`bootstrap_ci`: ``scipy.stats.bootstrap``,
     BCa, 9,999 resamples, fixed seed; the percentile method if BCa is not finite; an all-equal sample gives
-    the zero-width interval ``[x, x]``; fewer than two values give no interval). Three per-episode
-    indicators are added: ``contact_free`` (no physical contact), ``contact_free_success`` (task success
-    and no contact) and their rates are the means of these 0/1 values. Tables print an interval as
+    the zero-width interval ``[x, x]``; fewer than two values give no interval). Two per-episode 0/1
+    indicators are added, ``contact_free`` (no physical contact) and ``contact_free_success`` (the episode's
+    ``success`` and no contact); their rates, like the success rate, are means of 0/1 values. The paper's
+    tasks have a fixed start and no randomisation, so the episodes of a deterministic controller there are
+    identical and their intervals have zero width; the randomised tasks carry the spread. Tables print an interval as
     ``mean ± h`` with ``h = max(mean - low, high - mean)`` (bootstrap intervals are asymmetric; the CSV and
     JSON hold the exact bounds).
 
@@ -35,7 +37,8 @@ Ranking (within each track and task, :func:`rank_rows`)
        entry without an RMSE sorts after those with one), then name.
     2. Walk the sorted list. An entry is **tied** with the first entry of the current tie group (its
        leader) if both their contact-free-success intervals and their RMSE intervals overlap (closed
-       intervals; a missing interval counts as the single point of its mean; two missing RMSEs overlap).
+       intervals, and two intervals less than :data:`TIE_TOLERANCE` apart (0.1 mm of RMSE) count as
+       overlapping; a missing interval counts as the single point of its mean; two missing RMSEs overlap).
        Otherwise it starts a new group. Every member of a group gets the group's rank, which is one plus the
        number of entries ranked before the group (standard competition ranking: 1, 2=, 2=, 4); tied ranks
        print as ``2=``.
@@ -103,10 +106,10 @@ METRICS: dict[str, dict[str, Any]] = {
     "contact_free_success": {"label": "Contact-free success", "fmt": ".2f", "better": "high"},
     "success": {"label": "Success", "fmt": ".2f", "better": "high"},
     "contact_free": {"label": "Contact-free", "fmt": ".2f", "better": "high"},
-    "rmse_pos": {"label": "RMSE pos (m)", "fmt": ".3f", "better": "low"},
-    "rmse_ori": {"label": "RMSE ori (rad)", "fmt": ".3f", "better": "low"},
-    "final_pos_error": {"label": "Final pos err (m)", "fmt": ".3f", "better": "low"},
-    "final_ori_error": {"label": "Final ori err (rad)", "fmt": ".3f", "better": "low"},
+    "rmse_pos": {"label": "RMSE pos (mm)", "fmt": ".1f", "scale": 1e3, "better": "low"},
+    "rmse_ori": {"label": "RMSE ori (deg)", "fmt": ".2f", "scale": 180 / math.pi, "better": "low"},
+    "final_pos_error": {"label": "Final pos err (mm)", "fmt": ".1f", "scale": 1e3, "better": "low"},
+    "final_ori_error": {"label": "Final ori err (deg)", "fmt": ".2f", "scale": 180 / math.pi, "better": "low"},
     "min_distance": {"label": "Min distance (m)", "fmt": ".3f", "better": "high"},
     "contacts": {"label": "Contacts", "fmt": ".1f", "better": "low"},
     "zone_steps": {"label": "Zone steps", "fmt": ".1f", "better": "low"},
@@ -116,7 +119,12 @@ METRICS: dict[str, dict[str, Any]] = {
     "controller_ms_median": {"label": "Ctrl ms", "fmt": ".2f", "better": "low"},
     "qp_slack_max": {"label": "QP slack max", "fmt": ".3g", "better": "low"},
 }
-"""Aggregated metrics (per-episode keys of ``run_episode`` plus the derived 0/1 indicators)."""
+"""Aggregated metrics (per-episode keys of ``run_episode`` plus the derived 0/1 indicators). Values are SI
+(m, rad) everywhere but in the tables and plots, which multiply by ``scale`` (mm, degrees)."""
+TIE_TOLERANCE: dict[str, float] = {"contact_free_success": 0.0, "rmse_pos": 1e-4}
+"""Two intervals of a ranking metric closer than this count as overlapping (RMSE: 0.1 mm, the tables'
+printed resolution; without it two deterministic controllers with zero-width intervals that print the same
+value would be ranked apart)."""
 TABLE_METRICS: tuple[str, ...] = (
     "contact_free_success",
     "success",
@@ -493,13 +501,13 @@ class Stat:
         """Plain dict (NaN as ``None``)."""
         return {k: _finite_or_none(getattr(self, k)) for k in ("mean", "low", "high")} | {"n": self.n}
 
-    def format(self, fmt: str = ".3f") -> str:
-        """``mean ± half-width`` (``—`` without data, ``mean (n=1)`` without an interval)."""
+    def format(self, fmt: str = ".3f", scale: float = 1.0) -> str:
+        """``mean ± half-width`` times ``scale`` (``—`` without data, ``mean (n=1)`` without an interval)."""
         if self.n == 0 or not math.isfinite(self.mean):
             return "—"
         if not math.isfinite(self.half_width):
-            return f"{self.mean:{fmt}} (n={self.n})"
-        return f"{self.mean:{fmt}} ± {self.half_width:{fmt}}"
+            return f"{self.mean * scale:{fmt}} (n={self.n})"
+        return f"{self.mean * scale:{fmt}} ± {self.half_width * scale:{fmt}}"
 
 
 def _finite_or_none(x: float) -> float | None:
@@ -551,12 +559,15 @@ def bootstrap_ci(
     return Stat(mean, min(low, mean), max(high, mean), n)
 
 
-def intervals_overlap(a: Stat, b: Stat) -> bool:
-    """Closed-interval overlap of two statistics' CIs (see :meth:`Stat.interval`; two empty stats overlap)."""
+def intervals_overlap(a: Stat, b: Stat, tolerance: float = 0.0) -> bool:
+    """Closed-interval overlap of two statistics' CIs, up to a gap of ``tolerance``.
+
+    See :meth:`Stat.interval` for a statistic without an interval; two statistics without data overlap.
+    """
     if a.n == 0 or b.n == 0 or not (math.isfinite(a.mean) and math.isfinite(b.mean)):
         return (a.n == 0 or not math.isfinite(a.mean)) and (b.n == 0 or not math.isfinite(b.mean))
     (a_lo, a_hi), (b_lo, b_hi) = a.interval(), b.interval()
-    return a_lo <= b_hi and b_lo <= a_hi
+    return a_lo <= b_hi + tolerance and b_lo <= a_hi + tolerance
 
 
 @dataclass
@@ -592,7 +603,9 @@ def rank_rows(rows: Sequence[RankedRow]) -> list[RankedRow]:
     leader: RankedRow | None = None
     group: list[RankedRow] = []
     for position, row in enumerate(ordered, start=1):
-        if leader is not None and all(intervals_overlap(leader.stats[m], row.stats[m]) for m in _RANK_METRICS):
+        if leader is not None and all(
+            intervals_overlap(leader.stats[m], row.stats[m], TIE_TOLERANCE[m]) for m in _RANK_METRICS
+        ):
             row.rank = leader.rank
             group.append(row)
         else:
@@ -790,6 +803,9 @@ _WORKER: dict[str, Any] = {}
 
 
 def _worker_init() -> None:
+    import atexit
+
+    atexit.register(_close_worker_env)  # disconnect the worker's last simulator before interpreter teardown
     try:
         import torch
 
@@ -1001,8 +1017,8 @@ def run_leaderboard(
 # ------------------------------------------------------------------------------------------------------
 # Outputs
 # ------------------------------------------------------------------------------------------------------
-def markdown_tables(result: LeaderboardResult) -> str:
-    """One markdown table per track (ranked within each task)."""
+def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_METRICS) -> str:
+    """One markdown table per track (ranked within each task), with the columns ``metrics``."""
     lines: list[str] = []
     for track in TRACKS:
         rows = [r for r in result.rows if r.entry.track == track]
@@ -1010,15 +1026,15 @@ def markdown_tables(result: LeaderboardResult) -> str:
             continue
         lines.append(f"### {track.capitalize()} track")
         lines.append("")
-        header = ["Task", "Rank", "Entry", *[METRICS[m]["label"] for m in TABLE_METRICS], "n"]
+        header = ["Task", "Rank", "Entry", *[METRICS[m]["label"] for m in metrics], "n"]
         lines.append("| " + " | ".join(header) + " |")
-        lines.append("|" + "|".join(["---"] * 3 + ["--:"] * (len(TABLE_METRICS) + 1)) + "|")
+        lines.append("|" + "|".join(["---"] * 3 + ["--:"] * (len(metrics) + 1)) + "|")
         for row in rows:
             cells = [
                 row.task.label,
                 row.rank_label,
                 row.entry.name,
-                *[row.stats[m].format(METRICS[m]["fmt"]) for m in TABLE_METRICS],
+                *[row.stats[m].format(METRICS[m]["fmt"], METRICS[m].get("scale", 1.0)) for m in metrics],
                 str(len(row.episodes)),
             ]
             lines.append("| " + " | ".join(cells) + " |")
@@ -1048,8 +1064,12 @@ def _markdown_document(result: LeaderboardResult, command: str | None, plot_file
         "*contact-free* = no physical contact, *contact-free success* = task success without contact. "
         "Ranking within each track and task: contact-free success rate (higher first), then position RMSE "
         "(lower first); an entry whose contact-free-success and RMSE intervals both overlap those of the "
-        "first entry of the current group is tied with it (`2=`). Agents run only on their training "
-        "environment's tasks.",
+        "first entry of the current group (RMSE intervals less than 0.1 mm apart count as overlapping) is tied "
+        "with it (`2=`). Success: the episode ran to its time limit without contact and, on the circle tasks, "
+        "with RMSE <= 30 mm; on transport, with the object at the goal at the end (`baselines/evaluate.py`). "
+        "The paper's tasks have a fixed start and no randomisation: a deterministic controller repeats the "
+        "same episode there (zero-width intervals); the randomised tasks carry the spread. Agents run only on "
+        "the tasks of the environment they were trained on.",
         "",
         markdown_tables(result),
     ]
@@ -1145,6 +1165,7 @@ def write_plots(result: LeaderboardResult, plot_dir: str | Path) -> list[Path]:
         for metric in PLOT_METRICS:
             fig, ax = plt.subplots(figsize=(max(6.0, 1.2 * len(tasks) * max(1, len(names)) * 0.35 + 3), 4.0))
             width = 0.8 / max(1, len(names))
+            plotted: list[float] = []
             for k, name in enumerate(names):
                 xs, ys, lo, hi = [], [], [], []
                 for i, task in enumerate(tasks):
@@ -1152,15 +1173,20 @@ def write_plots(result: LeaderboardResult, plot_dir: str | Path) -> list[Path]:
                     if row is None or not math.isfinite(row.stats[metric].mean):
                         continue
                     stat = row.stats[metric]
+                    scale = METRICS[metric].get("scale", 1.0)
                     a, b = stat.interval()
                     xs.append(i - 0.4 + width * (k + 0.5))
-                    ys.append(stat.mean)
-                    lo.append(stat.mean - a)
-                    hi.append(b - stat.mean)
+                    ys.append(stat.mean * scale)
+                    lo.append((stat.mean - a) * scale)
+                    hi.append((b - stat.mean) * scale)
                 if xs:
                     ax.bar(xs, ys, width, yerr=[lo, hi], capsize=3, label=name)
+                    plotted.extend(ys)
             ax.set_xticks(range(len(tasks)), [t.label for t in tasks], rotation=15, ha="right")
             ax.set_ylabel(METRICS[metric]["label"])
+            positive = [v for v in plotted if v > 0]
+            if METRICS[metric].get("scale") and positive and max(positive) > 30 * min(positive):
+                ax.set_yscale("log")  # errors spanning orders of magnitude (sub-mm MPC vs. cm agents)
             ax.set_title(f"{track} track: {METRICS[metric]['label']} (mean, 95 % bootstrap CI)")
             if metric == "min_distance":
                 ax.axhline(D1, color="black", linestyle="--", linewidth=1, label="d1")
