@@ -51,6 +51,14 @@ class RandomController:
         return self.rng.uniform(-1.0, 1.0, self.action_dim)
 
 
+class ZeroController(RandomController):
+    """Action 0 (velocity mode: hold still), a reference for "does the agent track at all"."""
+
+    def predict(self, obs: np.ndarray, info: Mapping[str, Any] | None = None) -> np.ndarray:
+        """The zero action."""
+        return np.zeros(self.action_dim)
+
+
 def agent_task(folder: Path) -> tuple[str, dict[str, Any]]:
     """Env id and task kwargs (``case``/``goal``/``action_mode``) of a shipped agent, from its config.yml."""
     resolved = yaml.safe_load((folder / "config.yml").read_text(encoding="utf-8"))
@@ -83,8 +91,10 @@ def run_uvdms_evaluate(
     return json.loads(out.read_text(encoding="utf-8"))
 
 
-def evaluate_random(env_id: str, task: Mapping[str, Any], out: Path, episodes: int, seed: int) -> dict[str, Any]:
-    """The uniform random policy through :func:`baselines.evaluate.run_episode`; writes the same JSON shape."""
+def evaluate_random(
+    env_id: str, task: Mapping[str, Any], out: Path, episodes: int, seed: int, *, zero: bool = False
+) -> dict[str, Any]:
+    """The uniform random (or zero) policy through :func:`baselines.evaluate.run_episode`; same JSON shape."""
     import gymnasium as gym
 
     import uvdms_gym  # noqa: F401
@@ -92,14 +102,17 @@ def evaluate_random(env_id: str, task: Mapping[str, Any], out: Path, episodes: i
 
     env = gym.make(env_id, **task)
     try:
-        results = [run_episode(env, RandomController(), seed + i) for i in range(episodes)]
+        controller = ZeroController() if zero else RandomController()
+        results = [run_episode(env, controller, seed + i) for i in range(episodes)]
     finally:
         env.close()
     data = {
         "episodes": results,
         "summary": summarize(results),
         "meta": {
-            "controller": "uniform random actions in [-1, 1]^18 (agents.evaluate_shipped.RandomController)",
+            "controller": "zero action (hold still)"
+            if zero
+            else "uniform random actions in [-1, 1]^18 (agents.evaluate_shipped.RandomController)",
             "env_id": env_id,
             "env_kwargs": dict(task),
             "episodes": episodes,
@@ -191,10 +204,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             if random_out.is_file() and (args.skip_existing or args.only is not None)
             else evaluate_random(env_id, ref_task, random_out, args.episodes, args.seed)
         )
+        zero_out = REFERENCE_DIR / f"{name}_zero.json"
+        zero = (
+            json.loads(zero_out.read_text(encoding="utf-8"))
+            if zero_out.is_file() and (args.skip_existing or args.only is not None)
+            else evaluate_random(env_id, ref_task, zero_out, args.episodes, args.seed, zero=True)
+        )
         for row in agent_rows[name]:
             rows.append({"task": name, **row})
         rows.append({"task": name, **summary_row("campc", campc)})
-        rows.append({"task": name, **summary_row("random", rand)})
+        rows.append({"task": name, **summary_row("zero action (hold still)", zero)})
+        rows.append({"task": name, **summary_row("uniform random", rand)})
     table = markdown_table(rows)
     (REFERENCE_DIR / "table.md").write_text(table, encoding="utf-8")
     print(table)

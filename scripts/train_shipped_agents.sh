@@ -2,8 +2,10 @@
 # Train the agents shipped in trained_agents/ (SAC and PPO on CircleTrack-v0 case 1, case 2 and
 # Transport-v0 goal=paper, velocity mode) in two parallel lanes, then package them.
 #
-#   scripts/train_shipped_agents.sh            # train into runs/shipped/<name>/, logs in runs/shipped/logs/
+#   scripts/train_shipped_agents.sh            # train into runs/shipped/<name>/ (logs in runs/shipped/logs/),
+#                                              # then package them
 #   scripts/train_shipped_agents.sh package    # copy the runs into trained_agents/<name>/ (agents.ship)
+#   .venv/bin/python -m agents.evaluate_shipped  # evaluation.json of each agent + campc/random references
 #
 # Hyperparameters come from train_configs/{ppo,sac}.yml (uvdms entries); the budgets below override
 # n_timesteps. Seed 0: training envs use seeds 0 and 1, the evaluation callback seeds 1000000+
@@ -17,6 +19,7 @@ OUT=${OUT:-runs/shipped}
 SEED=${SEED:-0}
 PPO_STEPS=${PPO_STEPS:-300000}
 SAC_STEPS=${SAC_STEPS:-60000}
+SAC_TRANSPORT_STEPS=${SAC_TRANSPORT_STEPS:-40000}
 mkdir -p "$OUT/logs"
 
 # name algo env env-kwargs budget
@@ -28,7 +31,7 @@ AGENTS_A=(
 AGENTS_B=(
   "circle_case1_sac sac uvdms/CircleTrack-v0 case=1 $SAC_STEPS"
   "circle_case2_sac sac uvdms/CircleTrack-v0 case=2 $SAC_STEPS"
-  "transport_paper_sac sac uvdms/Transport-v0 goal=paper $SAC_STEPS"
+  "transport_paper_sac sac uvdms/Transport-v0 goal=paper $SAC_TRANSPORT_STEPS"
 )
 
 run_one() {
@@ -59,12 +62,7 @@ if [[ "${1:-train}" == "package" ]]; then
   exit 0
 fi
 
-# WAIT_PID: an already running training process that lane A should wait for (used once, when
-# circle_case1_ppo had been started by an earlier version of this script).
-if [[ -n "${WAIT_PID:-}" ]]; then
-  (while kill -0 "$WAIT_PID" 2> /dev/null; do sleep 10; done; lane "${AGENTS_A[@]}") &
-else
-  lane "${AGENTS_A[@]}" &
-fi
+lane "${AGENTS_A[@]}" &
 lane "${AGENTS_B[@]}" &
 wait
+"$0" package

@@ -677,3 +677,46 @@ def test_shipped_agents_load_and_act():
         action = agent.predict(obs, info)
         assert env.action_space.contains(action.astype(np.float32))
         env.close()
+
+
+def _action_layer(model) -> torch.nn.Linear:
+    layer = model.policy.action_net if hasattr(model.policy, "action_net") else model.policy.actor.mu
+    if isinstance(layer, torch.nn.Sequential):
+        layer = [m for m in layer if isinstance(m, torch.nn.Linear)][-1]
+    return layer
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3", "tqc"])
+def test_action_init_scale_scales_the_last_action_layer(tmp_path, config_dir, algo):
+    """Same seed, no gradient step yet: the scaled run's action layer is exactly scale x the unscaled one."""
+    layers = []
+    for scale in (None, 0.01):
+        run_dir = train(
+            algo,
+            "Pendulum-v1",
+            {"max_episode_steps": 50},
+            config_dir / f"{algo}.yml",
+            seed=4,
+            out_dir=tmp_path / str(scale),
+            progress=False,
+            total_timesteps=64,
+            hyperparams={"eval_freq": 0, "checkpoint_freq": 0, "learning_starts": 10_000, "action_init_scale": scale},
+        )
+        layers.append(_action_layer(ALGOS[algo].load(run_dir / "final_model.zip")))
+    torch.testing.assert_close(layers[1].weight, 0.01 * layers[0].weight)
+    torch.testing.assert_close(layers[1].bias, 0.01 * layers[0].bias)
+    with pytest.raises(ConfigError, match="'action_init_scale'"):
+        parse_entry({"n_timesteps": 10, "action_init_scale": 0.0}, algo)
+
+
+def test_scale_action_layer_on_ppo_and_td3_target():
+    from agents.train import scale_action_layer
+
+    ppo = ALGOS["ppo"]("MlpPolicy", "Pendulum-v1", seed=0)
+    before = _action_layer(ppo).weight.clone()
+    scale_action_layer(ppo, 0.5)
+    torch.testing.assert_close(_action_layer(ppo).weight, 0.5 * before)
+    td3 = ALGOS["td3"]("MlpPolicy", "Pendulum-v1", seed=0)
+    scale_action_layer(td3, 0.1)
+    for p, q in zip(td3.policy.actor.parameters(), td3.policy.actor_target.parameters()):
+        torch.testing.assert_close(p, q)

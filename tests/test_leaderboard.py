@@ -179,6 +179,7 @@ def test_force_recomputes_everything(tmp_path):
 def test_atomic_write_leaves_no_temporary_files(tmp_path):
     lb.atomic_write_json(tmp_path / "a" / "x.json", {"v": 1})
     assert [p.name for p in (tmp_path / "a").iterdir()] == ["x.json"]
+    assert (tmp_path / "a" / "x.json").stat().st_mode & 0o777 == 0o666 & ~lb._umask()
     with pytest.raises(ValueError):
         lb.atomic_write_json(tmp_path / "a" / "x.json", {"v": math.nan})
     assert [p.name for p in (tmp_path / "a").iterdir()] == ["x.json"]

@@ -67,6 +67,7 @@ import logging
 import math
 import os
 import re
+import sys
 import tempfile
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -265,7 +266,7 @@ def slugify(name: str) -> str:
 def resolve_entries(
     tokens: Sequence[str] | None = None,
     *,
-    agents_dir: str | Path = "trained_agents",
+    agents_dir: str | Path | None = None,
     trust: bool = False,
 ) -> list[Entry]:
     """Turn command-line entry tokens into :class:`Entry` objects (and check that loading them is safe).
@@ -273,7 +274,8 @@ def resolve_entries(
     Args:
         tokens: Baseline names, agent paths (a folder or an SB3 zip), ``baselines`` (the four baselines) or
             ``agents`` (every agent folder in ``agents_dir``). Default :data:`DEFAULT_ENTRIES`.
-        agents_dir: The shipped-agents folder (a missing folder contributes no agents, with a warning).
+        agents_dir: The shipped-agents folder (default: ``trained_agents`` in the working directory if it exists,
+            else the repository's; a missing folder contributes no agents, with a warning).
         trust: Allow full SB3 zips from outside the repository's ``trained_agents/`` folder.
 
     Returns:
@@ -283,6 +285,10 @@ def resolve_entries(
         UntrustedFileError: A pickle-bearing agent outside ``trained_agents/`` without ``trust``.
         ValueError: A token that is neither a baseline name, a keyword nor an existing path.
     """
+    if agents_dir is None:
+        from agents.policy import TRUSTED_DIR
+
+        agents_dir = Path("trained_agents") if Path("trained_agents").is_dir() else TRUSTED_DIR
     entries: list[Entry] = []
     seen_specs: set[str] = set()
     for token in tokens or DEFAULT_ENTRIES:
@@ -682,10 +688,17 @@ def atomic_write_json(path: str | Path, data: Any) -> None:
             json.dump(data, f, allow_nan=False, separators=(",", ":"))
             f.flush()
             os.fsync(f.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the file the usual permissions
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def read_cached(path: str | Path, key: str) -> dict[str, Any]:
@@ -952,7 +965,14 @@ def run_leaderboard(
         n_cached,
         len(todo),
     )
-    bar = tqdm(total=len(all_jobs), initial=n_cached, desc="leaderboard", unit="ep", disable=not progress)
+    bar = tqdm(
+        total=len(all_jobs),
+        initial=n_cached,
+        desc="leaderboard",
+        unit="ep",
+        disable=not progress,
+        mininterval=0.1 if sys.stderr.isatty() else 30.0,  # a log file gets a line every 30 s, not every episode
+    )
     try:
         if jobs <= 1 or len(todo) <= 1:
             try:

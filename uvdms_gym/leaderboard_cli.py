@@ -41,7 +41,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="entries to rank: baseline names (mpc campc campc-di campc-nndi), agent folders or SB3 zips, "
         "'baselines' (all four) and 'agents' (every folder in --agents-dir); default: baselines agents",
     )
-    p.add_argument("--agents-dir", default="trained_agents", help="shipped-agents folder (default trained_agents/)")
+    p.add_argument(
+        "--agents-dir",
+        default=None,
+        help="shipped-agents folder (default: ./trained_agents, else the repository's trained_agents/)",
+    )
     p.add_argument("--tasks", nargs="+", default=None, metavar="TASK", help="subset of the task suite (by name)")
     p.add_argument("--episodes", type=int, default=None, help="episodes per entry and task (default 20; quick: 2)")
     p.add_argument("--force", action="store_true", help="recompute every episode instead of using the cache")
@@ -101,7 +105,7 @@ def _command_line(args: argparse.Namespace) -> str:
         parts.append("--quick")
     if args.entries:
         parts += ["--entries", *args.entries]
-    if args.agents_dir != "trained_agents":
+    if args.agents_dir is not None:
         parts += ["--agents-dir", args.agents_dir]
     if args.tasks:
         parts += ["--tasks", *args.tasks]
