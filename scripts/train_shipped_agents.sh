@@ -65,4 +65,8 @@ fi
 lane "${AGENTS_A[@]}" &
 lane "${AGENTS_B[@]}" &
 wait
+# circle_case2_sac was the one SAC run still improving at 60k steps: it got 40k more (segment 1, with its
+# replay buffer) while transport_paper_sac trained.
+nice -n 10 "$PY" -m agents.train --resume "$OUT/circle_case2_sac/uvdms_CircleTrack-v0/sac_$SEED" \
+  --total-timesteps "${SAC_CASE2_EXTRA_STEPS:-40000}" --no-progress > "$OUT/logs/circle_case2_sac_resume.log" 2>&1
 "$0" package
