@@ -39,13 +39,10 @@ import dataclasses
 import datetime
 import difflib
 import importlib
-import importlib.metadata
 import json
 import os
-import platform
 import re
 import shlex
-import subprocess
 import sys
 import time
 import warnings
@@ -66,20 +63,12 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv,
 from agents.algos import ALGOS, is_off_policy
 from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
 from agents.config import ConfigError, TrainConfig, default_config_path, load_config, parse_entry
+from uvdms_gym.provenance import git_info, package_versions
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SEGMENT_SEED_STRIDE = 1000
 EVAL_SEED_OFFSET = 1_000_000
 CHECKPOINT_PREFIX = "rl_model"
-_VERSION_DISTRIBUTIONS = {
-    "numpy": "numpy",
-    "torch": "torch",
-    "stable_baselines3": "stable-baselines3",
-    "sb3_contrib": "sb3-contrib",
-    "gymnasium": "gymnasium",
-    "pybullet": "pybullet",
-    "uvdms_gym": "uvdms-gym",
-}
 
 
 class EnvironmentNotFoundError(LookupError):
@@ -729,35 +718,6 @@ def latest_checkpoint(run_dir: str | Path) -> Checkpoint | None:
         return None
     # max() keeps the first of equal keys: final_model.zip comes first.
     return max(candidates, key=lambda c: c.num_timesteps)
-
-
-def package_versions() -> dict[str, str]:
-    """Versions of Python and the relevant packages (packages not installed are left out)."""
-    versions = {"python": platform.python_version()}
-    for key, dist in _VERSION_DISTRIBUTIONS.items():
-        try:
-            versions[key] = importlib.metadata.version(dist)
-        except importlib.metadata.PackageNotFoundError:
-            pass
-    return versions
-
-
-def git_info(repo: str | Path = REPO_ROOT) -> dict[str, Any]:
-    """Git revision of the repository and whether the work tree has uncommitted changes.
-
-    Returns:
-        ``{"revision": sha or None, "dirty": bool or None}`` (``None`` when git is unavailable).
-    """
-    try:
-        rev = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=repo, capture_output=True, text=True, timeout=20, check=True
-        ).stdout.strip()
-        status = subprocess.run(
-            ["git", "status", "--porcelain"], cwd=repo, capture_output=True, text=True, timeout=20, check=True
-        ).stdout
-    except (OSError, subprocess.SubprocessError):
-        return {"revision": None, "dirty": None}
-    return {"revision": rev, "dirty": bool(status.strip())}
 
 
 def _existing(path: Path) -> Path | None:

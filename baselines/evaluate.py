@@ -36,17 +36,16 @@ has one).
 
 from __future__ import annotations
 
-import importlib.metadata
 import json
 import math
 import os
-import platform
-import subprocess
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from uvdms_gym.provenance import git_info, package_versions
 
 EPISODE_KEYS: tuple[str, ...] = (
     "seed",
@@ -90,8 +89,6 @@ TRAJECTORY_KEYS: tuple[str, ...] = (
 )
 """Keys of an episode's ``trajectory``."""
 
-_VERSION_PACKAGES = ("uvdms-gym", "numpy", "scipy", "gymnasium", "pybullet", "pin", "proxsuite", "osqp")
-_REPO_ROOT = Path(__file__).resolve().parents[1]
 
 
 def _json_value(x: Any) -> Any:
@@ -278,36 +275,6 @@ def summarize(episodes: list[dict]) -> dict:
     return _json_value(out)
 
 
-def package_versions() -> dict[str, str]:
-    """Versions of Python and the packages the evaluation depends on (missing packages left out)."""
-    versions = {"python": platform.python_version()}
-    for name in _VERSION_PACKAGES:
-        try:
-            versions[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            pass
-    return versions
-
-
-def git_revision(repo: str | Path = _REPO_ROOT) -> dict[str, Any]:
-    """``{"revision": sha or None, "dirty": bool or None}`` of the repository holding this package."""
-    try:
-        rev = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=repo, capture_output=True, text=True, timeout=20, check=True
-        ).stdout.strip()
-        status = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=repo,
-            capture_output=True,
-            text=True,
-            timeout=20,
-            check=True,
-        ).stdout
-    except (OSError, subprocess.SubprocessError):
-        return {"revision": None, "dirty": None}
-    return {"revision": rev or None, "dirty": bool(status.strip())}
-
-
 def write_json_atomic(path: str | Path, data: Any) -> Path:
     """Write ``data`` as JSON to ``path`` through a temporary file in the same folder and ``os.replace``."""
     path = Path(path)
@@ -414,7 +381,7 @@ def evaluate(
                 "episodes": episodes,
                 "seeds": seeds,
                 "versions": package_versions(),
-                "git": git_revision(),
+                "git": git_info(),
                 "wall_s": time.perf_counter() - t_start,
                 "controller_settings": settings,
             }
