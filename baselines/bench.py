@@ -100,6 +100,50 @@ class OSQPReplay:
         return np.array(res.x), str(res.info.status), int(res.info.iter), dt
 
 
+class _StepLog:
+    """Per-step records of an MPC benchmark (timings, iterations, status, slack) and the QPs for OSQP."""
+
+    def __init__(self, keep_qps: bool) -> None:
+        self.keep_qps = keep_qps
+        self.steps: list[float] = []
+        self.solves: list[float] = []
+        self.builds: list[float] = []
+        self.iters: list[int] = []
+        self.statuses: list[str] = []
+        self.max_slack = 0.0
+        self.mats: list[QPMatrices] = []
+        self.xs: list[np.ndarray] = []
+
+    def add(self, rec, mpc: KinematicMPC, problem) -> None:
+        """Record one step's :class:`MPCStepRecord` (and its QP, solved by ``mpc``, for the OSQP replay)."""
+        self.steps.append(rec.total_us)
+        self.solves.append(rec.solve_us)
+        self.builds.append(rec.build_us)
+        self.iters.append(rec.iterations)
+        self.statuses.append(rec.status)
+        self.max_slack = max(self.max_slack, rec.max_slack)
+        if self.keep_qps:
+            assert problem is not None
+            self.mats.append(mpc.qp_matrices(problem))
+            self.xs.append(mpc.qp.results.x.copy())
+
+    def stats(self) -> dict[str, float | int]:
+        """Medians of the step, solve, build and model (kinematics + distances + ``J_dis``) times, etc."""
+        steps, solves, builds = np.array(self.steps), np.array(self.solves), np.array(self.builds)
+        return {
+            "step_us_median": float(np.median(steps)),
+            "step_us_p90": float(np.percentile(steps, 90)),
+            "step_us_max": float(steps.max()),
+            "solve_us_median": float(np.median(solves)),
+            "build_us_median": float(np.median(builds)),
+            "model_us_median": float(np.median(steps - solves - builds)),
+            "iterations_median": float(np.median(self.iters)),
+            "iterations_max": int(max(self.iters)),
+            "unsolved": int(sum(st != "solved" for st in self.statuses)),
+            "max_slack": float(self.max_slack),
+        }
+
+
 def benchmark_mpc(
     n_steps: int = 200,
     case: int = 1,
@@ -139,26 +183,15 @@ def benchmark_mpc(
     eta = np.array(task.vehicle_start, dtype=float)
     q = task.q0.copy()
     config_vec = kin.configuration(eta, q)
-    steps, solves, builds, iters, statuses = [], [], [], [], []
-    mats: list[QPMatrices] = []
-    xs: list[np.ndarray] = []
+    log = _StepLog(osqp_compare)
     for k in range(warmup + n_steps):
         y_ref = task.reference(ctl.reference_times(k * cfg.t_c))
         rec = ctl.step(eta, q, y_ref)
         if k >= warmup:
-            steps.append(rec.total_us)
-            solves.append(rec.solve_us)
-            builds.append(rec.build_us)
-            iters.append(rec.iterations)
-            statuses.append(rec.status)
-            if osqp_compare:
-                assert ctl.last_problem is not None
-                mats.append(ctl.mpc.qp_matrices(ctl.last_problem))
-                xs.append(ctl.mpc.qp.results.x.copy())
+            log.add(rec, ctl.mpc, ctl.last_problem)
         config_vec = pin.integrate(kin.model, config_vec, rec.zeta_cmd * cfg.t_c)
         eta = np.concatenate([config_vec[:3], rot_to_euler(quat_xyzw_to_rot(config_vec[3:7]))])
         q = config_vec[7:].copy()
-    steps_a, solves_a = np.array(steps), np.array(solves)
     out: dict[str, float | int | str] = {
         "case": case,
         "n_steps": n_steps,
@@ -167,20 +200,12 @@ def benchmark_mpc(
         "n_in": ctl.mpc.n_in,
         "box_constraints": int(cfg.box_constraints),
         "eps_abs": cfg.eps_abs,
-        "step_us_median": float(np.median(steps_a)),
-        "step_us_p90": float(np.percentile(steps_a, 90)),
-        "step_us_max": float(steps_a.max()),
-        "solve_us_median": float(np.median(solves_a)),
-        "build_us_median": float(np.median(builds)),
-        "model_us_median": float(np.median(steps_a - solves_a - np.array(builds))),
-        "iterations_median": float(np.median(iters)),
-        "iterations_max": int(max(iters)),
-        "unsolved": int(sum(s != "solved" for s in statuses)),
+        **log.stats(),
         "cold_retries": int(ctl.mpc.n_cold_retries),
     }
     if osqp_compare:
         eps = cfg.eps_abs if osqp_eps_abs is None else osqp_eps_abs
-        out.update(_osqp_replay(ctl.mpc, mats, xs, eps, cfg.eps_rel))
+        out.update(_osqp_replay(ctl.mpc, log.mats, log.xs, eps, cfg.eps_rel))
         out["osqp_over_proxsuite"] = out["osqp_us_median"] / out["solve_us_median"]
     return out
 
@@ -270,50 +295,30 @@ def benchmark_env_campc(n_steps: int = 500, case: int = 1, warmup: int = 10, osq
         obs, info = env.reset(seed=0)
         ctl.reset(0)
         mpc = ctl.mpc
-        steps, solves, builds, iters, statuses, slack = [], [], [], [], [], 0.0
-        mats: list[QPMatrices] = []
-        xs: list[np.ndarray] = []
+        log = _StepLog(osqp_compare)
         for k in range(min(n_steps + warmup, 500)):
             action = ctl.predict(obs, info)
-            rec = ctl.last_mpc
             if k >= warmup:
-                steps.append(rec.total_us)
-                solves.append(rec.solve_us)
-                builds.append(rec.build_us)
-                iters.append(rec.iterations)
-                statuses.append(rec.status)
-                slack = max(slack, rec.max_slack)
-                if osqp_compare:
-                    assert mpc.last_problem is not None
-                    mats.append(mpc.mpc.qp_matrices(mpc.last_problem))
-                    xs.append(mpc.mpc.qp.results.x.copy())
+                log.add(ctl.last_mpc, mpc.mpc, mpc.last_problem)
             obs, _, term, trunc, info = env.step(action)
             if term or trunc:
                 break
     finally:
         env.close()
     cfg = mpc.config
-    steps_a, solves_a, builds_a = np.array(steps), np.array(solves), np.array(builds)
     out: dict = {
         "case": case,
-        "n_steps": len(steps),
+        "n_steps": len(log.steps),
         "n_c": cfg.n_c,
         "n_p": cfg.n_p,
         "n": mpc.mpc.n,
         "n_eq": mpc.mpc.n_eq,
         "n_in": mpc.mpc.n_in,
         "eps_abs": cfg.eps_abs,
-        "step_us_median": float(np.median(steps_a)),
-        "step_us_p90": float(np.percentile(steps_a, 90)),
-        "solve_us_median": float(np.median(solves_a)),
-        "build_us_median": float(np.median(builds_a)),
-        "model_us_median": float(np.median(steps_a - solves_a - builds_a)),
-        "iterations_median": float(np.median(iters)),
-        "unsolved": int(sum(s != "solved" for s in statuses)),
-        "max_slack": float(slack),
+        **log.stats(),
     }
     if osqp_compare:
-        out.update(_osqp_replay(mpc.mpc, mats, xs, cfg.eps_abs, cfg.eps_rel))
+        out.update(_osqp_replay(mpc.mpc, log.mats, log.xs, cfg.eps_abs, cfg.eps_rel))
         out["osqp_over_proxsuite"] = out["osqp_us_median"] / out["solve_us_median"]
     return out
 
