@@ -129,9 +129,12 @@ def test_unknown_controller_is_rejected():
 def test_recorded_qps_match_an_independent_solver(env_id, kwargs):
     """QPs recorded in closed loop on the simulator, re-solved by OSQP (polished, tight tolerances).
 
-    The applied command ``zeta_0`` agrees to 1e-4 (ProxSuite at a tight tolerance) and the controller's own
-    solution (``eps_abs = 1e-6``, warm-started) is feasible and optimal to 1e-5 in objective. The later blocks of
-    the plan are only determined to ~1e-3: the cost is flat to 1e-9 along the cheap joints' directions there.
+    ProxSuite at a tight tolerance and OSQP agree in the metric of the QP's Hessian (``0.5 d' H d < 1e-6``) and
+    on the applied command ``zeta_0`` to 5e-4; the controller's own solution (``eps_abs = 1e-6``, warm-started)
+    is feasible and optimal to 1e-5 in objective. The cost is flat to ~1e-9 along the cheap joints'
+    directions, so single components are only determined to a few 1e-4 (on an AMD EPYC machine the
+    worst recorded QP differed by 3.9e-4 in one joint rate with ``0.5 d' H d = 6e-8``; on an Intel one
+    every QP agreed to 1e-4).
     """
     from dataclasses import replace
 
@@ -163,7 +166,9 @@ def test_recorded_qps_match_an_independent_solver(env_id, kwargs):
         assert status == "solved"
         tight.reset()
         assert tight.solve(problem).status == "solved"
-        assert np.max(np.abs(tight.qp.results.x[:N_DOF] - xo[:N_DOF])) < 1e-4
+        diff = tight.qp.results.x - xo
+        assert 0.5 * diff @ mats.H @ diff < 1e-6
+        assert np.max(np.abs(diff[:N_DOF])) < 5e-4
         assert np.max(np.abs(x_ctl[:N_DOF] - xo[:N_DOF])) < 1e-3
 
         def objective(x, m=mats):
