@@ -159,6 +159,13 @@ class TrainConfig:
             (-tracking error, ...) while a contact costs only -10 and ends the episode, so without a bonus
             ending the episode early is the return-maximising behaviour. Monitor logs record the shaped
             return; the environment's return is ``r - alive_bonus * l``.
+        action_init_scale: Multiply the freshly initialised last action layer by this (``None``: no change),
+            so that the untrained policy starts near the zero command.
+        action_scale: Part of the policy, not of the environment: the network's output ``a`` in [-1, 1] is
+            sent to the environment as ``action_scale * a`` (a wrapper in training, applied again by
+            :class:`agents.policy.AgentController` at evaluation and recorded in exports). The tasks need
+            commands of a few percent of ``zeta_max``; a squashed-Gaussian (SAC) policy over the full range
+            explores with motions large enough to hit the frame within seconds. 1.0: no scaling.
     """
 
     algo: str
@@ -180,6 +187,7 @@ class TrainConfig:
     max_episode_steps: int | None = None
     alive_bonus: float = 0.0
     action_init_scale: float | None = None
+    action_scale: float = 1.0
 
     # ----------------------------------------------------------------------------------------------
     def to_entry(self) -> dict[str, Any]:
@@ -650,6 +658,9 @@ def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
     scale = values.get("action_init_scale")
     if scale is not None and not (math.isfinite(scale) and 0.0 < scale <= 1.0):
         raise ConfigError(f"{where}: key 'action_init_scale' must be in (0, 1] or null, got {scale}")
+    action_scale = values.get("action_scale", 1.0)
+    if not (math.isfinite(action_scale) and 0.0 < action_scale <= 1.0):
+        raise ConfigError(f"{where}: key 'action_scale' must be in (0, 1], got {action_scale}")
     if not math.isfinite(values.get("alive_bonus", 0.0)):
         raise ConfigError(f"{where}: key 'alive_bonus' must be a finite number")
     if values.get("n_envs", 1) > 1000:

@@ -108,6 +108,7 @@ class AgentController:
         normalizer: Observation normalisation (``None`` if the agent was trained without it).
         num_timesteps: Training steps of the loaded model (``None`` if unknown).
         source: Where the agent was loaded from.
+        action_scale: The network's output is multiplied by this (``TrainConfig.action_scale``).
     """
 
     def __init__(
@@ -120,7 +121,10 @@ class AgentController:
         normalizer: ObsNormalizer | None = None,
         num_timesteps: int | None = None,
         source: str = "",
+        action_scale: float = 1.0,
     ) -> None:
+        if not (math.isfinite(action_scale) and 0.0 < action_scale <= 1.0):
+            raise ValueError(f"action_scale must be in (0, 1], got {action_scale}")
         self.policy = policy
         self.policy.set_training_mode(False)
         self.algo = algo
@@ -129,6 +133,7 @@ class AgentController:
         self.normalizer = normalizer
         self.num_timesteps = num_timesteps
         self.source = source
+        self.action_scale = float(action_scale)
         self.seed: int | None = None
 
     @property
@@ -158,11 +163,11 @@ class AgentController:
             info: The environment's info dict (unused; for interface parity with other controllers).
 
         Returns:
-            The action, within the action space bounds.
+            The action (``action_scale`` times the network's), within the action space bounds.
         """
         with torch.no_grad():
             action, _ = self.policy.predict(self.normalize(obs), deterministic=True)
-        return action
+        return action if self.action_scale == 1.0 else (self.action_scale * action).astype(action.dtype)
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -295,6 +300,7 @@ def load_agent(
         normalizer=normalizer,
         num_timesteps=int(model.num_timesteps),
         source=str(model_path),
+        action_scale=float(config.get("action_scale", 1.0)),
     )
 
 
@@ -396,6 +402,7 @@ def export_controller(agent: AgentController, out_path: str | Path, *, overwrite
         "observation_space": _space_to_json(observation_space),
         "action_space": _space_to_json(action_space),
         "normalization": normalization,
+        "action_scale": agent.action_scale,
         "num_timesteps": agent.num_timesteps,
         "source": Path(agent.source).name,
         "versions": package_versions(),
@@ -489,7 +496,16 @@ def load_weights_only(path: str | Path, device: str = "cpu") -> AgentController:
         normalizer=normalizer,
         num_timesteps=doc.get("num_timesteps"),
         source=str(folder),
+        action_scale=_action_scale(doc, folder),
     )
+
+
+def _action_scale(doc: Mapping[str, Any], folder: Path) -> float:
+    """``action_scale`` of an export (absent in exports written before it existed: 1.0)."""
+    scale = doc.get("action_scale", 1.0)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0.0 < scale <= 1.0:
+        raise ExportFormatError(f"{folder}: action_scale must be a number in (0, 1], got {scale!r}")
+    return float(scale)
 
 
 def _zero_schedule(_progress_remaining: float) -> float:

@@ -182,6 +182,7 @@ def package_run(run_dir: str | Path, out_dir: str | Path, *, which: str = "best"
         "env_id": resolved["env_id"],
         "env_kwargs": resolved["config"].get("env_kwargs", {}),
         "alive_bonus": resolved["config"].get("alive_bonus", 0.0),
+        "action_scale": resolved["config"].get("action_scale", 1.0),
         "packaged_with": {"versions": package_versions(), "git": git_info()},
     }
     if which == "best" and (run_dir / "best_model.json").is_file():

@@ -52,6 +52,7 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 import torch
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
@@ -140,6 +141,7 @@ class EnvFactory:
         monitor_file: ``Monitor`` log file (``None``: no file).
         max_episode_steps: ``gymnasium.make``'s episode length limit (``None``: the registered one).
         alive_bonus: Constant added to every reward inside the ``Monitor`` (0: no wrapper).
+        action_scale: The policy's action is multiplied by this before the env sees it (1: no wrapper).
     """
 
     env_id: str
@@ -148,14 +150,17 @@ class EnvFactory:
     monitor_file: str | None = None
     max_episode_steps: int | None = None
     alive_bonus: float = 0.0
+    action_scale: float = 1.0
 
     def __call__(self) -> gym.Env:
-        """Create the environment wrapped in a ``Monitor`` (and the alive bonus inside it)."""
+        """Create the environment wrapped in a ``Monitor`` (action scaling and alive bonus inside it)."""
         check_env_id(self.env_id, self.gym_packages)
         make_kwargs = dict(self.env_kwargs)
         if self.max_episode_steps is not None:
             make_kwargs["max_episode_steps"] = self.max_episode_steps
         env = gym.make(self.env_id, **make_kwargs)
+        if self.action_scale != 1.0:
+            env = ScaledAction(env, self.action_scale)
         if self.alive_bonus:
             env = AliveBonus(env, self.alive_bonus)
         return Monitor(env, filename=self.monitor_file)
@@ -176,6 +181,27 @@ class AliveBonus(gym.RewardWrapper):
     def reward(self, reward: float) -> float:
         """Shaped reward."""
         return float(reward) + self.bonus
+
+
+class ScaledAction(gym.ActionWrapper):
+    """Sends ``scale * action`` to the environment (see ``TrainConfig.action_scale``).
+
+    The action space stays the wrapped env's ``Box(-1, 1)``; the scaled action lies in ``[-scale, scale]``.
+
+    Args:
+        env: The environment (a ``Box`` action space symmetric about 0).
+        scale: Factor in (0, 1].
+    """
+
+    def __init__(self, env: gym.Env, scale: float) -> None:
+        super().__init__(env)
+        if not 0.0 < scale <= 1.0:
+            raise ValueError(f"action scale must be in (0, 1], got {scale}")
+        self.scale = float(scale)
+
+    def action(self, action: np.ndarray) -> np.ndarray:
+        """Scaled action."""
+        return self.scale * np.asarray(action)
 
 
 def train_env_seed(seed: int, segment: int, rank: int) -> int:
@@ -472,6 +498,7 @@ def _run_segment(
             str(run_dir / "monitor" / f"seg{segment}_train_{i}"),
             cfg.max_episode_steps,
             cfg.alive_bonus,
+            cfg.action_scale,
         )
         for i in range(cfg.n_envs)
     ]
@@ -484,6 +511,7 @@ def _run_segment(
             str(run_dir / "monitor" / f"seg{segment}_eval_{i}"),
             cfg.max_episode_steps,
             cfg.alive_bonus,
+            cfg.action_scale,
         )
         for i in range(cfg.n_eval_envs)
     ]

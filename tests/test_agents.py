@@ -32,6 +32,7 @@ from agents.policy import (
 from agents.train import (
     EnvironmentNotFoundError,
     RunDirError,
+    ScaledAction,
     eval_env_seed,
     latest_checkpoint,
     main,
@@ -720,3 +721,53 @@ def test_scale_action_layer_on_ppo_and_td3_target():
     scale_action_layer(td3, 0.1)
     for p, q in zip(td3.policy.actor.parameters(), td3.policy.actor_target.parameters()):
         torch.testing.assert_close(p, q)
+
+
+class _RecordActions(gym.Wrapper):
+    """Records the actions that reach the wrapped environment."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self.seen: list[np.ndarray] = []
+
+    def step(self, action):
+        self.seen.append(np.array(action))
+        return self.env.step(action)
+
+
+def test_action_scale_in_training_evaluation_and_export(tmp_path, config_dir):
+    """``action_scale`` scales what the env sees in training, at evaluation and after a weights-only export."""
+    recorder = _RecordActions(gym.make("Pendulum-v1"))
+    wrapped = ScaledAction(recorder, 0.25)
+    wrapped.reset(seed=0)
+    wrapped.step(np.array([2.0], np.float32))
+    assert recorder.seen[0] == pytest.approx([0.5]) and wrapped.action_space == recorder.action_space
+
+    run_dir = train(
+        "sac",
+        "Pendulum-v1",
+        {"max_episode_steps": 50},
+        config_dir / "sac.yml",
+        seed=2,
+        out_dir=tmp_path,
+        progress=False,
+        total_timesteps=64,
+        hyperparams={"eval_freq": 0, "checkpoint_freq": 0, "learning_starts": 10, "action_scale": 0.25},
+    )
+    assert yaml.safe_load((run_dir / "config.yml").read_text())["config"]["action_scale"] == 0.25
+    model = ALGOS["sac"].load(run_dir / "final_model.zip")
+    agent = load_agent(run_dir, trust=True)
+    exported = load_weights_only(export_agent(run_dir, tmp_path / "export", trust=True))
+    for obs in _observations("Pendulum-v1", {}):
+        raw, _ = model.predict(agent.normalize(obs), deterministic=True)
+        assert np.abs(raw).max() > 0
+        np.testing.assert_allclose(agent.predict(obs), 0.25 * raw, rtol=1e-6)
+        np.testing.assert_allclose(exported.predict(obs), 0.25 * raw, rtol=1e-6)
+    doc_path = tmp_path / "export" / "agent.json"
+    doc = json.loads(doc_path.read_text())
+    doc_path.write_text(json.dumps({**doc, "action_scale": 2.0}))
+    with pytest.raises(agent_policy.ExportFormatError, match="action_scale"):
+        load_weights_only(tmp_path / "export")
+    for bad in (0.0, 1.5):
+        with pytest.raises(ConfigError, match="'action_scale'"):
+            parse_entry({"n_timesteps": 10, "action_scale": bad}, "sac")
