@@ -4,6 +4,7 @@
 #
 #   scripts/train_shipped_agents.sh            # train into runs/shipped/<name>/ (logs in runs/shipped/logs/),
 #                                              # then package them
+#   scripts/train_shipped_agents.sh sac        # only the three SAC agents, all at once (as they were trained)
 #   scripts/train_shipped_agents.sh package    # copy the runs into trained_agents/<name>/ (agents.ship)
 #   .venv/bin/python -m agents.evaluate_shipped  # evaluation.json of each agent + campc/random references
 #
@@ -18,8 +19,7 @@ PY=${PYTHON:-.venv/bin/python}
 OUT=${OUT:-runs/shipped}
 SEED=${SEED:-0}
 PPO_STEPS=${PPO_STEPS:-300000}
-SAC_STEPS=${SAC_STEPS:-60000}
-SAC_TRANSPORT_STEPS=${SAC_TRANSPORT_STEPS:-40000}
+SAC_STEPS=${SAC_STEPS:-150000}
 mkdir -p "$OUT/logs"
 
 # name algo env env-kwargs budget
@@ -31,7 +31,7 @@ AGENTS_A=(
 AGENTS_B=(
   "circle_case1_sac sac uvdms/CircleTrack-v0 case=1 $SAC_STEPS"
   "circle_case2_sac sac uvdms/CircleTrack-v0 case=2 $SAC_STEPS"
-  "transport_paper_sac sac uvdms/Transport-v0 goal=paper $SAC_TRANSPORT_STEPS"
+  "transport_paper_sac sac uvdms/Transport-v0 goal=paper $SAC_STEPS"
 )
 
 run_one() {
@@ -57,16 +57,19 @@ lane() {
 if [[ "${1:-train}" == "package" ]]; then
   for spec in "${AGENTS_A[@]}" "${AGENTS_B[@]}"; do
     read -r name algo _ _ _ <<< "$spec"
+    if ! compgen -G "$OUT/$name/*/${algo}_$SEED" > /dev/null; then
+      echo "no run for $name in $OUT: trained_agents/$name left as it is" >&2
+      continue
+    fi
     "$PY" -m agents.ship "$OUT/$name"/*/"${algo}_$SEED" "trained_agents/$name" --which "${WHICH:-best}" --overwrite
   done
   exit 0
 fi
 
-lane "${AGENTS_A[@]}" &
-lane "${AGENTS_B[@]}" &
-wait
-# circle_case2_sac was the one SAC run still improving at 60k steps: it got 40k more (segment 1, with its
-# replay buffer) while transport_paper_sac trained.
-nice -n 10 "$PY" -m agents.train --resume "$OUT/circle_case2_sac/uvdms_CircleTrack-v0/sac_$SEED" \
-  --total-timesteps "${SAC_CASE2_EXTRA_STEPS:-40000}" --no-progress > "$OUT/logs/circle_case2_sac_resume.log" 2>&1
+case "${1:-train}" in
+  train) lane "${AGENTS_A[@]}" & lane "${AGENTS_B[@]}" & wait ;;
+  # The shipped SAC agents (action_scale 0.3) were trained later than the PPO ones, the three at once:
+  sac) for spec in "${AGENTS_B[@]}"; do lane "$spec" & done; wait ;;
+  *) echo "usage: $0 [train|sac|package]" >&2; exit 2 ;;
+esac
 "$0" package

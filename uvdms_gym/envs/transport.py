@@ -50,7 +50,8 @@ class TransportEnv(UVDMSEnv):
     ## Rewards
     ``reward_track = -track_weight * |p_ref - p| (m)``,
     ``reward_orientation = -orientation_weight * |rotation error| (rad)``, and the effort, proximity and
-    contact terms of the circle task; the reward is their sum.
+    contact terms of the circle task; the reward is their sum (every term <= 0: see the circle task's note
+    on early termination).
 
     ## Costs
     ``info["cost_contact"]``, ``info["cost_zone"]``, ``info["cost"]`` as in the circle task.
