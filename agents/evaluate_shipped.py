@@ -163,7 +163,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=EVAL_SEED)
     parser.add_argument("--skip-existing", action="store_true", help="reuse JSON files that already exist")
     parser.add_argument(
-        "--only", nargs="*", default=None, help="(re)evaluate only these agent folders; reuse the other JSON files"
+        "--only",
+        nargs="*",
+        default=None,
+        help="(re)evaluate only these agent folders (names or paths); reuse the other JSON files",
     )
     args = parser.parse_args(argv)
 
@@ -176,7 +179,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         name = task_name(env_id, task)
         tasks[name] = (env_id, task)
         out = folder / "evaluation.json"
-        forced = args.only is not None and folder.name in args.only
+        forced = args.only is not None and folder.name in {Path(o).name for o in args.only}
         skip = args.skip_existing or (args.only is not None and not forced)
         if out.is_file() and skip and not forced:
             data = json.loads(out.read_text(encoding="utf-8"))
