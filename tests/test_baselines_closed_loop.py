@@ -159,11 +159,16 @@ def test_recorded_qps_match_an_independent_solver(env_id, kwargs):
     assert len(recorded) >= 14
     mpc = ctl.mpc.mpc
     tight = KinematicMPC(replace(mpc.config, eps_abs=1e-9), mpc.params, mpc.m)
+    # The closed loop amplifies 1e-9 differences (memory-alignment-dependent BLAS rounding: the same test after
+    # another controller ran in the process records slightly different QPs), and at 1e-10 OSQP then ends one of
+    # them "solved inaccurate"; the comparisons below check its accuracy either way.
     ref = OSQPReplay(mpc, eps_abs=1e-10, eps_rel=1e-10, polishing=True, max_iter=200000)
+    statuses = []
     for problem, x_ctl in recorded:
         mats = mpc.qp_matrices(problem)
         xo, status, _, _ = ref.solve(mats)
-        assert status == "solved"
+        statuses.append(status)
+        assert status in ("solved", "solved inaccurate")
         tight.reset()
         assert tight.solve(problem).status == "solved"
         diff = tight.qp.results.x - xo
@@ -180,3 +185,4 @@ def test_recorded_qps_match_an_independent_solver(env_id, kwargs):
         assert np.all(c @ x_ctl >= lo - 1e-5) and np.all(c @ x_ctl <= up + 1e-5)
         assert np.allclose(mats.A @ x_ctl, mats.b, atol=1e-5)
         assert objective(x_ctl) - objective(xo) < 1e-5 * (1.0 + abs(objective(xo)))
+    assert statuses.count("solved") >= len(statuses) - 2
