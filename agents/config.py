@@ -641,6 +641,11 @@ def _validate_normalize(kwargs: dict[str, Any], where: str) -> dict[str, Any]:
     return out
 
 
+def is_unit_scale(value: Any) -> bool:
+    """Whether ``value`` is a real number in (0, 1] (``action_scale``, ``action_init_scale``)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and 0 < value <= 1
+
+
 def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
     minimum = {
         "n_timesteps": 1,
@@ -656,11 +661,10 @@ def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
     if values.get("max_episode_steps") is not None and values["max_episode_steps"] < 1:
         raise ConfigError(f"{where}: key 'max_episode_steps' must be >= 1 or null, got {values['max_episode_steps']}")
     scale = values.get("action_init_scale")
-    if scale is not None and not (math.isfinite(scale) and 0.0 < scale <= 1.0):
+    if scale is not None and not is_unit_scale(scale):
         raise ConfigError(f"{where}: key 'action_init_scale' must be in (0, 1] or null, got {scale}")
-    action_scale = values.get("action_scale", 1.0)
-    if not (math.isfinite(action_scale) and 0.0 < action_scale <= 1.0):
-        raise ConfigError(f"{where}: key 'action_scale' must be in (0, 1], got {action_scale}")
+    if not is_unit_scale(values.get("action_scale", 1.0)):
+        raise ConfigError(f"{where}: key 'action_scale' must be in (0, 1], got {values['action_scale']}")
     if not math.isfinite(values.get("alive_bonus", 0.0)):
         raise ConfigError(f"{where}: key 'alive_bonus' must be a finite number")
     if values.get("n_envs", 1) > 1000:

@@ -42,7 +42,7 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.vec_env import VecNormalize
 
 from agents.algos import ALGOS
-from agents.config import ConfigError, plain_policy_kwargs, resolve_policy_kwargs
+from agents.config import ConfigError, is_unit_scale, plain_policy_kwargs, resolve_policy_kwargs
 from agents.train import package_versions
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -123,7 +123,7 @@ class AgentController:
         source: str = "",
         action_scale: float = 1.0,
     ) -> None:
-        if not (math.isfinite(action_scale) and 0.0 < action_scale <= 1.0):
+        if not is_unit_scale(action_scale):
             raise ValueError(f"action_scale must be in (0, 1], got {action_scale}")
         self.policy = policy
         self.policy.set_training_mode(False)
@@ -503,7 +503,7 @@ def load_weights_only(path: str | Path, device: str = "cpu") -> AgentController:
 def _action_scale(doc: Mapping[str, Any], folder: Path) -> float:
     """``action_scale`` of an export (absent in exports written before it existed: 1.0)."""
     scale = doc.get("action_scale", 1.0)
-    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0.0 < scale <= 1.0:
+    if not is_unit_scale(scale):
         raise ExportFormatError(f"{folder}: action_scale must be a number in (0, 1], got {scale!r}")
     return float(scale)
 

@@ -63,7 +63,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv,
 
 from agents.algos import ALGOS, is_off_policy
 from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
-from agents.config import ConfigError, TrainConfig, default_config_path, load_config, parse_entry
+from agents.config import ConfigError, TrainConfig, default_config_path, is_unit_scale, load_config, parse_entry
 from uvdms_gym.provenance import git_info, package_versions
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -195,7 +195,7 @@ class ScaledAction(gym.ActionWrapper):
 
     def __init__(self, env: gym.Env, scale: float) -> None:
         super().__init__(env)
-        if not 0.0 < scale <= 1.0:
+        if not is_unit_scale(scale):
             raise ValueError(f"action scale must be in (0, 1], got {scale}")
         self.scale = float(scale)
 
