@@ -19,13 +19,15 @@ import numpy as np
 import uvdms_gym  # noqa: F401  (registers the ids)
 
 N_STEPS = 200
+_FREE_TORQUE = {"action_mode": "torque", "terminate_on_contact": False, "max_tracking_error": 100.0}
+"""Torque mode run through contacts and large errors, so that 200 steps of free dynamics are compared."""
 CASES: dict[str, tuple[str, dict, float]] = {
     # name: (id, gym.make kwargs, action amplitude)
     "circle_case1_velocity": ("uvdms/CircleTrack-v0", {"case": 1}, 0.5),
     "circle_random_hydro_velocity": ("uvdms/CircleTrack-v0", {"case": "random", "hydro_randomization": 0.3}, 0.5),
     "transport_paper_velocity": ("uvdms/Transport-v0", {"goal": "paper"}, 0.5),
-    "circle_case2_torque": ("uvdms/CircleTrack-v0", {"case": 2, "action_mode": "torque", "terminate_on_contact": False, "max_tracking_error": 100.0}, 0.05),
-    "transport_random_torque": ("uvdms/Transport-v0", {"goal": "random", "action_mode": "torque", "terminate_on_contact": False, "max_tracking_error": 100.0}, 0.05),
+    "circle_case2_torque": ("uvdms/CircleTrack-v0", {"case": 2, **_FREE_TORQUE}, 0.05),
+    "transport_random_torque": ("uvdms/Transport-v0", {"goal": "random", **_FREE_TORQUE}, 0.05),
     "circle_case2_torque_contact": ("uvdms/CircleTrack-v0", {"case": 2, "action_mode": "torque"}, 0.5),
 }
 

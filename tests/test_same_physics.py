@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 HERE = Path(__file__).parent
-_spec = importlib.util.spec_from_file_location("record_v0_reference", HERE.parent / "benchmarks" / "record_v0_reference.py")
+_RECORDER = HERE.parent / "benchmarks" / "record_v0_reference.py"
+_spec = importlib.util.spec_from_file_location("record_v0_reference", _RECORDER)
 recorder = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(recorder)
 REFERENCE = np.load(HERE / "data" / "v0_reference_trajectories.npz")
