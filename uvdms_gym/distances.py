@@ -12,7 +12,9 @@ closest point on the monitored link, ``E`` on the obstacle, ``n = (E - P)/|E - P
 
 Three interchangeable methods:
 
-* ``"exact"``: analytic segment-segment and segment-rectangle distances (vectorized numpy);
+* ``"exact"``: analytic segment-segment and segment-rectangle distances, computed by the compiled kernels
+  of :mod:`uvdms_gym._distkernels` (numba); :func:`compute_distances_reference` is the vectorized numpy
+  form of the same computation, kept as the reference the kernels are tested against;
 * ``"sampled"``: the paper's Algorithm 1 (point samples on the monitored link, ``d' = d - r``);
 * :func:`pybullet_distances`: PyBullet closest-point queries on the loaded multibody, converted to the
   same axis/core convention.
@@ -26,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uvdms_gym import frames
+from uvdms_gym import _distkernels, frames
 
 N_ROWS = 18
 SIDES = ("left", "right")
@@ -547,7 +549,7 @@ def _link_plate_exact(mon: np.ndarray, rot: np.ndarray, pos: np.ndarray, pd: _Pl
     return np.sqrt(g[rows, k]), p, e, pl
 
 
-def _exact(seg: np.ndarray, rot: np.ndarray, pos: np.ndarray, pd: _PlateData):
+def _exact_reference(seg: np.ndarray, rot: np.ndarray, pos: np.ndarray, pd: _PlateData):
     d = np.empty(N_ROWS)
     p = np.empty((N_ROWS, 3))
     e = np.empty((N_ROWS, 3))
@@ -586,12 +588,40 @@ def _sampled(seg: np.ndarray, plates, n: int) -> tuple[np.ndarray, np.ndarray, n
     return d, p, e, idx
 
 
+_PLATE_TABLE_CACHE: dict = {}
+_OBSTACLE_FRAMES_CACHE: dict[bytes, tuple[str, ...]] = {}
+
+
+def _plate_table(params) -> np.ndarray:
+    """:func:`uvdms_gym._distkernels.plate_table` of ``params.plates``, cached per plates object.
+
+    Keyed by identity (hashing the frozen plate dataclasses costs ~2 µs per call); the cached entry keeps
+    the plates object alive, so its id cannot be reused by another object.
+    """
+    plates = params.plates
+    hit = _PLATE_TABLE_CACHE.get(id(plates))
+    if hit is None or hit[0] is not plates:
+        hit = _PLATE_TABLE_CACHE[id(plates)] = (plates, _distkernels.plate_table(plates))
+    return hit[1]
+
+
+def _obstacle_frames(idx: np.ndarray) -> tuple[str, ...]:
+    """``obstacle_frame`` of a result from its ``obstacle_index`` (cached per link-link index pattern)."""
+    key = idx[:6].tobytes()
+    out = _OBSTACLE_FRAMES_CACHE.get(key)
+    if out is None:
+        out = _OBSTACLE_FRAMES_CACHE[key] = tuple(_LEFT_FRAMES[j] for j in idx[:6]) + _PLATE_ROWS_FRAMES
+    return out
+
+
 def compute_distances(kin, method: str = "exact", n: int = 20) -> DistanceResult:
     """The 18 distances of the current state of ``kin`` (a :class:`uvdms_gym.kinematics.KinematicModel`).
 
     The link axes come from ``kin.link_segments()``. The plates are ``kin.params.plates`` placed with the
     vehicle pose ``kin.frame_placement("vehicle")`` (the same rectangles as ``kin.plates()``, whose
-    body-frame constants are prepared once); ``"sampled"`` reads ``kin.plates()``.
+    body-frame constants are prepared once); ``"sampled"`` reads ``kin.plates()``. ``"exact"`` runs the
+    compiled kernel :func:`uvdms_gym._distkernels.exact_rows`, which agrees with
+    :func:`compute_distances_reference` (numpy) to rounding.
 
     Args:
         kin: kinematic model after ``set_state``.
@@ -601,16 +631,36 @@ def compute_distances(kin, method: str = "exact", n: int = 20) -> DistanceResult
     Returns:
         The :class:`DistanceResult`.
     """
-    seg = kin.link_segments()
     if method == "exact":
         pos, rot = kin.frame_placement("vehicle")
-        d, p, e, idx = _exact(seg, rot, pos, _plate_data(kin.params))
-    elif method == "sampled":
-        d, p, e, idx = _sampled(seg, kin.plates(), n)
+        d = np.empty(N_ROWS)
+        p = np.empty((N_ROWS, 3))
+        e = np.empty((N_ROWS, 3))
+        idx = np.empty(N_ROWS, dtype=np.int64)
+        _distkernels.exact_rows(kin.link_segments(), rot, pos, _plate_table(kin.params), d, p, e, idx)
+        return DistanceResult(d, p, e, _obstacle_frames(idx), LINK_FRAMES, idx, method)
+    if method == "sampled":
+        d, p, e, idx = _sampled(kin.link_segments(), kin.plates(), n)
     else:
         raise ValueError(f"method must be 'exact' or 'sampled', got {method!r}")
-    obst = tuple(_LEFT_FRAMES[j] for j in idx[:6]) + _PLATE_ROWS_FRAMES
-    return DistanceResult(d, p, e, obst, LINK_FRAMES, idx, method)
+    return DistanceResult(d, p, e, _obstacle_frames(idx), LINK_FRAMES, idx, method)
+
+
+def compute_distances_reference(kin) -> DistanceResult:
+    """``compute_distances(kin, "exact")`` by the vectorized numpy implementation (the reference).
+
+    The same analytic method as the default ``"exact"`` path (see :func:`_link_link_exact` and
+    :func:`_link_plate_exact`), written with numpy array operations; about 100 times slower than the
+    compiled kernel because numpy's per-call overhead dominates on arrays of a few dozen elements. Kept so
+    that the kernel is tested against it (``tests/test_distances.py``) and benchmarked beside it.
+
+    Args:
+        kin: kinematic model after ``set_state`` (or any object with ``link_segments``,
+            ``frame_placement("vehicle")`` and ``params``).
+    """
+    pos, rot = kin.frame_placement("vehicle")
+    d, p, e, idx = _exact_reference(kin.link_segments(), rot, pos, _plate_data(kin.params))
+    return DistanceResult(d, p, e, _obstacle_frames(idx), LINK_FRAMES, idx, "exact")
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -656,7 +706,8 @@ def distance_jacobian(kin, res: DistanceResult) -> np.ndarray:
     a column supporting both bodies cancels exactly. The base columns therefore vanish identically (both
     points ride on the vehicle); ``tests/test_distances.py`` checks this against the full point Jacobians of
     ``KinematicModel.point_jacobian`` and against finite differences of ``d``.
-    Rows with ``E = P`` (``d = 0``, axes intersecting) have no direction and are zero.
+    Rows with ``E = P`` (``d = 0``, axes intersecting) have no direction and are zero. Computed by the
+    compiled kernel :func:`uvdms_gym._distkernels.jdis_rows` (reference: :func:`distance_jacobian_reference`).
 
     Args:
         kin: the :class:`uvdms_gym.kinematics.KinematicModel` at the state of ``res``.
@@ -665,11 +716,23 @@ def distance_jacobian(kin, res: DistanceResult) -> np.ndarray:
     Returns:
         ``J_dis`` (18, 18), columns acting on ``zeta = [nu; qdot_l; qdot_r]``.
     """
+    return _distkernels.jdis_rows(_row_masks(kin.model, res), kin.data.J, res.p, res.e)
+
+
+def distance_jacobian_reference(kin, res: DistanceResult) -> np.ndarray:
+    """:func:`distance_jacobian` in numpy (the reference the compiled kernel is tested against).
+
+    Args:
+        kin: the :class:`uvdms_gym.kinematics.KinematicModel` at the state of ``res``.
+        res: distances at that state.
+    """
     sel = _row_masks(kin.model, res)
     jac = kin.data.J  # (6, nv) [v_k; w_k] at the NED origin
     nrm = res.normals
     # E x n = P x n because E - P is parallel to n: columns supporting both bodies cancel exactly.
     return sel * (nrm @ jac[:3] + _cross(res.p, nrm) @ jac[3:])
+
+
 
 
 # --------------------------------------------------------------------------------------------------------

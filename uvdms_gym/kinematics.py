@@ -255,8 +255,8 @@ class KinematicModel:
         """
         omf = self.data.oMf
         h = np.array([omf[i].homogeneous for i in self._link_ids])  # (14, 4, 4)
-        pts = self._seg_local_h @ h.transpose(0, 2, 1)  # (14, 2, 4): rows [A 1] and [B 1] mapped to NED
-        return pts[:, :, :3].reshape(2, self._n_links, 2, 3)
+        pts = self._seg_local_h @ h[:, :3].transpose(0, 2, 1)  # (14, 2, 3): rows [A 1] and [B 1] mapped to NED
+        return pts.reshape(2, self._n_links, 2, 3)  # C-contiguous (the compiled distance kernel's fast path)
 
     def plates(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[float, float]]]:
         """The frame plates in NED, in the order of ``params.plates``.
