@@ -3,10 +3,18 @@
 Every reference here is computed independently of the code under test: segment distances by 1-D convex
 minimisation of a point-to-segment (point-to-rectangle) distance along one segment (scipy, on a dense
 grid bracket), point-to-rectangle by a dense grid over the rectangle, distances by PyBullet's own
-collision engine, and J_dis by central finite differences of d along pin.integrate.
+collision engine, and J_dis by central finite differences of d along pin.integrate. The compiled default
+path ("exact", numba kernels) is also checked against the numpy reference implementation
+(compute_distances_reference / distance_jacobian_reference) to rounding.
 """
 
 from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -310,6 +318,7 @@ def test_exact_link_link_rows_nearly_parallel():
                 tilt = 10.0 ** rng.uniform(-8, -4) * rng.normal(size=3)
                 seg[side, k] = a0, a0 + rng.uniform(0.05, 0.3) * (base_dir + tilt)
         res = D.compute_distances(_SegmentsOnly(seg))
+        _check_against_reference(res, D.compute_distances_reference(_SegmentsOnly(seg)), seg, unique_points=False)
         for i in range(6):
             a0, a1 = seg[1, i + 1]
             ref = min(_ref_segment_segment(a0, a1, *seg[0, j]) for j in range(7))
@@ -340,6 +349,7 @@ def test_exact_link_plate_rows_degenerate_placements():
                     da *= length / np.linalg.norm(da)
                 seg[side, k] = a0, a0 + da
         res = D.compute_distances(_SegmentsOnly(seg))
+        _check_against_reference(res, D.compute_distances_reference(_SegmentsOnly(seg)), seg, unique_points=False)
         for i in range(12):
             a0, a1 = seg[1, i + 1] if i < 6 else seg[0, i - 5]
             ref = min(_ref_segment_rect(a0, a1, c, u, v, np.array(h)) for c, u, v, h in plates)
@@ -357,6 +367,120 @@ def test_sampled_rows_are_conservative(kin):
         err = ex.d - sa.d
         assert np.all(err > 0.0) and np.all(err <= r + 1e-12) and np.all(err <= 0.01 + 1e-12)
         np.testing.assert_allclose(np.linalg.norm(sa.e - sa.p, axis=1), sa.d + r, atol=1e-12)
+
+
+# ------------------------------------------------------------------ compiled kernels vs the numpy reference
+def _check_against_reference(res, ref, seg, plates=None, unique_points=True):
+    """The kernel's result ``res`` against the numpy reference ``ref`` at the same state.
+
+    Distances agree to 1e-12 in every row. The closest points always lie on their segment / plate and
+    realise ``d``. With ``unique_points``, rows with ``d > 1e-9`` must also have the reference's points and
+    obstacle (1e-12), except at ties: the minimum is attained on two left links meeting at a joint (the
+    choice is rounding noise in both implementations), then ``E`` is that joint point in both (1e-11).
+    ``unique_points=False`` is for degenerate placements (parallel pairs: the closest points are not unique).
+    """
+    plates = _SegmentsOnly(None).plates() if plates is None else plates
+    np.testing.assert_allclose(res.d, ref.d, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(res.e - res.p, axis=1), res.d, rtol=0, atol=1e-12)
+    assert res.obstacle_frame[6:] == ref.obstacle_frame[6:] and res.link_frame == ref.link_frame
+    assert res.method == "exact" and res.obstacle_index.dtype.kind == "i"
+    n_ties = 0
+    for i in range(18):
+        side, k = (1, i + 1) if i < 6 else ((1, i - 5) if i < 12 else (0, i - 11))
+        assert _ref_point_segment(res.p[i], *seg[side, k]) < 1e-12
+        j = res.obstacle_index[i]
+        if i < 6:
+            assert res.obstacle_frame[i] == f"left_link{j}"
+            assert _ref_point_segment(res.e[i], *seg[0, j]) < 1e-12
+        else:
+            c, u, v, h = plates[j]
+            assert _ref_point_rect(res.e[i], c, u, v, h) < 1e-12
+        if not unique_points or res.d[i] <= 1e-9:
+            continue
+        if j == ref.obstacle_index[i]:
+            np.testing.assert_allclose(res.p[i], ref.p[i], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(res.e[i], ref.e[i], rtol=0, atol=1e-12)
+        else:  # a tie between neighbouring left links at their common joint point
+            assert i < 6 and abs(j - ref.obstacle_index[i]) == 1, (i, j, ref.obstacle_index[i])
+            np.testing.assert_allclose(res.e[i], ref.e[i], rtol=0, atol=1e-11)
+            n_ties += 1
+    return n_ties
+
+
+def test_exact_kernel_matches_numpy_reference_on_random_configurations(kin):
+    """Generic random states (many in contact or near it): same rows, points, obstacles and J_dis."""
+    rng = np.random.default_rng(15)
+    near = ties = 0
+    for _ in range(300):
+        kin.set_state(*_random_state(rng))
+        res = D.compute_distances(kin)
+        ref = D.compute_distances_reference(kin)
+        ties += _check_against_reference(res, ref, kin.link_segments(), kin.plates())
+        near += int(np.sum(res.d < D.contact_thresholds(PARAMS, res.obstacle_index) + 0.02))
+        jd = D.distance_jacobian(kin, res)
+        # the J_dis kernel against the numpy formula on the same result (every row, incl. d = 0 ones) ...
+        np.testing.assert_allclose(jd, D.distance_jacobian_reference(kin, res), rtol=0, atol=1e-12)
+        # ... and the whole fast path against the whole reference path where n is defined (d > 0)
+        ok = res.d > 1e-9
+        np.testing.assert_allclose(jd[ok], D.distance_jacobian_reference(kin, ref)[ok], rtol=0, atol=1e-12)
+    assert near > 300  # near-contact rows are well represented (measured: ~1000)
+    assert ties > 10  # and so are ties at the left arm's joints (measured: ~40)
+
+
+def test_exact_kernel_matches_numpy_reference_on_degenerate_configurations(kin):
+    """Joint angles in {-90, 0, 90} deg: many exactly parallel, collinear or touching link pairs."""
+    rng = np.random.default_rng(16)
+    for it in range(150):
+        eta, _ = _random_state(rng)
+        q = 0.5 * np.pi * rng.integers(-1, 2, 12) * (it > 0)
+        kin.set_state(eta, q)
+        res = D.compute_distances(kin)
+        _check_against_reference(res, D.compute_distances_reference(kin), kin.link_segments(), kin.plates(), False)
+        np.testing.assert_allclose(
+            D.distance_jacobian(kin, res), D.distance_jacobian_reference(kin, res), rtol=0, atol=1e-12
+        )
+
+
+def test_distance_jacobian_kernel_keeps_nan_and_zero_rows(kin):
+    """Rows with E = P are zero and NaN rows (PyBullet found nothing within range) stay NaN, as the reference."""
+    kin.set_state(np.zeros(6), np.full(12, 0.3))
+    res = D.compute_distances(kin)
+    p = res.p.copy()
+    e = res.e.copy()
+    e[3] = p[3]
+    p[7] = e[7] = np.nan
+    odd = D.DistanceResult(res.d, p, e, res.obstacle_frame, res.link_frame, res.obstacle_index, "pybullet")
+    jd = D.distance_jacobian(kin, odd)
+    ref = D.distance_jacobian_reference(kin, odd)
+    assert np.all(jd[3] == 0.0) and np.all(np.isnan(jd[7]))
+    np.testing.assert_array_equal(np.isnan(jd), np.isnan(ref))
+    np.testing.assert_allclose(jd[~np.isnan(ref)], ref[~np.isnan(ref)], rtol=0, atol=1e-12)
+
+
+def test_kernels_work_without_a_writable_numba_cache(tmp_path):
+    """Package imported from a zip file, no writable cache location: numba compiles instead of failing."""
+    root = Path(D.__file__).resolve().parent
+    archive = tmp_path / "pkg.zip"
+    with zipfile.ZipFile(archive, "w") as zf:
+        for f in root.rglob("*.py"):
+            zf.write(f, Path("uvdms_gym") / f.relative_to(root))
+    code = (
+        "import numpy as np, uvdms_gym.distances as D\n"
+        "from uvdms_gym.kinematics import KinematicModel\n"
+        "assert D.__file__.startswith({!r})\n"
+        "kin = KinematicModel(); kin.set_state(np.r_[1.0, 2.0, 3.0, 0.1, 0.2, 0.3], np.full(12, 0.4))\n"
+        "a, b = D.compute_distances(kin), D.compute_distances_reference(kin)\n"
+        "assert np.abs(a.d - b.d).max() < 1e-12\n"
+        "assert np.abs(D.distance_jacobian(kin, a) - D.distance_jacobian_reference(kin, a)).max() < 1e-12\n"
+        "print('ok')\n"
+    ).format(str(archive))
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
+    # /proc/... cannot be created (even by root): no user-wide cache directory either
+    env.update(PYTHONPATH=str(archive), HOME="/proc/no-home", XDG_CACHE_HOME="/proc/no-cache")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().endswith("ok")
+    assert "numba disk cache unavailable" in out.stderr
 
 
 # ------------------------------------------------------------------------------------ PyBullet cross-check
@@ -383,7 +507,7 @@ def _set_bullet_state(client, body, joints, eta, q):
 def test_exact_matches_pybullet_on_random_collision_free_configurations(kin, bullet):
     client, body, links, joints = bullet
     rng = np.random.default_rng(10)
-    errs, n_ok = [], 0
+    errs, errs_ref, n_ok = [], [], 0
     while n_ok < 200:
         eta, q = _random_state(rng)
         kin.set_state(eta, q)
@@ -394,8 +518,10 @@ def test_exact_matches_pybullet_on_random_collision_free_configurations(kin, bul
         _set_bullet_state(client, body, joints, eta, q)
         res = D.pybullet_distances(client, body, links, PARAMS, max_distance=10.0)
         errs.append(res.d - ex.d)
+        errs_ref.append(res.d - D.compute_distances_reference(kin).d)
         np.testing.assert_allclose(np.linalg.norm(res.e - res.p, axis=1), res.d, atol=1e-6)
     errs = np.abs(np.array(errs))
+    np.testing.assert_allclose(errs, np.abs(np.array(errs_ref)), rtol=0, atol=1e-12)  # kernel and reference
     assert errs.max() < 1.5e-3, errs.max(axis=0)
     # measured: <= 2e-6 m (1e-11 for most rows; Bullet's GJK on the compound plate shape); a regression guard
     assert errs.max() < 2e-5
@@ -482,6 +608,7 @@ def test_distance_jacobian_matches_point_jacobians_and_finite_differences(kin):
         )
         assert np.abs(jref[:, :6]).max() < 1e-12  # the vehicle's own motion cancels in every row
         np.testing.assert_allclose(jd, jref, atol=1e-12)
+        np.testing.assert_allclose(D.distance_jacobian_reference(kin, res), jref, atol=1e-12)
         assert np.all(jd[:, :6] == 0.0)
         ok = _unique_rows(kin, res)
         config = kin.config.copy()

@@ -132,8 +132,9 @@ def exact_rows(seg, rot, pos, plates, d, p, e, idx):  # pragma: no cover - compi
     for q in range(n_pl):
         for r in range(3):
             for jj in range(3):
+                c3 = 3 * r
                 bw[q, r, jj] = (
-                    plates[q, 3 * r] * rot[jj, 0] + plates[q, 3 * r + 1] * rot[jj, 1] + plates[q, 3 * r + 2] * rot[jj, 2]
+                    plates[q, c3] * rot[jj, 0] + plates[q, c3 + 1] * rot[jj, 1] + (plates[q, c3 + 2] * rot[jj, 2])
                 )
             bw[q, r, 3] = bw[q, r, 0] * pos[0] + bw[q, r, 1] * pos[1] + bw[q, r, 2] * pos[2] + plates[q, 9 + r]
     for mi in range(12):
