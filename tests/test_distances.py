@@ -467,13 +467,13 @@ def test_kernels_work_without_a_writable_numba_cache(tmp_path):
     code = (
         "import numpy as np, uvdms_gym.distances as D\n"
         "from uvdms_gym.kinematics import KinematicModel\n"
-        "assert D.__file__.startswith({!r})\n"
+        f"assert D.__file__.startswith({str(archive)!r})\n"
         "kin = KinematicModel(); kin.set_state(np.r_[1.0, 2.0, 3.0, 0.1, 0.2, 0.3], np.full(12, 0.4))\n"
         "a, b = D.compute_distances(kin), D.compute_distances_reference(kin)\n"
         "assert np.abs(a.d - b.d).max() < 1e-12\n"
         "assert np.abs(D.distance_jacobian(kin, a) - D.distance_jacobian_reference(kin, a)).max() < 1e-12\n"
         "print('ok')\n"
-    ).format(str(archive))
+    )
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
     # /proc/... cannot be created (even by root): no user-wide cache directory either
     env.update(PYTHONPATH=str(archive), HOME="/proc/no-home", XDG_CACHE_HOME="/proc/no-cache")
