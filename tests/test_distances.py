@@ -423,8 +423,8 @@ def test_exact_kernel_matches_numpy_reference_on_random_configurations(kin):
         # ... and the whole fast path against the whole reference path where n is defined (d > 0)
         ok = res.d > 1e-9
         np.testing.assert_allclose(jd[ok], D.distance_jacobian_reference(kin, ref)[ok], rtol=0, atol=1e-12)
-    assert near > 300  # near-contact rows are well represented (measured: ~1000)
-    assert ties > 10  # and so are ties at the left arm's joints (measured: ~40)
+    assert near > 200  # rows in contact or within 2 cm of it are well represented (measured: 414)
+    assert ties > 10  # and so are ties at the left arm's joints (measured: 37)
 
 
 def test_exact_kernel_matches_numpy_reference_on_degenerate_configurations(kin):
