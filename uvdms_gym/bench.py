@@ -32,8 +32,21 @@ def bench_sim(quick: bool = False) -> dict:
     ``physics_step_us`` is one physics substep of :meth:`UVDMSSim.step` (state read, vehicle and link
     hydrodynamics, external forces, joint torques, ``stepSimulation``), timed over 10-substep calls;
     ``bare_step_us`` is ``stepSimulation`` alone on the same body and time step.
+
+    ``distances_us["exact"]`` and ``jdis_us`` are the default (compiled) paths,
+    ``distances_us["exact_numpy_reference"]`` and ``jdis_reference_us`` the numpy reference of the same
+    computation, ``exact_speedup`` / ``jdis_speedup`` their ratios; ``link_segments_us`` is the Pinocchio
+    read-out inside ``"exact"`` (``KinematicModel.link_segments``). ``numba_first_call_ms`` times the first
+    exact-distance and ``J_dis`` call of a fresh process: ``"compile"`` with an empty numba cache,
+    ``"cached"`` with the cache that run wrote.
     """
-    from uvdms_gym.distances import compute_distances, distance_jacobian, pybullet_distances
+    from uvdms_gym.distances import (
+        compute_distances,
+        compute_distances_reference,
+        distance_jacobian,
+        distance_jacobian_reference,
+        pybullet_distances,
+    )
     from uvdms_gym.kinematics import KinematicModel
     from uvdms_gym.sim import UVDMSSim
 
@@ -70,12 +83,55 @@ def bench_sim(quick: bool = False) -> dict:
     kin.set_state(eta0, q0)
     exact = _median_us(lambda: compute_distances(kin, "exact"), calls, blocks)
     sampled = _median_us(lambda: compute_distances(kin, "sampled", n=20), calls, blocks)
+    reference = _median_us(lambda: compute_distances_reference(kin), calls // 4, blocks)
     res = compute_distances(kin, "exact")
     jdis = _median_us(lambda: distance_jacobian(kin, res), calls, blocks)
+    jdis_ref = _median_us(lambda: distance_jacobian_reference(kin, res), calls, blocks)
     both = _median_us(lambda: distance_jacobian(kin, compute_distances(kin, "exact")), calls, blocks)
-    out["distances_us"] = {"exact": exact, "sampled_n20": sampled, "pybullet": pb}
+    out["distances_us"] = {"exact": exact, "sampled_n20": sampled, "pybullet": pb, "exact_numpy_reference": reference}
     out["jdis_us"] = jdis
     out["exact_plus_jdis_us"] = both
+    out["jdis_reference_us"] = jdis_ref
+    out["exact_speedup"] = reference / exact
+    out["jdis_speedup"] = jdis_ref / jdis
+    out["link_segments_us"] = _median_us(kin.link_segments, calls, blocks)
+    out["numba_first_call_ms"] = _numba_first_call_ms()
+    return out
+
+
+_FIRST_CALL_SCRIPT = """
+import json, time
+import numpy as np
+from uvdms_gym.distances import compute_distances, distance_jacobian
+from uvdms_gym.kinematics import KinematicModel
+kin = KinematicModel()
+kin.set_state(np.zeros(6), np.full(12, 0.3))
+t0 = time.perf_counter()
+distance_jacobian(kin, compute_distances(kin, "exact"))
+print(json.dumps(1e3 * (time.perf_counter() - t0)))
+"""
+
+
+def _numba_first_call_ms() -> dict:
+    """First ``compute_distances(kin, "exact")`` + ``distance_jacobian`` in fresh processes (ms).
+
+    Run twice with a new ``NUMBA_CACHE_DIR``: the first run compiles the kernels and writes the cache,
+    the second loads it (what every process pays once the cache exists).
+    """
+    import json
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    out = {}
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        for key in ("compile", "cached"):
+            run = subprocess.run(
+                [sys.executable, "-c", _FIRST_CALL_SCRIPT], env=env, capture_output=True, text=True, check=True
+            )
+            out[key] = float(json.loads(run.stdout.strip().splitlines()[-1]))
     return out
 
 

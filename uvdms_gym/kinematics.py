@@ -253,7 +253,8 @@ class KinematicModel:
 
         Side 0 is left, 1 right; ``A`` is the end nearer the arm base (see :func:`uvdms_gym.model.link_segment`).
         """
-        omf = self.data.oMf
+        # oMf.tolist() (~0.1 µs per frame) instead of oMf[i] (~1 µs per item access, measured)
+        omf = self.data.oMf.tolist()
         h = np.array([omf[i].homogeneous for i in self._link_ids])  # (14, 4, 4)
         pts = self._seg_local_h @ h[:, :3].transpose(0, 2, 1)  # (14, 2, 3): rows [A 1] and [B 1] mapped to NED
         return pts.reshape(2, self._n_links, 2, 3)  # C-contiguous (the compiled distance kernel's fast path)
