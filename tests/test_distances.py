@@ -457,6 +457,17 @@ def test_distance_jacobian_kernel_keeps_nan_and_zero_rows(kin):
     np.testing.assert_allclose(jd[~np.isnan(ref)], ref[~np.isnan(ref)], rtol=0, atol=1e-12)
 
 
+def test_exact_kernel_rejects_wrong_shapes(kin):
+    seg = np.zeros((2, 6, 2, 3))
+    with pytest.raises(ValueError, match="link_segments"):
+        D.compute_distances(_SegmentsOnly(seg))
+    kin.set_state(np.zeros(6), np.zeros(12))
+    res = D.compute_distances(kin)
+    short = D.DistanceResult(res.d, res.p[:17], res.e, res.obstacle_frame, res.link_frame, res.obstacle_index)
+    with pytest.raises(ValueError, match=r"res\.p and res\.e"):
+        D.distance_jacobian(kin, short)
+
+
 def test_kernels_work_without_a_writable_numba_cache(tmp_path):
     """Package imported from a zip file, no writable cache location: numba compiles instead of failing."""
     root = Path(D.__file__).resolve().parent

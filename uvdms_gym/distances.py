@@ -588,6 +588,7 @@ def _sampled(seg: np.ndarray, plates, n: int) -> tuple[np.ndarray, np.ndarray, n
     return d, p, e, idx
 
 
+_SEG_SHAPE = (2, 7, 2, 3)
 _PLATE_TABLE_CACHE: dict = {}
 _OBSTACLE_FRAMES_CACHE: dict[bytes, tuple[str, ...]] = {}
 
@@ -633,11 +634,14 @@ def compute_distances(kin, method: str = "exact", n: int = 20) -> DistanceResult
     """
     if method == "exact":
         pos, rot = kin.frame_placement("vehicle")
+        seg = np.ascontiguousarray(kin.link_segments(), dtype=float)  # no copy for KinematicModel's array
+        if seg.shape != _SEG_SHAPE:  # the kernel indexes without bounds checks
+            raise ValueError(f"link_segments() must have shape {_SEG_SHAPE}, got {seg.shape}")
         d = np.empty(N_ROWS)
         p = np.empty((N_ROWS, 3))
         e = np.empty((N_ROWS, 3))
         idx = np.empty(N_ROWS, dtype=np.int64)
-        _distkernels.exact_rows(kin.link_segments(), rot, pos, _plate_table(kin.params), d, p, e, idx)
+        _distkernels.exact_rows(seg, rot, pos, _plate_table(kin.params), d, p, e, idx)
         return DistanceResult(d, p, e, _obstacle_frames(idx), LINK_FRAMES, idx, method)
     if method == "sampled":
         d, p, e, idx = _sampled(kin.link_segments(), kin.plates(), n)
@@ -650,9 +654,9 @@ def compute_distances_reference(kin) -> DistanceResult:
     """``compute_distances(kin, "exact")`` by the vectorized numpy implementation (the reference).
 
     The same analytic method as the default ``"exact"`` path (see :func:`_link_link_exact` and
-    :func:`_link_plate_exact`), written with numpy array operations; about 100 times slower than the
-    compiled kernel because numpy's per-call overhead dominates on arrays of a few dozen elements. Kept so
-    that the kernel is tested against it (``tests/test_distances.py``) and benchmarked beside it.
+    :func:`_link_plate_exact`), written with numpy array operations; about ten times slower than the
+    compiled path (numpy's per-call overhead dominates on arrays of a few dozen elements; ``uvdms bench sim``
+    prints the ratio). Kept so that the kernel is tested against it (``tests/test_distances.py``).
 
     Args:
         kin: kinematic model after ``set_state`` (or any object with ``link_segments``,
@@ -716,6 +720,8 @@ def distance_jacobian(kin, res: DistanceResult) -> np.ndarray:
     Returns:
         ``J_dis`` (18, 18), columns acting on ``zeta = [nu; qdot_l; qdot_r]``.
     """
+    if res.p.shape != (N_ROWS, 3) or res.e.shape != (N_ROWS, 3):  # the kernel indexes without bounds checks
+        raise ValueError(f"res.p and res.e must have shape ({N_ROWS}, 3), got {res.p.shape} and {res.e.shape}")
     return _distkernels.jdis_rows(_row_masks(kin.model, res), kin.data.J, res.p, res.e)
 
 
