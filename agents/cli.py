@@ -82,19 +82,31 @@ def _train_argv(args: argparse.Namespace) -> list[str]:
 
 def _cmd_train(args: argparse.Namespace) -> int:
     from agents.train import main
+    from uvdms_gym.cli import check_make_kwargs, parse_kv
 
     if args.resume is None and (args.algo is None or args.env_id is None):
         args._train_parser.error("--algo and --env are required unless --resume DIR is given")
+    if args.env_id is not None:  # before a run directory exists: bad YAML and unknown keys as one line
+        env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
+        parse_kv(args.hyperparams, "--hyperparams")
+        import gymnasium as gym
+
+        from agents.train import import_gym_packages
+
+        import_gym_packages(args.gym_packages)  # failures and unknown ids are reported by agents.train
+        if ":" in args.env_id or args.env_id in gym.registry:
+            check_make_kwargs(args.env_id, env_kwargs)
     return main(_train_argv(args))
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from agents.policy import UntrustedFileError, export_agent
+    import zipfile
+
+    from agents.policy import export_agent
 
     try:
         out = export_agent(args.run_dir, args.out, which=args.which, trust=args.trust, overwrite=args.overwrite)
-    except (UntrustedFileError, FileNotFoundError, FileExistsError, ValueError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    except zipfile.BadZipFile as exc:  # other errors are reported by uvdms_gym.cli.main as one line
+        raise ValueError(f"{args.run_dir}: a model file is not a valid zip archive, corrupt or truncated ({exc})") from None
     print(out)
     return 0
