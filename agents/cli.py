@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 _TRAIN_HELP = "train a Stable-Baselines3 agent from train_configs/<algo>.yml (same as python -m agents.train)"
@@ -89,13 +88,13 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if args.env_id is not None:  # before a run directory exists: bad YAML and unknown keys as one line
         env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
         parse_kv(args.hyperparams, "--hyperparams")
-        import gymnasium as gym
+        from agents.train import EnvironmentNotFoundError, check_env_id
 
-        from agents.train import import_gym_packages
-
-        import_gym_packages(args.gym_packages)  # failures and unknown ids are reported by agents.train
-        if ":" in args.env_id or args.env_id in gym.registry:
-            check_make_kwargs(args.env_id, env_kwargs)
+        try:
+            check_env_id(args.env_id, args.gym_packages)  # imports the gym packages first
+        except EnvironmentNotFoundError as exc:
+            raise ValueError(str(exc)) from None
+        check_make_kwargs(args.env_id, env_kwargs)
     return main(_train_argv(args))
 
 
@@ -107,6 +106,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
     try:
         out = export_agent(args.run_dir, args.out, which=args.which, trust=args.trust, overwrite=args.overwrite)
     except zipfile.BadZipFile as exc:  # other errors are reported by uvdms_gym.cli.main as one line
-        raise ValueError(f"{args.run_dir}: a model file is not a valid zip archive, corrupt or truncated ({exc})") from None
+        raise ValueError(
+            f"{args.run_dir}: a model file is not a valid zip archive, corrupt or truncated ({exc})"
+        ) from None
     print(out)
     return 0

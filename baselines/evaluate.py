@@ -90,7 +90,6 @@ TRAJECTORY_KEYS: tuple[str, ...] = (
 """Keys of an episode's ``trajectory``."""
 
 
-
 def _json_value(x: Any) -> Any:
     """Plain JSON value: arrays to lists, numpy scalars to Python, non-finite floats to ``None``."""
     if isinstance(x, dict):

@@ -94,7 +94,9 @@ def check_make_kwargs(env_id: str, kwargs: Mapping[str, Any]) -> None:
     spec = env_spec(env_id)
     creator = spec.entry_point if callable(spec.entry_point) else load_env_creator(spec.entry_point)
     accepted = set(GYM_MAKE_KWARGS)
-    functions = [k.__init__ for k in creator.__mro__ if "__init__" in vars(k)] if isinstance(creator, type) else [creator]
+    functions = (
+        [k.__init__ for k in creator.__mro__ if "__init__" in vars(k)] if isinstance(creator, type) else [creator]
+    )
     open_ended = True
     for fn in functions:
         params = inspect.signature(fn).parameters.values()

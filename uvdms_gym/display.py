@@ -71,8 +71,7 @@ def gui_unavailable_reason(environ: Mapping[str, str] | None = None, platform: s
     if host in ("", "unix"):
         path = f"/tmp/.X11-unix/X{number}"
         if hasattr(socket, "AF_UNIX") and (
-            (platform.startswith("linux") and _connects(socket.AF_UNIX, "\0" + path))
-            or _connects(socket.AF_UNIX, path)
+            (platform.startswith("linux") and _connects(socket.AF_UNIX, "\0" + path)) or _connects(socket.AF_UNIX, path)
         ):
             return None
         return f"no X server answers on $DISPLAY={display} (nothing listens on {path})"

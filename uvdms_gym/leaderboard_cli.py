@@ -70,9 +70,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_leaderboard(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from uvdms_gym import leaderboard as lb
-
     import torch
+
+    from uvdms_gym import leaderboard as lb
 
     torch.set_num_threads(1)  # tiny MLP policies: one thread is fastest and leaves the other core free
     tasks = lb.select_tasks(args.tasks, quick=args.quick)
