@@ -138,6 +138,15 @@ def test_debug_keeps_the_traceback(workspace):
         assert "Traceback" in proc.stderr and "ValueError: seconds" in proc.stderr
 
 
+def test_demo_saves_a_frame_and_prints_the_trace(workspace):
+    proc = run_uvdms(["demo", "--seconds", "0.2", "--trace-every", "0.1", "--png", "frame.png"], cwd=workspace)
+    assert proc.returncode == 0, proc.stderr
+    assert (workspace / "frame.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    rows = proc.stdout.strip().splitlines()
+    assert rows[0].split()[:2] == ["t", "[s]"] and len(rows) == 1 + 3  # t = 0, 0.1, 0.2
+    assert "pybullet build time" not in proc.stderr  # the import line is silenced
+
+
 def test_version_is_the_installed_distributions(workspace):
     import importlib.metadata
 

@@ -50,12 +50,14 @@ class Shrunk:
         run: The command run (``uvdms ...``).
         creates: Files or folders it must create (relative to the working directory).
         stdout_json: Its stdout is a JSON document.
+        contains: ``(file, text)`` pairs: the file (``-`` for stdout) must contain the text.
     """
 
     chain: str
     run: str
     creates: tuple[str, ...] = ()
     stdout_json: bool = False
+    contains: tuple[tuple[str, str], ...] = ()
 
 
 SHRUNK: dict[str, Shrunk] = {
@@ -64,6 +66,11 @@ SHRUNK: dict[str, Shrunk] = {
         "leaderboard",
         "uvdms leaderboard --quick --episodes 1 --max-episode-steps 20 --no-progress",
         creates=("leaderboard_out/leaderboard.md", "leaderboard_out/leaderboard.csv", "leaderboard_out/plots"),
+        contains=(
+            ("-", "### Velocity track"),
+            ("leaderboard_out/leaderboard.md", "1-minute load average"),
+            ("leaderboard_out/leaderboard.csv", "timing_episodes_overloaded"),
+        ),
     ),
     "uvdms leaderboard --out docs/leaderboard": Shrunk(
         "leaderboard",
@@ -85,6 +92,7 @@ SHRUNK: dict[str, Shrunk] = {
             "--episodes 1 --out campc.json --no-progress",
             creates=("campc.json",),
             stdout_json=True,
+            contains=(("campc.json", '"load_1min_start"'), ("-", '"episodes": 1')),
         )
     ),
     "uvdms evaluate --controller campc-nndi --env uvdms/Transport-v0 --env-kwargs hydro_randomization=0.3 "
@@ -105,7 +113,9 @@ SHRUNK: dict[str, Shrunk] = {
         "uvdms reproduce --out docs/figures --check --quick",
         creates=("docs/figures/summary.md", "docs/figures/results.json", "docs/figures/fig09_min_distances.png"),
     ),
-    "uvdms bench mpc --json": Shrunk("bench", "uvdms bench mpc --json --quick", stdout_json=True),
+    "uvdms bench mpc --json": Shrunk(
+        "bench", "uvdms bench mpc --json --quick", stdout_json=True, contains=(("-", '"load_1min_end"'),)
+    ),
     # train section
     "uvdms train --algo sac --env uvdms/CircleTrack-v0 --env-kwargs case=1 --seed 0 --total-timesteps 60000": Shrunk(
         "train",
@@ -252,3 +262,6 @@ def test_readme_commands_run(chain, tmp_path):
         if shrunk.stdout_json:
             doc = json.loads(proc.stdout)
             assert isinstance(doc, dict) and doc
+        for file, text in shrunk.contains:
+            content = proc.stdout if file == "-" else (tmp_path / file).read_text(encoding="utf-8")
+            assert text in content, f"{shrunk.run}: {text!r} not in {file}"
