@@ -45,7 +45,7 @@ def run_demo(seconds: float = 5.0, gui: bool = False, png: str | None = None, tr
     """
     for name, value in (("seconds", seconds), ("trace_every", trace_every)):
         if not (math.isfinite(value) and value > 0.0):
-            raise ValueError(f"{name} must be a positive number of seconds, got {value}")
+            raise ValueError(f"{name} must be a finite duration > 0 s, got {value}")
     if png is not None:
         folder = Path(png).resolve().parent
         if not folder.is_dir():
