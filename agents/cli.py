@@ -80,27 +80,45 @@ def _train_argv(args: argparse.Namespace) -> list[str]:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from agents.train import main
     from uvdms_gym.cli import check_make_kwargs, parse_kv
 
     if args.resume is None and (args.algo is None or args.env_id is None):
         args._train_parser.error("--algo and --env are required unless --resume DIR is given")
-    if args.env_id is not None:  # before a run directory exists: bad YAML and unknown keys as one line
+    if args.env_id is not None:  # before torch loads and a run directory exists: bad YAML, ids and keys
         env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
         parse_kv(args.hyperparams, "--hyperparams")
-        from agents.train import EnvironmentNotFoundError, check_env_id
+        _import_quietly(args.gym_packages)  # import failures are reported by agents.train
+        import gymnasium as gym
 
-        try:
-            check_env_id(args.env_id, args.gym_packages)  # imports the gym packages first
-        except EnvironmentNotFoundError as exc:
-            raise ValueError(str(exc)) from None
+        if ":" not in args.env_id and args.env_id not in gym.registry:
+            from agents.train import EnvironmentNotFoundError, check_env_id
+
+            try:
+                check_env_id(args.env_id, args.gym_packages)  # its message names failed imports, close matches
+            except EnvironmentNotFoundError as exc:
+                raise ValueError(str(exc)) from None
         check_make_kwargs(args.env_id, env_kwargs)
+    from agents.train import main
+
     return main(_train_argv(args))
+
+
+def _import_quietly(packages: list[str]) -> None:
+    """Import the packages that register environments, ignoring failures (``agents.train`` reports them)."""
+    import contextlib
+    import importlib
+
+    for name in packages:
+        with contextlib.suppress(Exception):
+            importlib.import_module(name)
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
     import zipfile
 
+    out_dir = Path(args.out)
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not args.overwrite:  # before loading torch and the model
+        raise FileExistsError(f"{out_dir} exists and is not empty (pass --overwrite to replace its files)")
     from agents.policy import export_agent
 
     try:

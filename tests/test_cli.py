@@ -97,7 +97,7 @@ ERROR_CASES: dict[str, tuple[list[str], tuple[str, ...]]] = {
     "export-corrupt-zip": (["export-agent", "corrupt.zip", "exported", "--trust"], ("corrupt.zip", "zip")),
     "export-truncated-zip": (["export-agent", "truncated.zip", "exported", "--trust"], ("truncated.zip", "zip")),
     "export-untrusted": (["export-agent", "corrupt.zip", "exported"], ("--trust",)),
-    "export-into-occupied-folder": (["export-agent", str(SHIPPED), "occupied"], ("occupied", "exists")),
+    "export-into-occupied-folder": (["export-agent", str(SHIPPED), "occupied"], ("occupied", "--overwrite")),
     "leaderboard-corrupt-zip": (
         ["leaderboard", "--entries", "corrupt.zip", "--trust", "--out", "lb"],
         ("corrupt.zip", "zip"),
