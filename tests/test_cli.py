@@ -332,3 +332,26 @@ def test_corrupt_archives_are_named_before_any_episode(workspace):
         lb.resolve_entries([str(workspace / "truncated.zip")], trust=True)
     assert zipfile.is_zipfile(SHIPPED / "model.zip")
     assert lb.resolve_entries([str(SHIPPED)])[0].kind == "agent"  # a valid shipped agent still resolves
+
+
+def test_make_kwargs_are_checked_against_the_entry_points_signature():
+    from uvdms_gym.cli import check_make_kwargs, parse_kv
+
+    check_make_kwargs(CIRCLE, {"case": 1, "control_dt": 0.02, "max_episode_steps": 5})  # subclass and base keys
+    check_make_kwargs("uvdms_gym:" + TRANSPORT, {"goal": "paper", "hydro_randomization": 0.3})
+    check_make_kwargs("Pendulum-v1", {"g": 9.81, "render_mode": "rgb_array"})
+    with pytest.raises(ValueError, match="'goal'"):
+        check_make_kwargs(CIRCLE, {"goal": "paper"})  # a Transport keyword
+    with pytest.raises(ValueError, match="'foo'"):
+        check_make_kwargs("Pendulum-v1", {"foo": 1})
+    with pytest.raises(ValueError, match="uvdms/CircleTrack-v0"):
+        check_make_kwargs("uvdms/Circle-v0", {})
+    assert parse_kv(["case=1", "radius=0.15", "goal=random", "left_center=[1, 0, 2]", "name="]) == {
+        "case": 1,
+        "radius": 0.15,
+        "goal": "random",
+        "left_center": [1, 0, 2],
+        "name": "",
+    }
+    with pytest.raises(ValueError, match="not a YAML literal"):
+        parse_kv(["radius={"])
