@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 _TRAIN_HELP = "train a Stable-Baselines3 agent from train_configs/<algo>.yml (same as python -m agents.train)"
@@ -81,20 +80,52 @@ def _train_argv(args: argparse.Namespace) -> list[str]:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from agents.train import main
+    from uvdms_gym.cli import check_make_kwargs, parse_kv
 
     if args.resume is None and (args.algo is None or args.env_id is None):
         args._train_parser.error("--algo and --env are required unless --resume DIR is given")
+    if args.env_id is not None:  # before torch loads and a run directory exists: bad YAML, ids and keys
+        env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
+        parse_kv(args.hyperparams, "--hyperparams")
+        _import_quietly(args.gym_packages)  # import failures are reported by agents.train
+        import gymnasium as gym
+
+        if ":" not in args.env_id and args.env_id not in gym.registry:
+            from agents.train import EnvironmentNotFoundError, check_env_id
+
+            try:
+                check_env_id(args.env_id, args.gym_packages)  # its message names failed imports, close matches
+            except EnvironmentNotFoundError as exc:
+                raise ValueError(str(exc)) from None
+        check_make_kwargs(args.env_id, env_kwargs)
+    from agents.train import main
+
     return main(_train_argv(args))
 
 
+def _import_quietly(packages: list[str]) -> None:
+    """Import the packages that register environments, ignoring failures (``agents.train`` reports them)."""
+    import contextlib
+    import importlib
+
+    for name in packages:
+        with contextlib.suppress(Exception):
+            importlib.import_module(name)
+
+
 def _cmd_export(args: argparse.Namespace) -> int:
-    from agents.policy import UntrustedFileError, export_agent
+    import zipfile
+
+    out_dir = Path(args.out)
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not args.overwrite:  # before loading torch and the model
+        raise FileExistsError(f"{out_dir} exists and is not empty (pass --overwrite to replace its files)")
+    from agents.policy import export_agent
 
     try:
         out = export_agent(args.run_dir, args.out, which=args.which, trust=args.trust, overwrite=args.overwrite)
-    except (UntrustedFileError, FileNotFoundError, FileExistsError, ValueError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    except zipfile.BadZipFile as exc:  # other errors are reported by uvdms_gym.cli.main as one line
+        raise ValueError(
+            f"{args.run_dir}: a model file is not a valid zip archive, corrupt or truncated ({exc})"
+        ) from None
     print(out)
     return 0

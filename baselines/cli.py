@@ -50,23 +50,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from baselines.evaluate import evaluate
-    from uvdms_gym.cli import parse_kv
+    from uvdms_gym.cli import check_make_kwargs, parse_kv
 
-    try:
-        result = evaluate(
-            args.controller,
-            args.env,
-            parse_kv(args.env_kwargs),
-            episodes=args.episodes,
-            seed=args.seed,
-            out=args.out,
-            save_trajectory=args.save_trajectory,
-            progress=not args.no_progress,
-            trust=args.trust,
-        )
-    except ValueError as exc:
-        sys.stderr.write(f"uvdms evaluate: error: {exc}\n")
-        return 2
+    env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
+    check_make_kwargs(args.env, env_kwargs)  # errors are reported by uvdms_gym.cli.main as one line
+    result = evaluate(
+        args.controller,
+        args.env,
+        env_kwargs,
+        episodes=args.episodes,
+        seed=args.seed,
+        out=args.out,
+        save_trajectory=args.save_trajectory,
+        progress=not args.no_progress,
+        trust=args.trust,
+    )
     sys.stdout.write(json.dumps(result["summary"], indent=2, sort_keys=True) + "\n")
     if args.out:
         sys.stderr.write(f"wrote {args.out}\n")

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from uvdms_gym.provenance import git_info, package_versions
+from uvdms_gym.provenance import git_info, package_versions, timing_record
 
 EPISODE_KEYS: tuple[str, ...] = (
     "seed",
@@ -88,7 +88,6 @@ TRAJECTORY_KEYS: tuple[str, ...] = (
     "nn_output",
 )
 """Keys of an episode's ``trajectory``."""
-
 
 
 def _json_value(x: Any) -> Any:
@@ -321,10 +320,14 @@ def evaluate(
 
     Returns:
         ``{"episodes": [...], "summary": {...}, "meta": {...}}``; ``meta`` holds the controller spec, env id,
-        effective env kwargs, seeds, package versions, git revision, wall time and the controller's settings.
+        effective env kwargs, seeds, package versions, git revision, wall time, the machine and the load
+        around the timed episodes (``timing``: :func:`uvdms_gym.provenance.timing_record`; the per-episode
+        ``controller_ms_median`` is only comparable between runs with ``overloaded`` false on the same
+        machine) and the controller's settings.
 
     Raises:
-        ValueError: ``episodes < 1``, unknown controller, or an action-mode mismatch.
+        ValueError: ``episodes < 1``, unknown controller, a folder that is not an agent, a corrupt agent
+            archive, or an action-mode mismatch.
     """
     import gymnasium as gym
 
@@ -341,32 +344,33 @@ def evaluate(
         path = Path(controller_spec)
         if not path.exists():
             raise ValueError(f"{controller_spec!r} is neither a baseline ({', '.join(BASELINES)}) nor an agent path")
-        from agents.policy import load_agent
-
-        agent = load_agent(path, trust=trust)
+        agent = _load_agent(path, trust)
         kwargs.setdefault("action_mode", (agent.env_kwargs or {}).get("action_mode", "velocity"))
     seeds = [int(seed) + i for i in range(episodes)]
     env = gym.make(env_id, **kwargs)
-    t_start = time.perf_counter()
     try:
-        controller = make_controller(controller_spec, env, trust=trust) if agent is None else agent
-        if agent is not None:
-            from baselines.controllers import check_agent
+        with timing_record() as timing:
+            t_start = time.perf_counter()
+            controller = make_controller(controller_spec, env, trust=trust) if agent is None else agent
+            if agent is not None:
+                from baselines.controllers import check_agent
 
-            check_agent(agent, env, controller_spec)
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
+                check_agent(agent, env, controller_spec)
+            bar = None
+            if progress:
+                from tqdm.auto import tqdm
 
-            bar = tqdm(seeds, desc=f"{controller_spec} on {env_id}", unit="ep", leave=False)
-        results = []
-        for s in bar if bar is not None else seeds:
-            ep = run_episode(env, controller, s, save_trajectory=save_trajectory)
-            results.append(ep)
+                bar = tqdm(seeds, desc=f"{controller_spec} on {env_id}", unit="ep", leave=False)
+            results = []
+            for s in bar if bar is not None else seeds:
+                ep = run_episode(env, controller, s, save_trajectory=save_trajectory)
+                results.append(ep)
+                if bar is not None:
+                    rmse = f"{ep['rmse_pos']:.4f}" if ep["rmse_pos"] is not None else "nan"
+                    bar.set_postfix(rmse=rmse, c=ep["contacts"])
             if bar is not None:
-                bar.set_postfix(rmse=f"{ep['rmse_pos']:.4f}" if ep["rmse_pos"] is not None else "nan", c=ep["contacts"])
-        if bar is not None:
-            bar.close()
+                bar.close()
+            wall_s = time.perf_counter() - t_start
         settings = controller_settings(controller)
     finally:
         env.close()
@@ -382,7 +386,8 @@ def evaluate(
                 "seeds": seeds,
                 "versions": package_versions(),
                 "git": git_info(),
-                "wall_s": time.perf_counter() - t_start,
+                "wall_s": wall_s,
+                "timing": timing,
                 "controller_settings": settings,
             }
         ),
@@ -390,6 +395,31 @@ def evaluate(
     if out is not None:
         write_json_atomic(out, result)
     return result
+
+
+AGENT_FILES: tuple[str, ...] = ("agent.json", "model.zip", "final_model.zip", "best_model.zip")
+"""Files that make a folder an agent: a weights-only export, a shipped agent, or a run directory."""
+
+
+def _load_agent(path: Path, trust: bool) -> Any:
+    """:func:`agents.policy.load_agent` with the errors of a wrong path or a corrupt archive named.
+
+    Raises:
+        ValueError: A folder holding none of :data:`AGENT_FILES`, or a model that is not a valid zip archive.
+    """
+    import zipfile
+
+    from agents.policy import load_agent
+
+    if path.is_dir() and not any((path / name).is_file() for name in AGENT_FILES):
+        raise ValueError(
+            f"{path} is not an agent folder: it holds none of {', '.join(AGENT_FILES)} (a weights-only export, "
+            "a shipped agent or a run directory)"
+        )
+    try:
+        return load_agent(path, trust=trust)
+    except zipfile.BadZipFile as exc:
+        raise ValueError(f"{path}: a model file is not a valid zip archive, corrupt or truncated ({exc})") from None
 
 
 def controller_settings(controller: Any) -> dict:

@@ -8,8 +8,10 @@ initial joint angles with a joint-space PD plus gravity/buoyancy compensation fr
 from __future__ import annotations
 
 import logging
+import math
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -35,7 +37,19 @@ def run_demo(seconds: float = 5.0, gui: bool = False, png: str | None = None, tr
         gui: open the PyBullet GUI (real-time pacing).
         png: save a rendered frame at the end to this path.
         trace_every: trace period, s.
+
+    Raises:
+        ValueError: ``seconds`` or ``trace_every`` not a finite positive number.
+        FileNotFoundError: the folder of ``png`` does not exist (checked before simulating).
+        DisplayUnavailableError: ``gui`` without a display (:mod:`uvdms_gym.display`).
     """
+    for name, value in (("seconds", seconds), ("trace_every", trace_every)):
+        if not (math.isfinite(value) and value > 0.0):
+            raise ValueError(f"{name} must be a finite duration > 0 s, got {value}")
+    if png is not None:
+        folder = Path(png).resolve().parent
+        if not folder.is_dir():
+            raise FileNotFoundError(f"cannot save the frame to {png}: folder {folder} does not exist")
     params = UVDMSParams()
     q_hold = np.radians(np.array(CIRCLE_Q0_LEFT_DEG + CIRCLE_Q0_RIGHT_DEG))
     kin = KinematicModel(params)

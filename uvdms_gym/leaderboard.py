@@ -51,6 +51,14 @@ Cache
     ``force=True`` recomputes. A file that cannot be parsed or does not match its key is reported with
     ``logging.warning`` (by path) and recomputed.
 
+Timings
+    ``controller_ms_median`` is wall-clock time, so every computed episode stores a ``timing`` record
+    (:func:`uvdms_gym.provenance.timing_record`: CPU model, core count, 1-minute load average at the start and
+    end of the episode) in its cached result, and the run keeps one for itself. ``leaderboard.md`` states the
+    machine(s) and loads, and marks with :data:`OVERLOAD_MARK` every timing cell of a row in which an episode
+    ran with a load above the core count; ``leaderboard.csv`` has ``timing_episodes_overloaded``,
+    ``timing_episodes_unknown_load``, ``timing_load_1min_max`` and ``timing_machine`` per row.
+
 Safety
     Weights-only agent exports (:func:`agents.policy.load_weights_only`) evaluate without trust. A full SB3
     zip contains pickles: it is refused (:class:`agents.policy.UntrustedFileError`) unless it lies inside the
@@ -70,6 +78,7 @@ import re
 import sys
 import tempfile
 import warnings
+import zipfile
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
@@ -80,11 +89,15 @@ import numpy as np
 import yaml
 
 import uvdms_gym
+from uvdms_gym.provenance import timing_record
 
 log = logging.getLogger("uvdms.leaderboard")
 
 PACKAGE_VERSION = uvdms_gym.__version__
-CACHE_FORMAT = 1
+CACHE_FORMAT = 2
+"""Version of the cached per-episode files (2: every result carries its ``timing`` record)."""
+OVERLOAD_MARK = "†"
+"""Marks a controller timing taken with a 1-minute load average above the core count (tables)."""
 SEED_BASE = 2_000_000_000
 """Evaluation seed of episode ``i`` is ``SEED_BASE + i`` (see the module docstring)."""
 D1, D2 = 0.05, 0.12
@@ -136,6 +149,8 @@ TABLE_METRICS: tuple[str, ...] = (
     "return",
     "controller_ms_median",
 )
+TIMING_METRICS: tuple[str, ...] = ("controller_ms_median",)
+"""Metrics that are wall-clock timings (marked when taken under overload)."""
 PLOT_METRICS: tuple[str, ...] = ("contact_free_success", "rmse_pos", "min_distance", "contacts", "return")
 _AGENT_MODEL_SUFFIXES = (".zip", ".pkl", ".pt", ".npz")
 _AGENT_CONFIG_NAMES = ("agent.json", "config.yml", "config.yaml")
@@ -349,17 +364,25 @@ def agent_entry(path: str | Path, *, trust: bool = False) -> Entry:
 
     Raises:
         UntrustedFileError: The agent is a full SB3 zip outside ``trained_agents/`` and ``trust`` is false.
+        ValueError: A folder without an agent, or a model archive that is not a valid zip file.
     """
     from agents.policy import UntrustedFileError, is_trusted_path
 
     path = Path(path)
     weights_only = is_weights_only(path)
+    archives = sorted(path.glob("*.zip")) if path.is_dir() else [path]
+    if path.is_dir() and not weights_only and not archives:
+        raise ValueError(f"{path} is not an agent folder: it holds neither agent.json (weights-only export) nor a .zip")
     if not weights_only and not (trust or is_trusted_path(path)):
         raise UntrustedFileError(
             f"refusing to load {path}: it is a full Stable-Baselines3 model, whose pickled objects can run "
             "arbitrary code when loaded, and it lies outside the repository's trained_agents/ folder. Pass "
             "--trust if you trust its origin, or submit a weights-only export instead (uvdms export-agent)."
         )
+    if not weights_only:
+        bad = [str(a) for a in archives if not zipfile.is_zipfile(a)]
+        if bad:
+            raise ValueError(f"{', '.join(bad)}: not a valid zip archive (corrupt or truncated)")
     env_id, env_kwargs = agent_env(path)
     track = str(env_kwargs.get("action_mode", "velocity"))
     if track not in TRACKS:
@@ -591,6 +614,40 @@ class RankedRow:
     def rank_label(self) -> str:
         """``3`` or ``3=`` for a tie."""
         return f"{self.rank}=" if self.tied else str(self.rank)
+
+    @property
+    def timing(self) -> dict[str, Any]:
+        """Where and under what load this row's controller timings ran (:func:`timing_summary` of its episodes)."""
+        return timing_summary(self.episodes)
+
+
+def timing_summary(episodes: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """Summary of the per-episode timing records (:func:`uvdms_gym.provenance.timing_record`).
+
+    Returns:
+        ``{"overloaded": episodes whose 1-minute load exceeded the core count, "unknown": episodes without a
+        load record, "load_1min_max": highest load seen (``None`` if none), "machines": sorted distinct
+        ``"<cpu model> (<n> cores)"``}``.
+    """
+    overloaded = unknown = 0
+    loads: list[float] = []
+    machines: set[str] = set()
+    for ep in episodes:
+        record = ep.get("timing")
+        flag = record.get("overloaded") if isinstance(record, Mapping) else None
+        if flag is None:
+            unknown += 1
+        overloaded += int(flag is True)
+        if isinstance(record, Mapping):
+            loads += [x for x in (record.get("load_1min_start"), record.get("load_1min_end")) if x is not None]
+            machine = record.get("machine") or {}
+            machines.add(f"{machine.get('cpu_model', 'unknown')} ({machine.get('cpu_count', '?')} cores)")
+    return {
+        "overloaded": overloaded,
+        "unknown": unknown,
+        "load_1min_max": max(loads) if loads else None,
+        "machines": sorted(machines),
+    }
 
 
 def _sort_key(row: RankedRow) -> tuple[float, float, str]:
@@ -848,9 +905,11 @@ def compute_job(job: Job, backend: Backend, trust: bool) -> dict[str, Any]:
         controller = backend.make_controller(job.entry.spec, env, trust)
         if job.entry.kind == "agent":
             _WORKER["controller"] = controller
-    raw = backend.run_episode(env, controller, job.seed, job.save_trajectory)
+    with timing_record() as timing:
+        raw = backend.run_episode(env, controller, job.seed, job.save_trajectory)
     result = compact_result(raw)
     result["seed"] = int(job.seed)
+    result["timing"] = timing
     atomic_write_json(job.path, {"key": job.key, "material": job.material, "result": result})
     return result
 
@@ -868,6 +927,7 @@ class LeaderboardResult:
     corrupt: list[Path]
     out_dir: Path
     markdown: str = ""
+    timing: dict[str, Any] = field(default_factory=dict)
 
 
 def plan_jobs(
@@ -965,47 +1025,48 @@ def run_leaderboard(
         n_cached,
         len(todo),
     )
-    bar = tqdm(
-        total=len(all_jobs),
-        initial=n_cached,
-        desc="leaderboard",
-        unit="ep",
-        disable=not progress,
-        mininterval=0.1 if sys.stderr.isatty() else 30.0,  # a log file gets a line every 30 s, not every episode
-    )
-    try:
-        if jobs <= 1 or len(todo) <= 1:
-            try:
-                for job in todo:
-                    bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
-                    try:
-                        results[job.path] = compute_job(job, backend, trust)
-                    except Exception:
-                        log.error("episode failed: %s on %s, seed %d", job.entry.name, job.task.name, job.seed)
-                        raise
-                    bar.update()
-            finally:
-                _close_worker_env()
-        else:
-            import multiprocessing
+    with timing_record() as run_record:  # the run's machine and load (each episode has its own record)
+        bar = tqdm(
+            total=len(all_jobs),
+            initial=n_cached,
+            desc="leaderboard",
+            unit="ep",
+            disable=not progress,
+            mininterval=0.1 if sys.stderr.isatty() else 30.0,  # a log file gets a line every 30 s, not every episode
+        )
+        try:
+            if jobs <= 1 or len(todo) <= 1:
+                try:
+                    for job in todo:
+                        bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
+                        try:
+                            results[job.path] = compute_job(job, backend, trust)
+                        except Exception:
+                            log.error("episode failed: %s on %s, seed %d", job.entry.name, job.task.name, job.seed)
+                            raise
+                        bar.update()
+                finally:
+                    _close_worker_env()
+            else:
+                import multiprocessing
 
-            context = multiprocessing.get_context("spawn")
-            pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init)
-            try:
-                futures = {pool.submit(compute_job, job, backend, trust): job for job in todo}
-                for future in as_completed(futures):
-                    job = futures[future]
-                    try:
-                        results[job.path] = future.result()
-                    except Exception:
-                        log.error("episode failed: %s on %s, seed %d", job.entry.name, job.task.name, job.seed)
-                        raise
-                    bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
-                    bar.update()
-            finally:
-                pool.shutdown(wait=True, cancel_futures=True)
-    finally:
-        bar.close()
+                context = multiprocessing.get_context("spawn")
+                pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init)
+                try:
+                    futures = {pool.submit(compute_job, job, backend, trust): job for job in todo}
+                    for future in as_completed(futures):
+                        job = futures[future]
+                        try:
+                            results[job.path] = future.result()
+                        except Exception:
+                            log.error("episode failed: %s on %s, seed %d", job.entry.name, job.task.name, job.seed)
+                            raise
+                        bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
+                        bar.update()
+                finally:
+                    pool.shutdown(wait=True, cancel_futures=True)
+        finally:
+            bar.close()
 
     rows = []
     for entry in entries:
@@ -1029,6 +1090,7 @@ def run_leaderboard(
         cached=n_cached,
         corrupt=corrupt,
         out_dir=out,
+        timing=run_record,
     )
     write_outputs(result, command=command, plots=plots)
     return result
@@ -1049,17 +1111,42 @@ def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_ME
         header = ["Task", "Rank", "Entry", *[METRICS[m]["label"] for m in metrics], "n"]
         lines.append("| " + " | ".join(header) + " |")
         lines.append("|" + "|".join(["---"] * 3 + ["--:"] * (len(metrics) + 1)) + "|")
+        marked = False
         for row in rows:
-            cells = [
-                row.task.label,
-                row.rank_label,
-                row.entry.name,
-                *[row.stats[m].format(METRICS[m]["fmt"], METRICS[m].get("scale", 1.0)) for m in metrics],
-                str(len(row.episodes)),
-            ]
+            cells = [row.task.label, row.rank_label, row.entry.name]
+            for m in metrics:
+                cell = row.stats[m].format(METRICS[m]["fmt"], METRICS[m].get("scale", 1.0))
+                if m in TIMING_METRICS and row.timing["overloaded"]:
+                    cell += f" {OVERLOAD_MARK}"
+                    marked = True
+                cells.append(cell)
+            cells.append(str(len(row.episodes)))
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
+        if marked:
+            lines.append(
+                f"{OVERLOAD_MARK} timed with a 1-minute load average above the machine's core count in some of the "
+                "row's episodes (other processes shared the CPU): the timing reads long."
+            )
+            lines.append("")
     return "\n".join(lines)
+
+
+def timing_text(result: LeaderboardResult) -> str:
+    """One sentence: the machine(s) and the load under which the run's timings were taken."""
+    summary = timing_summary([ep for row in result.rows for ep in row.episodes])
+    run = result.timing or {}
+    machines = ", ".join(summary["machines"]) or "unknown"
+    n = sum(len(row.episodes) for row in result.rows)
+    text = (
+        f"Timings (`Ctrl ms`, `controller_ms_median`) were taken on {machines}; 1-minute load average "
+        f"{run.get('load_1min_start')} at the start and {run.get('load_1min_end')} at the end of this run "
+        f"(episodes from the cache keep the record of the run that computed them), highest seen in an episode "
+        f"{summary['load_1min_max']}; {summary['overloaded']} of {n} episodes ran with a load above the core count"
+    )
+    if summary["unknown"]:
+        text += f", {summary['unknown']} without a load record"
+    return text + f" (marked {OVERLOAD_MARK})."
 
 
 def _markdown_document(result: LeaderboardResult, command: str | None, plot_files: Sequence[str]) -> str:
@@ -1091,6 +1178,8 @@ def _markdown_document(result: LeaderboardResult, command: str | None, plot_file
         "same episode there (zero-width intervals); the randomised tasks carry the spread. Agents run only on "
         "the tasks of the environment they were trained on.",
         "",
+        timing_text(result),
+        "",
         markdown_tables(result),
     ]
     if plot_files:
@@ -1106,6 +1195,7 @@ def _csv_text(result: LeaderboardResult) -> str:
     header = ["track", "task", "rank", "tied", "entry", "kind", "episodes"]
     for metric in METRICS:
         header += [f"{metric}_mean", f"{metric}_ci_low", f"{metric}_ci_high"]
+    header += ["timing_episodes_overloaded", "timing_episodes_unknown_load", "timing_load_1min_max", "timing_machine"]
     writer.writerow(header)
     for row in result.rows:
         cells: list[Any] = [
@@ -1120,6 +1210,10 @@ def _csv_text(result: LeaderboardResult) -> str:
         for metric in METRICS:
             stat = row.stats[metric]
             cells += ["" if not math.isfinite(v) else f"{v:.6g}" for v in (stat.mean, stat.low, stat.high)]
+        timing = row.timing
+        load_max = timing["load_1min_max"]
+        cells += [timing["overloaded"], timing["unknown"], "" if load_max is None else load_max]
+        cells.append("; ".join(timing["machines"]))
         writer.writerow(cells)
     return buffer.getvalue()
 
@@ -1138,6 +1232,7 @@ def _entry_document(entry: Entry, rows: Sequence[RankedRow]) -> dict[str, Any]:
             row.task.name: {
                 "rank": row.rank,
                 "tied": row.tied,
+                "timing": row.timing,
                 "stats": {m: s.to_json() for m, s in row.stats.items()},
                 "episodes": [{k: v for k, v in ep.items() if k != "trajectory"} for ep in row.episodes],
             }

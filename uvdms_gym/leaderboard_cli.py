@@ -48,6 +48,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--tasks", nargs="+", default=None, metavar="TASK", help="subset of the task suite (by name)")
     p.add_argument("--episodes", type=int, default=None, help="episodes per entry and task (default 20; quick: 2)")
+    p.add_argument(
+        "--max-episode-steps",
+        type=int,
+        default=None,
+        metavar="N",
+        help="cut every episode after N steps (smoke tests: the metrics then describe the first N steps only)",
+    )
     p.add_argument("--force", action="store_true", help="recompute every episode instead of using the cache")
     p.add_argument(
         "--trust",
@@ -61,32 +68,34 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_leaderboard(args: argparse.Namespace) -> int:
-    from agents.policy import UntrustedFileError
+    from dataclasses import replace
+
+    import torch
+
     from uvdms_gym import leaderboard as lb
 
-    try:
-        import torch
-
-        torch.set_num_threads(1)  # tiny MLP policies: one thread is fastest and leaves the other core free
-        tasks = lb.select_tasks(args.tasks, quick=args.quick)
-        episodes = args.episodes if args.episodes is not None else (lb.QUICK_EPISODES if args.quick else None)
-        entries = lb.resolve_entries(args.entries, agents_dir=args.agents_dir, trust=args.trust)
-        result = lb.run_leaderboard(
-            entries,
-            out_dir=args.out,
-            cache_dir=args.cache_dir,
-            tasks=tasks,
-            episodes=episodes if episodes is not None else lb.DEFAULT_EPISODES,
-            force=args.force,
-            trust=args.trust,
-            jobs=args.jobs,
-            progress=not args.no_progress,
-            plots=not args.no_plots,
-            command=_command_line(args),
-        )
-    except (UntrustedFileError, ValueError) as exc:
-        sys.stderr.write(f"uvdms leaderboard: error: {exc}\n")
-        return 2
+    torch.set_num_threads(1)  # tiny MLP policies: one thread is fastest and leaves the other core free
+    tasks = lb.select_tasks(args.tasks, quick=args.quick)
+    if args.max_episode_steps is not None:
+        if args.max_episode_steps < 1:
+            raise ValueError(f"--max-episode-steps must be >= 1, got {args.max_episode_steps}")
+        tasks = tuple(replace(t, max_episode_steps=args.max_episode_steps) for t in tasks)
+    episodes = args.episodes if args.episodes is not None else (lb.QUICK_EPISODES if args.quick else None)
+    # bad entries, seeds or files raise; uvdms_gym.cli.main reports them as one line (exit status 2)
+    entries = lb.resolve_entries(args.entries, agents_dir=args.agents_dir, trust=args.trust)
+    result = lb.run_leaderboard(
+        entries,
+        out_dir=args.out,
+        cache_dir=args.cache_dir,
+        tasks=tasks,
+        episodes=episodes if episodes is not None else lb.DEFAULT_EPISODES,
+        force=args.force,
+        trust=args.trust,
+        jobs=args.jobs,
+        progress=not args.no_progress,
+        plots=not args.no_plots,
+        command=_command_line(args),
+    )
     sys.stdout.write(lb.markdown_tables(result) + "\n")
     log.info(
         "wrote %s (%d episodes computed, %d from cache%s)",
@@ -111,5 +120,7 @@ def _command_line(args: argparse.Namespace) -> str:
         parts += ["--tasks", *args.tasks]
     if args.episodes is not None:
         parts += ["--episodes", str(args.episodes)]
+    if args.max_episode_steps is not None:
+        parts += ["--max-episode-steps", str(args.max_episode_steps)]
     parts += ["--out", args.out]
     return shlex.join(parts)

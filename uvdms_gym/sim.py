@@ -62,6 +62,7 @@ import pybullet as pb
 from pybullet_utils import bullet_client
 
 from uvdms_gym import frames, model
+from uvdms_gym.display import require_display
 from uvdms_gym.hydro import HydroCoefficients, HydroScale, hydro_coefficients, object_wrench
 from uvdms_gym.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
 
@@ -200,7 +201,8 @@ class UVDMSSim:
     Args:
         params: physical parameters (default :class:`UVDMSParams`).
         physics_dt: physics time step, s.
-        gui: open PyBullet's GUI instead of a headless ``DIRECT`` client.
+        gui: open PyBullet's GUI instead of a headless ``DIRECT`` client
+            (:class:`~uvdms_gym.display.DisplayUnavailableError` where no display is available).
         arms: ``False`` loads the bare vehicle (no arms; ``tau`` then has 6 components).
         hydro_scale: model-mismatch factors (see :meth:`set_hydro_scale`).
         self_collision: simulate contact forces between non-adjacent robot links (arm-arm, arm-plate). Off by
@@ -229,6 +231,7 @@ class UVDMSSim:
         self._inv_dt = 1.0 / self._dt
         self._closed = True
         if gui:
+            require_display()  # without a display PyBullet's GUI connect calls exit(): raise instead
             self._client = bullet_client.BulletClient(connection_mode=pb.GUI)
         else:
             with _quiet_stdout():  # DIRECT connect prints "argv[0]=" on the C stdout

@@ -30,6 +30,7 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
+from uvdms_gym.display import gui_available, require_display
 from uvdms_gym.distances import compute_distances, contact_thresholds, velocity_damper
 from uvdms_gym.envs.lowlevel import VelocityLoop
 from uvdms_gym.frames import euler_to_rot_batch, rot_error_batch
@@ -60,6 +61,11 @@ class UVDMSEnv(gym.Env):
 
     Subclasses implement :meth:`_build_task`, :meth:`_initial_state`, :meth:`_output` and
     :meth:`_errors` and set :attr:`with_object`.
+
+    Each instance has its own ``metadata``: ``render_fps`` is ``1 / control_dt`` (one frame per step, so that
+    recorded videos play in real time) and ``render_modes`` lists ``"human"`` only where PyBullet's GUI can
+    open (:mod:`uvdms_gym.display`); ``render_mode="human"`` without a display raises
+    :class:`~uvdms_gym.display.DisplayUnavailableError`.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
@@ -90,6 +96,15 @@ class UVDMSEnv(gym.Env):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if not (physics_dt > 0 and control_dt > 0):
             raise ValueError(f"control_dt and physics_dt must be positive, got {control_dt}, {physics_dt}")
+        if render_mode == "human":
+            require_display()  # a clear exception where PyBullet's GUI connect would call exit()
+        # Per-instance metadata (Gymnasium convention): frames come once per control step, and "human" is listed
+        # only where a display exists, so that check_env's render-mode sweep passes on a headless machine.
+        self.metadata = {
+            **type(self).metadata,
+            "render_fps": 1.0 / float(control_dt),
+            "render_modes": [m for m in type(self).metadata["render_modes"] if m != "human" or gui_available()],
+        }
         n_sub = round(control_dt / physics_dt)
         if n_sub < 1 or abs(n_sub * physics_dt - control_dt) > 1e-9:
             raise ValueError(f"control_dt ({control_dt}) must be a whole multiple of physics_dt ({physics_dt})")
