@@ -46,6 +46,7 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, Flatten
 from stable_baselines3.common.vec_env import VecNormalize
 
 from agents.algos import ALGOS, is_off_policy
+from agents.paths import train_configs_dir
 
 DEFAULT_ENTRY = "default"
 
@@ -253,8 +254,8 @@ class TrainConfig:
 # Public loading functions
 # ------------------------------------------------------------------------------------------------------
 def default_config_path(algo: str) -> Path:
-    """``train_configs/<algo>.yml`` in the repository."""
-    return Path(__file__).resolve().parents[1] / "train_configs" / f"{algo}.yml"
+    """``train_configs/<algo>.yml``: the installed package data or the checkout's file (:mod:`agents.paths`)."""
+    return train_configs_dir() / f"{algo}.yml"
 
 
 def read_config_file(path: str | Path) -> dict[str, dict[str, Any]]:

@@ -298,11 +298,16 @@ def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) 
 def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
     """Check that a loaded agent fits ``env``: its action mode and its observation/action shapes.
 
+    An agent trained on another environment id gets a warning (``agents.policy.EnvMismatchWarning``), not an
+    error: running it elsewhere is allowed, but never silently.
+
     Raises:
         ValueError: on a mismatch (the message names the expected and found values).
     """
     mode = (getattr(agent, "env_kwargs", None) or {}).get("action_mode", "velocity")
     _check_mode(f"agent {name}", env, mode)
+    if hasattr(agent, "check_env_id") and env.spec is not None:
+        agent.check_env_id(env.spec.id)  # warns (agents.policy.EnvMismatchWarning) on another env id
     if tuple(agent.observation_space.shape) != tuple(env.observation_space.shape):
         raise ValueError(
             f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "
