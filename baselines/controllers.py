@@ -10,7 +10,7 @@ Named baselines (:data:`BASELINES`; :func:`make_controller`):
 ==============  ============  ===========================================================================
 name            action_mode   what
 ==============  ============  ===========================================================================
-``mpc``         velocity      kinematic MPC without collision rows (SPEC section 6): ``a = zeta_cmd / zeta_max``
+``mpc``         velocity      kinematic MPC without collision rows (MODEL.md section 6): ``a = zeta_cmd / zeta_max``
 ``campc``       velocity      collision-avoidance MPC (the 18 velocity-damper rows), same action
 ``campc-di``    torque        CAMPC + dynamic inversion without the RBF network (``a = tau / tau_max``)
 ``campc-nndi``  torque        CAMPC + dynamic inversion with the RBF network: the paper's full stack

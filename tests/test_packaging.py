@@ -3,14 +3,18 @@
 The wheel is built once (``pip wheel --no-deps --no-build-isolation``, a few seconds), its file list is
 checked against the checkout, and the unpacked wheel is imported in a subprocess from another working
 directory to check that the package-data paths resolve inside it (what ``uvdms train`` and ``uvdms
-leaderboard`` use). A full ``pip install .`` into a fresh venv is the manual check described in
-``docs/REPRODUCTION.md``.
+leaderboard`` use). The full check is manual (minutes): ``python3 -m venv /tmp/v && /tmp/v/bin/pip install
+-c constraints.txt .`` (a plain venv, not ``--system-site-packages``), then ``/tmp/v/bin/uvdms train ...`` and
+``/tmp/v/bin/uvdms leaderboard --quick`` from a directory outside the checkout.
+
+The wheel is built from a copy of the checkout, so the build leaves no ``build/`` or ``*.egg-info`` in it.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -31,8 +35,11 @@ def shipped_folders() -> list[Path]:
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory) -> tuple[Path, str]:
     out = tmp_path_factory.mktemp("wheel")
+    source = tmp_path_factory.mktemp("source") / "uvdms-gym"
+    ignore = shutil.ignore_patterns(".*", "build", "*.egg-info", "__pycache__", "runs", "docs", "tests", "*_out")
+    shutil.copytree(REPO, source, ignore=ignore)
     build = subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-v", "-w", str(out), str(REPO)],
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-v", "-w", str(out), str(source)],
         capture_output=True,
         text=True,
         timeout=600,
