@@ -2,15 +2,16 @@
 
 Environment steps per second of the training loop (``model.learn``: environment steps, policy inference and
 gradient updates; no evaluation or checkpoint callbacks) for PPO and SAC, each with 1 training env
-(``DummyVecEnv``) and 2 (``SubprocVecEnv``: one worker process per env), on ``uvdms/CircleTrack-v0``
+(``DummyVecEnv``), 2 envs in worker processes (``SubprocVecEnv``, key ``"2"``) and 2 envs stepped in the
+trainer's process (``DummyVecEnv``, key ``"2_dummy"``, the ``--vec-env`` default), on ``uvdms/CircleTrack-v0``
 (``case=1``) with the configurations of ``train_configs/<algo>.yml``. SAC's ``learning_starts`` is lowered
 to 100 steps so that its blocks include the gradient steps of steady-state training.
 
-The models of 1 and 2 envs are built first, then timed in alternating blocks (PPO: one rollout of
+The three models are built first, then timed in alternating blocks (PPO: one rollout of
 ``n_steps x n_envs`` steps and its update; SAC: a fixed number of environment steps), so a change in machine
-load affects both alike; the figures are medians over blocks and ``speedup_2_vs_1`` is the ratio of the
-medians. The load average before and after is part of the result: timings taken beside other jobs are
-only indicative.
+load affects all alike; the figures are medians over blocks and ``speedup_2_vs_1`` is the ratio of the
+medians (``speedup_2_dummy_vs_1`` likewise). The load average before and after is part of the result:
+timings taken beside other jobs are only indicative.
 
 Threads: the trainer runs ``torch.set_num_threads(1)`` (as :func:`agents.train.train` does), and each env
 worker sets it too (:class:`agents.train.EnvFactory`). With 2 envs on 2 cores the two workers step the
@@ -31,8 +32,12 @@ BENCH_ENV_KWARGS: dict[str, Any] = {"case": 1}
 SAC_LEARNING_STARTS = 100
 
 
-def _build(algo: str, n_envs: int, total_steps: int, seed: int = 0) -> Any:
-    """A model of ``train_configs/<algo>.yml`` on ``n_envs`` training envs (subprocesses when > 1).
+CONFIGURATIONS: tuple[tuple[str, int, str], ...] = (("1", 1, "dummy"), ("2", 2, "subproc"), ("2_dummy", 2, "dummy"))
+"""(result key, n_envs, vec_env) of the timed models."""
+
+
+def _build(algo: str, n_envs: int, vec_env: str, total_steps: int, seed: int = 0) -> Any:
+    """A model of ``train_configs/<algo>.yml`` on ``n_envs`` training envs of type ``vec_env``.
 
     ``total_steps`` caps the replay buffer (:func:`agents.train.replay_buffer_size`).
     """
@@ -50,7 +55,7 @@ def _build(algo: str, n_envs: int, total_steps: int, seed: int = 0) -> Any:
         EnvFactory(BENCH_ENV, cfg.env_kwargs, alive_bonus=cfg.alive_bonus, action_scale=cfg.action_scale)
         for _ in range(n_envs)
     ]
-    venv = _make_vec_env(factories, "subproc" if n_envs > 1 else "dummy")
+    venv = _make_vec_env(factories, vec_env)
     normalize_kwargs = cfg.normalize_kwargs()
     if normalize_kwargs is not None:
         venv = VecNormalize(venv, **normalize_kwargs)
@@ -77,8 +82,9 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
         sac_block_steps: Environment steps per SAC block (default 1000, quick 200).
 
     Returns:
-        ``{"ppo": {"1": {...}, "2": {...}, "speedup_2_vs_1": r}, "sac": {...}, "load_avg_before": [...], ...}``;
-        each entry has ``vec_env``, ``block_steps``, ``steps_per_s`` (median over blocks) and ``blocks_steps_per_s``.
+        ``{"ppo": {"1": {...}, "2": {...}, "2_dummy": {...}, "speedup_2_vs_1": r, ...}, "sac": {...},
+        "load_avg_before": [...], ...}``; each entry has ``n_envs``, ``vec_env``, ``block_steps``, ``steps_per_s``
+        (median over blocks) and ``blocks_steps_per_s``.
     """
     import torch
 
@@ -93,30 +99,33 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
         "load_avg_before": list(os.getloadavg()),
     }
     for algo in ("ppo", "sac"):
-        models = {n: _build(algo, n, (blocks + 1) * sac_steps + SAC_LEARNING_STARTS + n) for n in (1, 2)}
+        total = (blocks + 1) * sac_steps + SAC_LEARNING_STARTS + 2
+        models = {key: _build(algo, n, vec_env, total) for key, n, vec_env in CONFIGURATIONS}
+        n_envs = {key: n for key, n, _ in CONFIGURATIONS}
         try:
-            sizes = {
-                n: (int(m.n_steps) * n if algo == "ppo" else sac_steps) for n, m in models.items()
-            }  # PPO: one rollout and its update per block
-            for n, model in models.items():  # warm-up: fills SAC's learning_starts, first PPO update
-                _block(model, max(sizes[n], SAC_LEARNING_STARTS + n) if algo == "sac" else sizes[n])
-            rates: dict[int, list[float]] = {1: [], 2: []}
+            # PPO: one rollout of n_steps x n_envs and its update per block; SAC: sac_steps environment steps
+            sizes = {key: int(m.n_steps) * n_envs[key] if algo == "ppo" else sac_steps for key, m in models.items()}
+            for key, model in models.items():  # warm-up: past SAC's learning_starts, PPO's first update
+                _block(model, sizes[key] if algo == "ppo" else max(sac_steps, SAC_LEARNING_STARTS + 2))
+            rates: dict[str, list[float]] = {key: [] for key in models}
             for _ in range(blocks):
-                for n, model in models.items():
-                    steps, seconds = _block(model, sizes[n])
-                    rates[n].append(steps / seconds)
+                for key, model in models.items():
+                    steps, seconds = _block(model, sizes[key])
+                    rates[key].append(steps / seconds)
         finally:
             for model in models.values():
                 model.get_env().close()
         entry: dict[str, Any] = {}
-        for n in (1, 2):
-            entry[str(n)] = {
-                "vec_env": "subproc" if n > 1 else "dummy",
-                "block_steps": sizes[n],
-                "steps_per_s": float(np.median(rates[n])),
-                "blocks_steps_per_s": rates[n],
+        for key, n, vec_env in CONFIGURATIONS:
+            entry[key] = {
+                "n_envs": n,
+                "vec_env": vec_env,
+                "block_steps": sizes[key],
+                "steps_per_s": float(np.median(rates[key])),
+                "blocks_steps_per_s": rates[key],
             }
         entry["speedup_2_vs_1"] = entry["2"]["steps_per_s"] / entry["1"]["steps_per_s"]
+        entry["speedup_2_dummy_vs_1"] = entry["2_dummy"]["steps_per_s"] / entry["1"]["steps_per_s"]
         result[algo] = entry
     result["load_avg_after"] = list(os.getloadavg())
     return result
