@@ -26,6 +26,14 @@ Seed scheme (``seed`` = ``--seed``; segment k = 0 for a fresh run, k = 1, 2, ...
   evaluations of a run use the same episodes (common random numbers for choosing the best model) and
   never the training seeds (requires fewer than 1000 segments).
 
+A fresh run that fails or is interrupted before it saved any model removes its directory again (nothing
+there could be resumed), so the same command can be rerun; errors creating the environments (a bad
+``--env-kwargs`` value) are reported as :class:`agents.config.ConfigError`. Off-policy replay buffers are
+allocated for at most the steps of the run (:func:`replay_buffer_size`; training is identical, the saved
+``replay_buffer.pkl`` small) and grown when a resume adds steps. PPO collects whole rollouts of
+``n_steps x n_envs`` steps, so it warns when that rounds ``--total-timesteps`` up (``planned_timesteps`` in the
+segment record).
+
 ``--resume DIR`` reloads the newest of ``final_model.zip`` and ``checkpoints/rl_model_<N>_steps.zip``
 (with its VecNormalize statistics and, if saved, its replay buffer), keeps counting ``num_timesteps``
 (``reset_num_timesteps=False``) and writes into the same directory. ``--total-timesteps`` then means
