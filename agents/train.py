@@ -693,6 +693,8 @@ def _run_segment(
         for env in (venv, eval_venv):
             if env is not None:
                 env.close()
+        if model is not None and getattr(model, "_logger", None) is not None:
+            model.logger.close()  # progress.csv and TensorBoard files
 
 
 def _configured_buffer_size(cfg: TrainConfig) -> int:
