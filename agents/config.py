@@ -46,6 +46,7 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, Flatten
 from stable_baselines3.common.vec_env import VecNormalize
 
 from agents.algos import ALGOS, is_off_policy
+from agents.paths import train_configs_dir
 
 DEFAULT_ENTRY = "default"
 
@@ -151,7 +152,9 @@ class TrainConfig:
         noise_type: Exploration noise of off-policy algorithms: ``None``, ``normal``, ``ornstein-uhlenbeck``.
         noise_std: Standard deviation of the exploration noise (in normalised action units).
         save_replay_buffer: Save the replay buffer with the final model and the latest checkpoint, so that
-            ``--resume`` continues with a filled buffer (large files: buffer_size x transition size).
+            ``--resume`` continues with a filled buffer. The file holds the whole allocated buffer, so the
+            training script caps ``buffer_size`` at the transitions the run can store (and grows it on resume;
+            :func:`agents.train.replay_buffer_size`): about 0.7 kB per step for the uvdms envs.
         max_episode_steps: Episode length limit passed to ``gymnasium.make`` for training and evaluation
             environments (``None``: the registered limit). Useful for short test runs.
         alive_bonus: Constant added to every training/evaluation-callback reward (a training-side shaping
@@ -253,8 +256,8 @@ class TrainConfig:
 # Public loading functions
 # ------------------------------------------------------------------------------------------------------
 def default_config_path(algo: str) -> Path:
-    """``train_configs/<algo>.yml`` in the repository."""
-    return Path(__file__).resolve().parents[1] / "train_configs" / f"{algo}.yml"
+    """``train_configs/<algo>.yml``: the installed package data or the checkout's file (:mod:`agents.paths`)."""
+    return train_configs_dir() / f"{algo}.yml"
 
 
 def read_config_file(path: str | Path) -> dict[str, dict[str, Any]]:

@@ -4,8 +4,9 @@ For every folder ``trained_agents/<name>/`` this runs ``uvdms evaluate --control
 --env <its env> --env-kwargs <its task> --episodes 10 --seed 1000 --out trained_agents/<name>/evaluation.json``
 (as a subprocess, so the command line itself is exercised), then evaluates the references once per task
 into ``trained_agents/reference/<task>_{campc,random}.json`` (``campc`` through the same command; the random
-policy through :func:`baselines.evaluate.run_episode`, as it is not a named controller) and prints the
-markdown table of the README.
+policy through :func:`baselines.evaluate.run_episode`, as it is not a named controller), rewrites each agent
+folder's ``README.md`` with its numbers (:func:`agents.ship.write_readme`) and prints the markdown table of the
+README.
 
 Seeds: the agents were trained on environment seeds 0 and 1 (and evaluated during training on 1000000+);
 the evaluation uses seeds 1000-1009, disjoint from both. CircleTrack case 1/2 and Transport goal=paper are
@@ -185,6 +186,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             data = json.loads(out.read_text(encoding="utf-8"))
         else:
             data = run_uvdms_evaluate(f"trained_agents/{folder.name}", env_id, task, out, args.episodes, args.seed)
+        from agents.ship import write_readme
+
+        write_readme(folder)  # its numbers come from evaluation.json
         meta = json.loads((folder / "meta.json").read_text(encoding="utf-8"))
         shipped = meta["shipped"]
         row = summary_row(f"{meta['algo'].upper()} (`{folder.name}`)", data)

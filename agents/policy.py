@@ -27,6 +27,7 @@ import inspect
 import json
 import math
 import pickle
+import warnings
 import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -43,11 +44,12 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from agents.algos import ALGOS
 from agents.config import ConfigError, is_unit_scale, plain_policy_kwargs, resolve_policy_kwargs
+from agents.paths import trained_agents_dir
 from agents.train import package_versions
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-TRUSTED_DIR = REPO_ROOT / "trained_agents"
-"""SB3 zips and pickles inside this folder (committed, reviewed agents) load without ``trust=True``."""
+TRUSTED_DIR = trained_agents_dir()
+"""The shipped agents (the checkout's ``trained_agents/`` or its installed copy, :mod:`agents.paths`): SB3 zips
+and pickles inside this folder (committed, reviewed agents) load without ``trust=True``."""
 
 FORMAT_NAME = "uvdms-agent-weights"
 FORMAT_VERSION = 1
@@ -70,6 +72,10 @@ class UntrustedFileError(ValueError):
 
 class ExportFormatError(ValueError):
     """A weights-only export is malformed, tampered with, or cannot represent the policy."""
+
+
+class EnvMismatchWarning(UserWarning):
+    """An agent is evaluated on an environment id other than the one it was trained on."""
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -145,6 +151,32 @@ class AgentController:
     def action_space(self) -> spaces.Space:
         """Action space of the policy's outputs."""
         return self.policy.action_space
+
+    def check_env_id(self, env_id: str | None) -> bool:
+        """Warn if the agent is about to run on another environment than the one it was trained on.
+
+        An agent's observation layout and reward are those of its training environment: a CircleTrack agent
+        evaluated on Transport gets observations of the same shape but another meaning. Evaluation code
+        (``baselines.controllers.check_agent``, used by ``uvdms evaluate`` and the leaderboard) calls this.
+
+        Args:
+            env_id: Id of the evaluation environment (``None``: unknown, nothing to check).
+
+        Returns:
+            Whether the ids agree (``True`` when either is unknown).
+
+        Warns:
+            EnvMismatchWarning: The ids differ (the message names both).
+        """
+        if env_id is None or self.env_id is None or env_id == self.env_id:
+            return True
+        warnings.warn(
+            f"agent {self.source or self.algo} was trained on {self.env_id} but runs on {env_id}: its observations "
+            "there mean something else, so its actions are not those of a trained policy",
+            EnvMismatchWarning,
+            stacklevel=2,
+        )
+        return False
 
     def reset(self, seed: int | None = None) -> None:
         """Start an episode. The MLP policies are stateless and deterministic; the seed is only recorded."""

@@ -11,11 +11,15 @@ Shipped agent folder::
                             evaluation callback's episodes
     training_logs/          the run's Monitor CSVs, progress.csv and evaluations.npz (small text/npz files)
     evaluation.json         written afterwards by ``uvdms evaluate --controller trained_agents/<name> ...``
+    README.md               what the agent is, its evaluation, and how to run it with this project or with
+                            plain Stable-Baselines3 (:func:`write_readme`; the ``action_scale`` wrapper and the
+                            VecNormalize statistics that ``<ALGO>.load`` alone does not apply)
 
 :func:`agents.policy.load_agent` loads such a folder (``model.zip`` + ``vecnormalize.pkl``); pickles inside
 the repository's ``trained_agents/`` are trusted (they are reviewed and committed).
 
-Command line: ``python -m agents.ship RUN_DIR OUT_DIR [--which best|final]``.
+Command line: ``python -m agents.ship RUN_DIR OUT_DIR [--which best|final]``; ``python -m agents.ship --readme
+FOLDER ...`` rewrites the README of packaged folders (after ``agents.evaluate_shipped`` wrote their evaluation).
 """
 
 from __future__ import annotations
@@ -190,17 +194,174 @@ def package_run(run_dir: str | Path, out_dir: str | Path, *, which: str = "best"
     meta["shipped"] = shipped
     (out_dir / "meta.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     plot_training_curve(run_dir, out_dir / "training_curve.png", title=f"{out_dir.name}: {resolved['env_id']}")
+    write_readme(out_dir)
     return out_dir
+
+
+TASK_KEYS = ("case", "goal", "action_mode")
+"""``env_kwargs`` keys that define an agent's evaluation task (training-only keys such as ``effort_weight`` are
+left out: evaluation uses the environment's defaults)."""
+README_SNIPPET_HEADING = "## With plain Stable-Baselines3"
+"""Heading of the README section whose ``python`` block runs the agent without this project's loader."""
+
+
+def plain_sb3_snippet(folder: str | Path, repo_relative: str | None = None) -> str:
+    """Python code running a shipped agent with plain Stable-Baselines3 and Gymnasium (one episode).
+
+    It applies what ``<ALGO>.load`` alone does not: the ``action_scale`` of the configuration (one
+    ``gymnasium.wrappers.TransformAction``) and, when the run normalised observations, the statistics of
+    ``vecnormalize.pkl`` (``VecNormalize.normalize_obs``). ``tests/test_shipped_readmes.py`` runs this code
+    from every README and checks that its actions equal :class:`agents.policy.AgentController`'s.
+
+    Args:
+        folder: The agent folder (``model.zip``, ``config.yml``, optional ``vecnormalize.pkl``).
+        repo_relative: The folder path written into the code (default ``trained_agents/<name>``).
+
+    Returns:
+        The code (no trailing fence).
+    """
+    folder = Path(folder)
+    resolved = yaml.safe_load((folder / "config.yml").read_text(encoding="utf-8"))
+    algo_cls = resolved["algo"].upper()
+    env_id = resolved["env_id"]
+    config = resolved["config"]
+    env_kwargs = config.get("env_kwargs", {})
+    task = ", ".join(f"{k}={json.dumps(v)}" for k, v in env_kwargs.items() if k in TASK_KEYS)
+    scale = float(config.get("action_scale", 1.0))
+    stats = (folder / SHIPPED_STATS).is_file()
+    module = "sb3_contrib" if resolved["algo"] == "tqc" else "stable_baselines3"
+    lines = ["import gymnasium as gym", f"from {module} import {algo_cls}"]
+    if stats:
+        lines.append("from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize")
+    lines += [
+        "",
+        "import uvdms_gym  # noqa: F401  (registers the environment ids)",
+        "",
+        f'folder = "{repo_relative or f"trained_agents/{folder.name}"}"',
+        f'model = {algo_cls}.load(f"{{folder}}/model.zip", device="cpu")',
+        f'env = gym.make("{env_id}", {task})',
+    ]
+    if scale != 1.0:
+        lines.append(
+            f"env = gym.wrappers.TransformAction(env, lambda a: {scale!r} * a, env.action_space)  "
+            f"# action_scale {scale!r} (config.yml)"
+        )
+    if stats:
+        lines.append(
+            'stats = VecNormalize.load(f"{folder}/vecnormalize.pkl", DummyVecEnv([lambda: env]))  '
+            "# observation statistics"
+        )
+    observation = "stats.normalize_obs(obs)" if stats else "obs"
+    lines += [
+        "obs, info = env.reset(seed=1000)",
+        "episode_return, done = 0.0, False",
+        "while not done:",
+        f"    action, _ = model.predict({observation}, deterministic=True)",
+        "    obs, reward, terminated, truncated, info = env.step(action)",
+        "    episode_return += reward",
+        "    done = terminated or truncated",
+        'print(f"return {episode_return:.1f}")',
+    ]
+    return "\n".join(lines)
+
+
+def write_readme(folder: str | Path) -> Path:
+    """Write ``README.md`` of a shipped agent folder from its ``config.yml``, ``meta.json`` and ``evaluation.json``.
+
+    Args:
+        folder: The agent folder.
+
+    Returns:
+        The README path.
+    """
+    folder = Path(folder)
+    resolved = yaml.safe_load((folder / "config.yml").read_text(encoding="utf-8"))
+    meta = json.loads((folder / "meta.json").read_text(encoding="utf-8"))
+    shipped = meta.get("shipped", {})
+    algo, env_id, config = resolved["algo"], resolved["env_id"], resolved["config"]
+    env_kwargs = config.get("env_kwargs", {})
+    task = {k: v for k, v in env_kwargs.items() if k in TASK_KEYS}
+    task_kv = " ".join(f"{k}={v}" for k, v in task.items())
+    scale = float(config.get("action_scale", 1.0))
+    stats = (folder / SHIPPED_STATS).is_file()
+    name = folder.name
+    which = "the evaluation callback's best model" if shipped.get("which") == "best" else "the final model"
+    text = [
+        f"# {name}: {algo.upper()} on `{env_id}` ({task_kv})",
+        "",
+        f"A Stable-Baselines3 {algo.upper()} agent for `{env_id}` with `{task_kv}`, trained by `uvdms train` "
+        f"(seed {resolved['seed']}, budget {shipped.get('budget_timesteps', '?')} environment steps, "
+        f"{shipped.get('wall_time_s', 0) / 60:.0f} min of training; `meta.json` has the seeds, package versions and "
+        f"git revision, `config.yml` the full configuration). `model.zip` is {which} "
+        f"({shipped.get('model_num_timesteps', '?')} steps)"
+        + (", `vecnormalize.pkl` its observation normalisation." if stats else "."),
+        "",
+        "## Evaluation",
+        "",
+    ]
+    evaluation = folder / "evaluation.json"
+    if evaluation.is_file():
+        data = json.loads(evaluation.read_text(encoding="utf-8"))
+        summary, seeds = data["summary"], data["meta"]["seeds"]
+        text.append(
+            f"`evaluation.json` (`uvdms evaluate`, {len(seeds)} episodes, seeds {seeds[0]}-{seeds[-1]}, env kwargs "
+            f"`{data['meta']['env_kwargs']}`): return {summary['return']:.1f}, position RMSE "
+            f"{summary['rmse_pos']:.3f} m, {summary['contacts']:.2f} contact steps per episode, "
+            f"{summary['steps']:.0f} steps per episode, success rate {summary['success_rate']:.0%}."
+        )
+    else:
+        text.append("Not evaluated yet (`python -m agents.evaluate_shipped` writes `evaluation.json`).")
+    text += [
+        "",
+        "## With this project",
+        "",
+        f"`uvdms evaluate --controller trained_agents/{name} --env {env_id} --env-kwargs {task_kv} --episodes 10 "
+        "--seed 1000` reproduces `evaluation.json`; in Python, "
+        f'`agents.policy.load_agent("trained_agents/{name}")` returns a controller whose `predict(obs)` applies '
+        "the observation normalisation and the action scale.",
+        "",
+        README_SNIPPET_HEADING,
+        "",
+    ]
+    needs = []
+    if scale != 1.0:
+        needs.append(
+            f"**The action is scaled**: the agent was trained with `action_scale: {scale!r}` (`config.yml`), so the "
+            f"environment must receive `{scale!r} * action`. `{algo.upper()}.load` does not know this; add the one "
+            f"wrapper `gym.wrappers.TransformAction(env, lambda a: {scale!r} * a, env.action_space)` below (without "
+            f"it every command is {1 / scale:.1f} times too large and the agent tracks worse)."
+        )
+    else:
+        needs.append("No action scaling (`action_scale: 1.0`): the environment receives `model.predict`'s action.")
+    if stats:
+        needs.append(
+            "Observations are normalised with the statistics of `vecnormalize.pkl` (`VecNormalize.normalize_obs`; "
+            "loading it unpickles the file, as `model.zip` does: load only files you trust)."
+        )
+    text += [" ".join(needs), "", "From the repository root:", "", "```python", plain_sb3_snippet(folder), "```", ""]
+    text.append(
+        "The printed return is that of seed 1000; the task is deterministic, so it equals the mean return above."
+    )
+    path = folder / "README.md"
+    path.write_text("\n".join(text) + "\n", encoding="utf-8")
+    return path
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: ``python -m agents.ship RUN_DIR OUT_DIR [--which best|final] [--overwrite]``."""
     parser = argparse.ArgumentParser(prog="python -m agents.ship", description=__doc__.split("\n\n")[0])
-    parser.add_argument("run_dir", type=Path)
-    parser.add_argument("out_dir", type=Path)
+    parser.add_argument("run_dir", type=Path, nargs="?")
+    parser.add_argument("out_dir", type=Path, nargs="?")
     parser.add_argument("--which", choices=("best", "final"), default="best")
     parser.add_argument("--overwrite", action="store_true")
+    parser.add_argument("--readme", type=Path, nargs="+", metavar="FOLDER", help="only rewrite these folders' README")
     args = parser.parse_args(argv)
+    if args.readme:
+        for folder in args.readme:
+            print(write_readme(folder))
+        return 0
+    if args.run_dir is None or args.out_dir is None:
+        parser.error("RUN_DIR and OUT_DIR are required unless --readme is given")
     try:
         out = package_run(args.run_dir, args.out_dir, which=args.which, overwrite=args.overwrite)
     except (FileExistsError, FileNotFoundError, ValueError) as exc:

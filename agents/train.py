@@ -26,6 +26,14 @@ Seed scheme (``seed`` = ``--seed``; segment k = 0 for a fresh run, k = 1, 2, ...
   evaluations of a run use the same episodes (common random numbers for choosing the best model) and
   never the training seeds (requires fewer than 1000 segments).
 
+A fresh run that fails or is interrupted before it saved any model removes its directory again (nothing
+there could be resumed), so the same command can be rerun; errors creating the environments (a bad
+``--env-kwargs`` value) are reported as :class:`agents.config.ConfigError`. Off-policy replay buffers are
+allocated for at most the steps of the run (:func:`replay_buffer_size`; training is identical, the saved
+``replay_buffer.pkl`` small) and grown when a resume adds steps. PPO collects whole rollouts of
+``n_steps x n_envs`` steps, so it warns when that rounds ``--total-timesteps`` up (``planned_timesteps`` in the
+segment record).
+
 ``--resume DIR`` reloads the newest of ``final_model.zip`` and ``checkpoints/rl_model_<N>_steps.zip``
 (with its VecNormalize statistics and, if saved, its replay buffer), keeps counting ``num_timesteps``
 (``reset_num_timesteps=False``) and writes into the same directory. ``--total-timesteps`` then means
@@ -39,10 +47,14 @@ import dataclasses
 import datetime
 import difflib
 import importlib
+import inspect
 import json
+import logging
+import math
 import os
 import re
 import shlex
+import shutil
 import sys
 import time
 import warnings
@@ -66,7 +78,8 @@ from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
 from agents.config import ConfigError, TrainConfig, default_config_path, is_unit_scale, load_config, parse_entry
 from uvdms_gym.provenance import git_info, package_versions
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
+log = logging.getLogger(__name__)
+
 SEGMENT_SEED_STRIDE = 1000
 EVAL_SEED_OFFSET = 1_000_000
 CHECKPOINT_PREFIX = "rl_model"
@@ -153,7 +166,12 @@ class EnvFactory:
     action_scale: float = 1.0
 
     def __call__(self) -> gym.Env:
-        """Create the environment wrapped in a ``Monitor`` (action scaling and alive bonus inside it)."""
+        """Create the environment wrapped in a ``Monitor`` (action scaling and alive bonus inside it).
+
+        Also sets ``torch.set_num_threads(1)`` in the calling process: in a ``SubprocVecEnv`` worker (which
+        imports torch with this module but never uses it) as in the trainer (see :func:`train`).
+        """
+        torch.set_num_threads(1)
         check_env_id(self.env_id, self.gym_packages)
         make_kwargs = dict(self.env_kwargs)
         if self.max_episode_steps is not None:
@@ -355,8 +373,8 @@ def train(
     if run_dir.exists() and any(run_dir.iterdir()):
         if latest_checkpoint(run_dir) is None:
             raise RunDirError(
-                f"run directory {run_dir} exists but holds no model (a failed start? see its "
-                "meta.json); delete it or use another --seed/--out"
+                f"run directory {run_dir} exists but holds no model (a run still starting, or one killed before "
+                "its first checkpoint: see its meta.json); delete it or use another --seed/--out"
             )
         raise RunDirError(f"run directory {run_dir} exists; use --resume {run_dir} or another --seed/--out")
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -410,8 +428,26 @@ def train(
         command += ["--env-kwargs", *(f"{k}={json.dumps(v)}" for k, v in env_kwargs.items())]
     if hyperparams:
         command += ["--hyperparams", *(f"{k}={json.dumps(v)}" for k, v in hyperparams.items())]
-    _run_segment(run_dir, cfg, env_id, seed, gym_packages, cfg.n_timesteps, command, None, progress, vec_env, verbose)
+    try:
+        _run_segment(
+            run_dir, cfg, env_id, seed, gym_packages, cfg.n_timesteps, command, None, progress, vec_env, verbose
+        )
+    except BaseException:
+        _remove_if_no_model(run_dir)
+        raise
     return run_dir
+
+
+def _remove_if_no_model(run_dir: Path) -> None:
+    """Delete a fresh run's directory that holds no model, so that rerunning the same command works.
+
+    A fresh run that fails (or is interrupted) before its first checkpoint or final model leaves only its
+    config, meta record and partial logs, which would otherwise block the seed ("exists but holds no model").
+    """
+    if latest_checkpoint(run_dir) is not None:
+        return
+    shutil.rmtree(run_dir, ignore_errors=True)
+    log.warning("removed %s: the run failed before saving a model; the same command can be rerun", run_dir)
 
 
 def _resume(
@@ -538,14 +574,23 @@ def _run_segment(
     eval_venv: VecEnv | None = None
     model: BaseAlgorithm | None = None
     start = time.perf_counter()
+    start_timesteps = checkpoint.num_timesteps if checkpoint else 0
     try:
-        venv = _make_vec_env(train_factories, vec_env)
-        eval_venv = DummyVecEnv(eval_factories)
+        try:
+            venv = _make_vec_env(train_factories, vec_env)
+            eval_venv = DummyVecEnv(eval_factories)
+        except Exception as exc:  # a bad --env-kwargs value surfaces here: report it as a config error
+            raise ConfigError(
+                f"cannot create {env_id} with env_kwargs {dict(cfg.env_kwargs)} (eval: {eval_kwargs}): "
+                f"{type(exc).__name__}: {exc}"
+            ) from exc
         normalize_kwargs = cfg.normalize_kwargs()
         if checkpoint is None:
             if normalize_kwargs is not None:
                 venv = VecNormalize(venv, **normalize_kwargs)
             kwargs = cfg.sb3_hyperparams()
+            if is_off_policy(cfg.algo):
+                kwargs["buffer_size"] = replay_buffer_size(_configured_buffer_size(cfg), cfg.n_envs, timesteps)
             if cfg.noise_type is not None:
                 kwargs["action_noise"] = cfg.action_noise(venv.action_space)
             model = ALGOS[cfg.algo](
@@ -575,6 +620,13 @@ def _run_segment(
                         stacklevel=2,
                     )
                 record["replay_buffer_loaded"] = checkpoint.replay_buffer is not None
+                grow_replay_buffer(
+                    model,
+                    replay_buffer_size(_configured_buffer_size(cfg), cfg.n_envs, start_timesteps + timesteps),
+                )
+        if is_off_policy(cfg.algo):
+            record["replay_buffer_size"] = int(model.replay_buffer.buffer_size * model.replay_buffer.n_envs)
+        record["planned_timesteps"] = _planned_timesteps(model, cfg, timesteps)
         if normalize_kwargs is not None:
             eval_venv = VecNormalize(
                 eval_venv,
@@ -641,6 +693,88 @@ def _run_segment(
         for env in (venv, eval_venv):
             if env is not None:
                 env.close()
+        if model is not None and getattr(model, "_logger", None) is not None:
+            model.logger.close()  # progress.csv and TensorBoard files
+
+
+def _configured_buffer_size(cfg: TrainConfig) -> int:
+    """``buffer_size`` of the configuration, or the algorithm's default."""
+    if "buffer_size" in cfg.hyperparams:
+        return int(cfg.hyperparams["buffer_size"])
+    return int(inspect.signature(ALGOS[cfg.algo].__init__).parameters["buffer_size"].default)
+
+
+def replay_buffer_size(configured: int, n_envs: int, total_timesteps: int) -> int:
+    """Replay-buffer capacity (transitions) for a run that ends at ``total_timesteps``.
+
+    SB3 preallocates the whole buffer (and ``save_replay_buffer`` pickles all of it), so a 300-step run with
+    ``buffer_size: 300000`` would hold and write ~200 MB. The capacity is capped at the transitions the run
+    can store, ``n_envs * (ceil(total_timesteps / n_envs) + 1)``: the buffer never fills, so sampling and
+    training are exactly those of the configured size. A resumed run grows it (:func:`grow_replay_buffer`).
+
+    Args:
+        configured: ``buffer_size`` of the configuration.
+        n_envs: Number of training environments.
+        total_timesteps: ``num_timesteps`` at the end of the segment.
+
+    Returns:
+        ``min(configured, cap)``.
+    """
+    return min(int(configured), n_envs * (math.ceil(total_timesteps / n_envs) + 1))
+
+
+def grow_replay_buffer(model: BaseAlgorithm, size: int) -> bool:
+    """Enlarge an off-policy model's replay buffer to ``size`` transitions, keeping its content.
+
+    A buffer that has wrapped around (``full``) or is already large enough is left alone (a full buffer was
+    allocated at the configured size, see :func:`replay_buffer_size`).
+
+    Args:
+        model: An off-policy SB3 model.
+        size: The capacity wanted, in transitions over all envs.
+
+    Returns:
+        Whether the buffer was enlarged.
+    """
+    buffer = model.replay_buffer
+    old = buffer.buffer_size
+    new = max(size // buffer.n_envs, 1)
+    if buffer.full or new <= old:
+        return False
+    for name, value in list(vars(buffer).items()):
+        if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == old:
+            setattr(buffer, name, _grown(value, new, buffer.pos))
+        elif isinstance(value, dict) and all(isinstance(v, np.ndarray) for v in value.values()):
+            setattr(buffer, name, {k: _grown(v, new, buffer.pos) if v.shape[0] == old else v for k, v in value.items()})
+    buffer.buffer_size = new
+    model.buffer_size = new * buffer.n_envs
+    return True
+
+
+def _grown(array: np.ndarray, length: int, filled: int) -> np.ndarray:
+    out = np.zeros((length, *array.shape[1:]), dtype=array.dtype)
+    out[:filled] = array[:filled]
+    return out
+
+
+def _planned_timesteps(model: BaseAlgorithm, cfg: TrainConfig, timesteps: int) -> int:
+    """Steps the segment will run: on-policy algorithms collect whole rollouts of ``n_steps x n_envs``.
+
+    Warns when that exceeds the requested steps (PPO with ``--total-timesteps 300`` and ``n_steps: 1024`` on
+    2 envs runs 2048 steps).
+    """
+    if is_off_policy(cfg.algo):
+        return timesteps
+    rollout = int(model.n_steps) * cfg.n_envs
+    planned = math.ceil(timesteps / rollout) * rollout
+    if planned != timesteps:
+        warnings.warn(
+            f"{cfg.algo.upper()} trains in whole rollouts of n_steps x n_envs = {model.n_steps} x {cfg.n_envs} = "
+            f"{rollout} steps: the {timesteps} requested steps run as {planned} (pass --hyperparams n_steps=N "
+            "for shorter rollouts)",
+            stacklevel=3,
+        )
+    return planned
 
 
 def scale_action_layer(model: BaseAlgorithm, scale: float) -> torch.nn.Linear:
@@ -769,11 +903,11 @@ def parse_key_values(items: Sequence[str] | None, option: str = "--env-kwargs") 
     """Parse ``key=value`` strings; values are YAML literals (``yaml.safe_load``).
 
     Args:
-        items: Strings such as ``["case=1", "goal=paper", "hydro_randomization=true"]``.
+        items: Strings such as ``["case=1", "goal=paper", "hydro_randomization=0.3"]``.
         option: Option name for error messages.
 
     Returns:
-        The mapping (``{"case": 1, "goal": "paper", "hydro_randomization": True}``).
+        The mapping (``{"case": 1, "goal": "paper", "hydro_randomization": 0.3}``).
 
     Raises:
         ConfigError: On a malformed item.
@@ -817,7 +951,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("interrupted: final_model.zip saved; continue with --resume", file=sys.stderr)
+        run_dir = args.resume or run_dir_for(args.out, args.env_id, args.algo, args.seed)
+        if latest_checkpoint(run_dir) is not None:
+            print(f"interrupted: final_model.zip saved; continue with --resume {run_dir}", file=sys.stderr)
+        else:
+            print("interrupted before a model was saved: nothing to resume", file=sys.stderr)
         return 130
     print(run_dir)
     return 0

@@ -225,7 +225,7 @@ TRANSPORT_ATTITUDE_WEIGHT = 10.0
 
 
 def task_config(task: Literal["circle", "transport"], collision: bool = True, **overrides: object) -> MPCConfig:
-    """The MPC settings used for a task (SPEC section 5); ``overrides`` replace any field.
+    """The MPC settings used for a task (docs/MODEL.md section 5); ``overrides`` replace any field.
 
     * ``"circle"``: end-effector positions, ``Q = 1e3``, ``R =`` :data:`CIRCLE_R_WEIGHT`, no attitude or posture
       outputs, no closed chain.

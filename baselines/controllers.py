@@ -10,7 +10,7 @@ Named baselines (:data:`BASELINES`; :func:`make_controller`):
 ==============  ============  ===========================================================================
 name            action_mode   what
 ==============  ============  ===========================================================================
-``mpc``         velocity      kinematic MPC without collision rows (SPEC section 6): ``a = zeta_cmd / zeta_max``
+``mpc``         velocity      kinematic MPC without collision rows (MODEL.md section 6): ``a = zeta_cmd / zeta_max``
 ``campc``       velocity      collision-avoidance MPC (the 18 velocity-damper rows), same action
 ``campc-di``    torque        CAMPC + dynamic inversion without the RBF network (``a = tau / tau_max``)
 ``campc-nndi``  torque        CAMPC + dynamic inversion with the RBF network: the paper's full stack
@@ -298,11 +298,16 @@ def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) 
 def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
     """Check that a loaded agent fits ``env``: its action mode and its observation/action shapes.
 
+    An agent trained on another environment id gets a warning (``agents.policy.EnvMismatchWarning``), not an
+    error: running it elsewhere is allowed, but never silently.
+
     Raises:
         ValueError: on a mismatch (the message names the expected and found values).
     """
     mode = (getattr(agent, "env_kwargs", None) or {}).get("action_mode", "velocity")
     _check_mode(f"agent {name}", env, mode)
+    if hasattr(agent, "check_env_id") and env.spec is not None:
+        agent.check_env_id(env.spec.id)  # warns (agents.policy.EnvMismatchWarning) on another env id
     if tuple(agent.observation_space.shape) != tuple(env.observation_space.shape):
         raise ValueError(
             f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "

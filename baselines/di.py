@@ -1,4 +1,4 @@
-"""Dynamic inversion with RBF-network compensation (SPEC section 7, paper Section 3.2).
+"""Dynamic inversion with RBF-network compensation (docs/MODEL.md section 7, paper Section 3.2).
 
 Velocity-tracking control of ``zeta`` towards the MPC command ``zeta_cmd``:
 
@@ -8,7 +8,7 @@ Velocity-tracking control of ``zeta`` towards the MPC command ``zeta_cmd``:
 * control law ``tau = Mbar a + bbar``;
 * reference model ``a_rm = K_rm (zeta_cmd - zeta_rm)``, ``zeta_rm`` starts at the measured ``zeta``;
 * errors ``e1 = int (zeta_rm - zeta) dt``, ``e2 = zeta_rm - zeta``, ``e = [e1; e2]`` (36);
-* virtual control ``a = a_rm + K_p e2 + K_i e1 - Deltahat`` with ``Deltahat = What^T h(x)`` (SPEC's sign: the
+* virtual control ``a = a_rm + K_p e2 + K_i e1 - Deltahat`` with ``Deltahat = What^T h(x)`` (docs/MODEL.md's sign: the
   network estimates the model error ``Delta`` in ``zetadot = a + Delta`` and is subtracted; the paper's
   ``a_nn`` is ``-Deltahat``);
 * error dynamics ``edot = Lambda e + B (Deltahat - Delta)``, ``Lambda = [[0, I], [-K_i, -K_p]]``, ``B = [0; I]``;
@@ -231,7 +231,7 @@ class RBFNetwork:
 
 
 class DynamicInversionController:
-    """Dynamic inversion velocity tracker with optional RBF compensation (SPEC section 7)."""
+    """Dynamic inversion velocity tracker with optional RBF compensation (docs/MODEL.md section 7)."""
 
     def __init__(
         self,

@@ -1,4 +1,4 @@
-"""Kinematic model predictive control (MPC / CAMPC) of the UVDMS, SPEC section 6 (paper Section 3.1).
+"""Kinematic model predictive control (MPC / CAMPC) of the UVDMS, docs/MODEL.md section 6 (paper Section 3.1).
 
 The controller is split into four parts, each usable on its own:
 
@@ -23,7 +23,7 @@ The controller is split into four parts, each usable on its own:
     row** ``s >= 0`` shared across the steps and penalised by ``rho_1 sum s + rho_2 |s|^2 / 2`` (an exact
     penalty: ``s = 0`` whenever the hard rows are feasible and ``rho_1`` exceeds their multipliers). The
     frozen ``S(d_k)`` is used at every step ``j``; only ``zeta_0`` is applied, and its row is exact under the
-    linearisation. ``k_esc`` is the optional escape velocity gain inside the collision zone (SPEC section 4).
+    linearisation. ``k_esc`` is the optional escape velocity gain inside the collision zone (docs/MODEL.md section 4).
   - transport: the closed-chain equality ``(J_o,left - J_o,right) zeta_j = 0`` for every ``j``.
 
 * **solver** — one ProxSuite dense QP per controller, allocated once with fixed dimensions (the mode fixes
@@ -87,8 +87,8 @@ class MPCConfig:
     """Settings of the kinematic MPC (documented defaults; ``dataclasses.replace`` to vary them).
 
     Attributes:
-        n_c: control horizon ``N_c`` (decision blocks) [SPEC: 5].
-        n_p: prediction horizon ``N_p >= N_c`` [SPEC: 10].
+        n_c: control horizon ``N_c`` (decision blocks) [MODEL: 5].
+        n_p: prediction horizon ``N_p >= N_c`` [MODEL: 10].
         t_c: control period ``T_c`` in s. [D] 0.04 s (25 Hz), the environments' ``control_dt``: the MPC runs once
             per environment step and the horizon previews 0.4 s; the damper's discrete-time safety condition holds
             with margin (module docstring).
@@ -100,10 +100,10 @@ class MPCConfig:
         collision_steps: number of control steps ``j = 0..collision_steps-1`` carrying collision rows;
             ``None`` means all ``N_c`` [D] (the applied ``zeta_0`` is always constrained).
         vbar: maximum approach speed ``vbar`` of the damper, m/s [D] 0.3.
-        d1: collision-zone threshold, m [SPEC 0.05].
-        d2: anti-collision-zone threshold, m [SPEC 0.12].
+        d1: collision-zone threshold, m [MODEL 0.05].
+        d2: anti-collision-zone threshold, m [MODEL 0.12].
         k_escape: escape gain inside the collision zone, 1/s: the row becomes ``v_dis <= -k_esc (d1 - d)``
-            [D] 1.0 (SPEC's optional improvement; 0 disables it).
+            [D] 1.0 (docs/MODEL.md's optional improvement; 0 disables it).
         lookahead: collision lookahead ``T_look``, s: when the problem carries the *measured* distance rates
             ``v_now = J_dis zeta_measured``, the damper is evaluated at ``d_eff = d - T_look max(0, v_now)``
             instead of ``d``. The low-level velocity loop (or the dynamic inversion's reference model) does not
@@ -118,7 +118,7 @@ class MPCConfig:
         closed_chain: include the closed-chain equality (transport).
         n_eq_rows: rows of the closed-chain matrix (6).
         distance_method: ``"exact"`` or ``"sampled"`` (paper Algorithm 1) for :mod:`uvdms_gym.distances`.
-        distance_samples: samples per link for ``"sampled"`` [SPEC: n >= 20].
+        distance_samples: samples per link for ``"sampled"`` [MODEL: n >= 20].
         box_constraints: pass the velocity box and ``s >= 0`` as ProxSuite box constraints (else as rows).
         eps_abs: ProxSuite absolute tolerance [D] 1e-6.
         eps_rel: ProxSuite relative tolerance [D] 0.

@@ -771,3 +771,28 @@ def test_action_scale_in_training_evaluation_and_export(tmp_path, config_dir):
     for bad in (0.0, 1.5):
         with pytest.raises(ConfigError, match="'action_scale'"):
             parse_entry({"n_timesteps": 10, "action_scale": bad}, "sac")
+
+
+def test_agent_on_another_env_id_warns():
+    """An agent evaluated on an env id other than its training env's gets a warning naming both ids."""
+    import warnings
+
+    from agents.policy import EnvMismatchWarning
+    from baselines.controllers import check_agent
+    from baselines.evaluate import evaluate
+
+    folder = REPO / "trained_agents" / "circle_case1_ppo"
+    agent = load_agent(folder)
+    assert agent.env_id == "uvdms/CircleTrack-v0"
+    message = r"trained on uvdms/CircleTrack-v0 but runs on uvdms/Transport-v0"
+    env = gym.make("uvdms/Transport-v0")
+    with pytest.warns(EnvMismatchWarning, match=message):
+        check_agent(agent, env, "circle_case1_ppo")
+    env.close()
+    env = gym.make("uvdms/CircleTrack-v0", case=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", EnvMismatchWarning)
+        check_agent(agent, env, "circle_case1_ppo")  # same id, another task: fine
+    env.close()
+    with pytest.warns(EnvMismatchWarning, match=message):  # what `uvdms evaluate` runs
+        evaluate(str(folder), "uvdms/Transport-v0", {"max_episode_steps": 3}, episodes=1, progress=False)

@@ -69,7 +69,7 @@ def test_lyapunov_matrix_solves_the_equation():
 
 
 def test_error_dynamics_sign_convention():
-    """One step of the closed loop follows e2dot = -K_i e1 - K_p e2 + Deltahat - Delta (SPEC section 7)."""
+    """One step of the closed loop follows e2dot = -K_i e1 - K_p e2 + Deltahat - Delta (docs/MODEL.md section 7)."""
     ctl = make(dt=1e-4, kappa=0.0)
     rng = np.random.default_rng(1)
     ctl.net.weights[:] = rng.normal(size=ctl.net.weights.shape) * 0.1

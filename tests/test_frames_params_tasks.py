@@ -82,7 +82,7 @@ def test_parameter_hydrostatics_match_the_spec():
     p = UVDMSParams()
     assert math.isclose(p.vehicle.buoyancy - p.vehicle.weight, 1058 - 106 * GRAVITY)
     assert math.isclose(p.vehicle.buoyancy - p.vehicle.weight, 18.14, abs_tol=0.01)
-    # SPEC: arm weight makes the whole system negatively buoyant by about 165 N
+    # docs/MODEL.md section 2: arm weight makes the whole system negatively buoyant by about 165 N
     assert -170 < p.net_vertical_force() < -160
     assert math.isclose(p.obj.mass, 1100 * math.pi * 0.05**2 * 0.6)
     assert math.isclose(p.obj.mass, 5.18, abs_tol=0.01)

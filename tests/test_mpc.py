@@ -26,7 +26,7 @@ PARAMS = UVDMSParams()
 def random_problem(rng: np.random.Generator, m: int = 6, d_range=(0.03, 0.3), n_p: int = 10) -> MPCProblem:
     jy = rng.normal(size=(m, 18)) * 0.4
     jd = rng.normal(size=(18, 18)) * 0.3
-    jd[:, :6] = 0.0  # base columns of J_dis vanish (SPEC section 4)
+    jd[:, :6] = 0.0  # base columns of J_dis vanish (docs/MODEL.md section 4)
     return MPCProblem(
         e0=np.outer(np.arange(1, n_p + 1) * 0.02, rng.normal(size=m)) + rng.normal(size=m) * 0.05,
         j_y=jy,
@@ -366,7 +366,7 @@ def _kinematic_loop(task_name: str, collision: bool, t_end: float):
 
 
 def test_campc_avoids_the_frame_collision_of_case_1():
-    """Case 1 (SPEC section 5): plain MPC drives right link 3 into the right plate; CAMPC keeps d >= d1."""
+    """Case 1 (docs/MODEL.md section 5): plain MPC drives right link 3 into the right plate; CAMPC keeps d >= d1."""
     plain, _ = _kinematic_loop("circle", collision=False, t_end=10.0)
     campc, ctl = _kinematic_loop("circle", collision=True, t_end=10.0)
     assert plain["d"][:, 8].min() < 0.04  # right link 3 vs plate: inside the collision zone (contact 0.027)

@@ -127,7 +127,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from uvdms_gym import bench
     from uvdms_gym.provenance import timing_record
 
-    fn = {"sim": bench.bench_sim, "env": bench.bench_env, "mpc": bench.bench_mpc}[args.what]
+    if args.what == "train":
+        from agents.bench import bench_train as fn
+    else:
+        fn = {"sim": bench.bench_sim, "env": bench.bench_env, "mpc": bench.bench_mpc}[args.what]
     with timing_record() as timing:
         result = fn(quick=args.quick)
     result = {**result, "timing": timing}
@@ -171,7 +174,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=_cmd_demo)
 
     bench = sub.add_parser("bench", help="benchmarks that print medians and ratios")
-    bench.add_argument("what", choices=["sim", "env", "mpc"])
+    bench.add_argument("what", choices=["sim", "env", "mpc", "train"])
     bench.add_argument("--json", action="store_true", help="print JSON")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
     bench.set_defaults(func=_cmd_bench)

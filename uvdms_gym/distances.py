@@ -1,4 +1,4 @@
-"""The 18 collision distances of the UVDMS (SPEC section 4), their closest points, ``J_dis`` and ``S(d)``.
+"""The 18 collision distances of the UVDMS (docs/MODEL.md section 4), their closest points, ``J_dis`` and ``S(d)``.
 
 Row layout (``docs/ARCHITECTURE.md``):
 
@@ -303,7 +303,7 @@ def _pick_min_sample(dist, q, pts, a, b, n, many):
 # Velocity damper
 # --------------------------------------------------------------------------------------------------------
 def velocity_damper(d: np.ndarray | float, d1: float = 0.05, d2: float = 0.12) -> np.ndarray:
-    """Velocity damper ``S(d)`` (SPEC section 4): 0 for ``d <= d1``, 1 for ``d >= d2``, ``sin^2`` between.
+    """Velocity damper ``S(d)`` (docs/MODEL.md section 4): 0 for ``d <= d1``, 1 for ``d >= d2``, ``sin^2`` between.
 
     ``S(d) = sin^2((pi/2) (d - d1)/(d2 - d1))`` on ``d1 < d < d2``; continuous and non-decreasing.
     """

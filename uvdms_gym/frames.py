@@ -1,6 +1,6 @@
 """The one place where NED/FRD (public API, Pinocchio) meets PyBullet's z-up world.
 
-Conventions (SPEC section 1):
+Conventions (docs/MODEL.md section 1):
 
 * Inertial frame NED: x north, y east, z down. Body frame FRD: x forward, y starboard, z down, origin at
   the vehicle's geometric centre. Pinocchio works in NED directly (gravity ``+z``).

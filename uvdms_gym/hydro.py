@@ -6,7 +6,7 @@ independent matrix formulas. The simulator evaluates the same equations (inlined
 ``UVDMSSim._substep``); :func:`vehicle_wrench`, :func:`morison_force` and :func:`object_wrench` are the
 reference implementations.
 
-Model (SPEC section 3; coefficients from :mod:`uvdms_gym.params`, all scaled by :class:`HydroScale`):
+Model (docs/MODEL.md section 3; coefficients from :mod:`uvdms_gym.params`, all scaled by :class:`HydroScale`):
 
 Vehicle (body frame FRD, wrench about the body origin)
     * damping ``-D(nu) nu``, ``D = diag(d_lin + d_quad |nu|)`` (Fossen; no off-diagonal terms).

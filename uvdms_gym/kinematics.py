@@ -1,4 +1,4 @@
-"""Kinematics and rigid-body dynamics of the UVDMS on Pinocchio, in NED (SPEC sections 1 and 4).
+"""Kinematics and rigid-body dynamics of the UVDMS on Pinocchio, in NED (docs/MODEL.md sections 1 and 4).
 
 :class:`KinematicModel` wraps the free-flyer Pinocchio model of :func:`uvdms_gym.model.pinocchio_model`:
 
@@ -285,7 +285,7 @@ class KinematicModel:
         return pin.getFrameJacobian(self.model, self.data, self._frame_id(name), _LWA)
 
     def ee_jacobian(self) -> np.ndarray:
-        """End-effector Jacobian ``J`` (12, 18) = ``[J_lin_l; J_ang_l; J_lin_r; J_ang_r]`` (SPEC section 1)."""
+        """End-effector Jacobian ``J`` (12, 18) = ``[J_lin_l; J_ang_l; J_lin_r; J_ang_r]`` (docs/MODEL.md section 1)."""
         out = np.empty((12, N_DOF))
         out[:6] = pin.getFrameJacobian(self.model, self.data, self._ee_ids[0], _LWA)
         out[6:] = pin.getFrameJacobian(self.model, self.data, self._ee_ids[1], _LWA)

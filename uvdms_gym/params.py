@@ -1,7 +1,7 @@
 """Physical parameters of the UVDMS: the one typed, documented place for every number of the model.
 
 Sources are given per value: ``[T1]`` paper Table 1, ``[T2]`` paper Table 2, ``[S4]`` paper Section 4 text,
-``[SPEC]`` the project's SPEC.md, ``[D]`` a project decision recorded here with its reason.
+``[MODEL]`` ``docs/MODEL.md``, ``[D]`` a project decision recorded here with its reason.
 
 Frames (see :mod:`uvdms_gym.frames`): body frame FRD (x forward, y starboard/right, z down) with its
 origin at the vehicle's geometric centre; inertial frame NED. All values SI, angles in radians.
@@ -93,7 +93,7 @@ class ArmParams:
     link_mass: tuple[float, ...] = _arr(2.8, 1.3, 1.2, 1.6, 1.2, 1.6, 1.5)
     """Mass of links 0 .. 6, kg [T2]."""
     link_radius: float = 0.025
-    """Capsule radius of every link, m [SPEC]: two links touch when their axes are 0.05 m apart."""
+    """Capsule radius of every link, m [MODEL]: two links touch when their axes are 0.05 m apart."""
     frame0_axes: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 1.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0))
     """Axes ``(x_0, y_0, z_0)`` of DH frame 0 in body coordinates [D].
 
@@ -202,7 +202,7 @@ class FramePlate:
 
 
 def _default_plates() -> tuple[FramePlate, ...]:
-    # [D] Placement is a design parameter (SPEC section 2). The arms live in a bay at the front bottom
+    # [D] Placement is a design parameter (docs/MODEL.md section 2). The arms live in a bay at the front bottom
     # of the vehicle; the side plates cover the rear of the bay beside the shoulders and elbows, the bottom
     # plate closes the bay below, and the front plate is a bumper bar across the lower front edge.
     # Plates are separated by gaps (touching plates slow PyBullet down, see PITFALLS).
@@ -282,7 +282,7 @@ class UVDMSParams:
         return f
 
 
-# Standard joint names, in the order of ``q = [q_l; q_r]`` (SPEC section 1).
+# Standard joint names, in the order of ``q = [q_l; q_r]`` (docs/MODEL.md section 1).
 ARM_SIDES: tuple[str, str] = ("left", "right")
 JOINT_NAMES: tuple[str, ...] = tuple(f"{s}_joint{i}" for s in ARM_SIDES for i in range(1, 7))
 N_JOINTS = 12

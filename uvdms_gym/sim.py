@@ -136,7 +136,7 @@ class PhysicsError(RuntimeError):
 
 @dataclass(frozen=True)
 class SimState:
-    """State of the system in NED/FRD (SPEC section 1).
+    """State of the system in NED/FRD (docs/MODEL.md section 1).
 
     Attributes:
         eta: vehicle pose ``[x y z phi theta psi]`` (NED position of the body origin, ZYX Euler).
@@ -633,7 +633,7 @@ class UVDMSSim:
         Args:
             pairs: link-name pairs to check (e.g. the pairs whose exact distance is near contact); default: all
                 monitored pairs, i.e. right-arm vs left-arm links and arm links 1-6 vs frame plates (97 pairs,
-                the pairs the 18 distances of SPEC section 4 watch).
+                the pairs the 18 distances of docs/MODEL.md section 4 watch).
 
         Without simulated self-collision each pair is one ``getClosestPoints`` query with a zero distance
         threshold (about 2 µs a pair). With it, the pairs are read from the contact manifold of the last step.

@@ -16,7 +16,7 @@ slice       size  content
 20:26       6     vehicle body velocity ``nu`` divided by its limits ``zeta_max[:6]``
 26:50       24    joint angles as ``sin q`` (12) then ``cos q`` (12)
 50:62       12    joint rates divided by their limits ``zeta_max[6:]``
-62:80       18    the 18 clearances of SPEC section 4 (rows as in ``docs/ARCHITECTURE.md``), as
+62:80       18    the 18 clearances of docs/MODEL.md section 4 (rows as in ``docs/ARCHITECTURE.md``), as
                   ``(clip(d, 0, 0.3) - d1) / (d2 - d1)``
 ==========  ====  =====================================================================================
 """
@@ -46,7 +46,7 @@ POS_SCALE = 0.5
 """Position errors in the observation are divided by this, m."""
 OBS_CLIP = 10.0
 D1, D2 = 0.05, 0.12
-"""Collision-zone and anti-collision-zone thresholds of SPEC section 4, m."""
+"""Collision-zone and anti-collision-zone thresholds of docs/MODEL.md section 4, m."""
 CLEARANCE_CLIP = 0.3
 OBS_DIM = 80
 ACTION_DIM = 18

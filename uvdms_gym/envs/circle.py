@@ -11,7 +11,7 @@ from uvdms_gym.envs.tasks import CircleTask, make_circle_task
 
 TRACKING_TRANSIENT = 5.0
 """Tracking metrics exclude the first seconds of a run (the end effectors start ~0.6 m from their circles,
-SPEC section 5); collision metrics cover the whole run."""
+docs/MODEL.md section 5); collision metrics cover the whole run."""
 
 
 class CircleTrackEnv(UVDMSEnv):

@@ -1,4 +1,4 @@
-"""Task definitions: references for circle tracking and object transport (SPEC section 5), NED/SI.
+"""Task definitions: references for circle tracking and object transport (docs/MODEL.md section 5), NED/SI.
 
 A task is pure data plus a reference function ``reference(t) -> y_ref`` evaluated on any time grid, so
 that controllers can preview the future reference without touching the simulator.

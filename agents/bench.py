@@ -1,0 +1,131 @@
+"""Training throughput: ``uvdms bench train [--json] [--quick]``.
+
+Environment steps per second of the training loop (``model.learn``: environment steps, policy inference and
+gradient updates; no evaluation or checkpoint callbacks) for PPO and SAC, each with 1 training env
+(``DummyVecEnv``), 2 envs in worker processes (``SubprocVecEnv``, key ``"2"``) and 2 envs stepped in the
+trainer's process (``DummyVecEnv``, key ``"2_dummy"``, the ``--vec-env`` default), on ``uvdms/CircleTrack-v0``
+(``case=1``) with the configurations of ``train_configs/<algo>.yml``. SAC's ``learning_starts`` is lowered
+to 100 steps so that its blocks include the gradient steps of steady-state training.
+
+The three models are built first, then timed in alternating blocks (PPO: one rollout of
+``n_steps x n_envs`` steps and its update; SAC: a fixed number of environment steps), so a change in machine
+load affects all alike; the figures are medians over blocks and ``speedup_2_vs_1`` is the ratio of the
+medians (``speedup_2_dummy_vs_1`` likewise). The load average before and after is part of the result:
+timings taken beside other jobs are only indicative.
+
+Threads: the trainer runs ``torch.set_num_threads(1)`` (as :func:`agents.train.train` does), and each env
+worker sets it too (:class:`agents.train.EnvFactory`). With 2 envs on 2 cores the two workers step the
+physics while the trainer waits for them, then the trainer runs inference or an update while the workers
+wait: at most two busy processes at a time, so one torch thread per process does not oversubscribe the cores.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import Any
+
+import numpy as np
+
+BENCH_ENV = "uvdms/CircleTrack-v0"
+BENCH_ENV_KWARGS: dict[str, Any] = {"case": 1}
+SAC_LEARNING_STARTS = 100
+
+
+CONFIGURATIONS: tuple[tuple[str, int, str], ...] = (("1", 1, "dummy"), ("2", 2, "subproc"), ("2_dummy", 2, "dummy"))
+"""(result key, n_envs, vec_env) of the timed models."""
+
+
+def _build(algo: str, n_envs: int, vec_env: str, total_steps: int, seed: int = 0) -> Any:
+    """A model of ``train_configs/<algo>.yml`` on ``n_envs`` training envs of type ``vec_env``.
+
+    ``total_steps`` caps the replay buffer (:func:`agents.train.replay_buffer_size`).
+    """
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from agents.algos import ALGOS, is_off_policy
+    from agents.config import default_config_path, load_config
+    from agents.train import EnvFactory, _configured_buffer_size, _make_vec_env, replay_buffer_size
+
+    overrides: dict[str, Any] = {"n_envs": n_envs, "env_kwargs": {"action_mode": "velocity", **BENCH_ENV_KWARGS}}
+    if is_off_policy(algo):
+        overrides["learning_starts"] = SAC_LEARNING_STARTS
+    cfg = load_config(default_config_path(algo), algo, BENCH_ENV, overrides=overrides)
+    factories = [
+        EnvFactory(BENCH_ENV, cfg.env_kwargs, alive_bonus=cfg.alive_bonus, action_scale=cfg.action_scale)
+        for _ in range(n_envs)
+    ]
+    venv = _make_vec_env(factories, vec_env)
+    normalize_kwargs = cfg.normalize_kwargs()
+    if normalize_kwargs is not None:
+        venv = VecNormalize(venv, **normalize_kwargs)
+    kwargs = cfg.sb3_hyperparams()
+    if is_off_policy(algo):
+        kwargs["buffer_size"] = replay_buffer_size(_configured_buffer_size(cfg), n_envs, total_steps)
+    return ALGOS[algo](cfg.policy, venv, policy_kwargs=cfg.sb3_policy_kwargs(), seed=seed, verbose=0, **kwargs)
+
+
+def _block(model: Any, steps: int) -> tuple[int, float]:
+    """Run ``model.learn`` for ``steps`` more steps; return the steps actually run and the wall time."""
+    before = model.num_timesteps
+    t0 = time.perf_counter()
+    model.learn(total_timesteps=steps, reset_num_timesteps=False, progress_bar=False)
+    return model.num_timesteps - before, time.perf_counter() - t0
+
+
+def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_steps: int | None = None) -> dict:
+    """Training steps per second of PPO and SAC with 1 and 2 envs (see the module docstring).
+
+    Args:
+        quick: Fewer and shorter blocks.
+        blocks: Timed blocks per model (default 3, quick 1).
+        sac_block_steps: Environment steps per SAC block (default 1000, quick 200).
+
+    Returns:
+        ``{"ppo": {"1": {...}, "2": {...}, "2_dummy": {...}, "speedup_2_vs_1": r, ...}, "sac": {...},
+        "load_avg_before": [...], ...}``; each entry has ``n_envs``, ``vec_env``, ``block_steps``, ``steps_per_s``
+        (median over blocks) and ``blocks_steps_per_s``.
+    """
+    import torch
+
+    torch.set_num_threads(1)
+    blocks = blocks if blocks is not None else (1 if quick else 3)
+    sac_steps = sac_block_steps if sac_block_steps is not None else (200 if quick else 1000)
+    result: dict[str, Any] = {
+        "env_id": BENCH_ENV,
+        "env_kwargs": BENCH_ENV_KWARGS,
+        "cpu_count": os.cpu_count(),
+        "torch_num_threads": torch.get_num_threads(),
+        "load_avg_before": list(os.getloadavg()),
+    }
+    for algo in ("ppo", "sac"):
+        total = (blocks + 1) * sac_steps + SAC_LEARNING_STARTS + 2
+        models = {key: _build(algo, n, vec_env, total) for key, n, vec_env in CONFIGURATIONS}
+        n_envs = {key: n for key, n, _ in CONFIGURATIONS}
+        try:
+            # PPO: one rollout of n_steps x n_envs and its update per block; SAC: sac_steps environment steps
+            sizes = {key: int(m.n_steps) * n_envs[key] if algo == "ppo" else sac_steps for key, m in models.items()}
+            for key, model in models.items():  # warm-up: past SAC's learning_starts, PPO's first update
+                _block(model, sizes[key] if algo == "ppo" else max(sac_steps, SAC_LEARNING_STARTS + 2))
+            rates: dict[str, list[float]] = {key: [] for key in models}
+            for _ in range(blocks):
+                for key, model in models.items():
+                    steps, seconds = _block(model, sizes[key])
+                    rates[key].append(steps / seconds)
+        finally:
+            for model in models.values():
+                model.get_env().close()
+        entry: dict[str, Any] = {}
+        for key, n, vec_env in CONFIGURATIONS:
+            entry[key] = {
+                "n_envs": n,
+                "vec_env": vec_env,
+                "block_steps": sizes[key],
+                "steps_per_s": float(np.median(rates[key])),
+                "blocks_steps_per_s": rates[key],
+            }
+        entry["speedup_2_vs_1"] = entry["2"]["steps_per_s"] / entry["1"]["steps_per_s"]
+        entry["speedup_2_dummy_vs_1"] = entry["2_dummy"]["steps_per_s"] / entry["1"]["steps_per_s"]
+        result[algo] = entry
+    result["load_avg_after"] = list(os.getloadavg())
+    return result
