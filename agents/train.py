@@ -432,22 +432,26 @@ def train(
         _run_segment(
             run_dir, cfg, env_id, seed, gym_packages, cfg.n_timesteps, command, None, progress, vec_env, verbose
         )
-    except BaseException:
-        _remove_if_no_model(run_dir)
+    except BaseException as exc:
+        # a user error (bad config or kwargs: a ValueError) is reported by the caller in one line; say nothing more
+        _remove_if_no_model(run_dir, quiet=isinstance(exc, ValueError))
         raise
     return run_dir
 
 
-def _remove_if_no_model(run_dir: Path) -> None:
+def _remove_if_no_model(run_dir: Path, quiet: bool = False) -> None:
     """Delete a fresh run's directory that holds no model, so that rerunning the same command works.
 
     A fresh run that fails (or is interrupted) before its first checkpoint or final model leaves only its
     config, meta record and partial logs, which would otherwise block the seed ("exists but holds no model").
+    ``quiet`` logs the removal at debug level instead of as a warning.
     """
     if latest_checkpoint(run_dir) is not None:
         return
     shutil.rmtree(run_dir, ignore_errors=True)
-    log.warning("removed %s: the run failed before saving a model; the same command can be rerun", run_dir)
+    (log.debug if quiet else log.warning)(
+        "removed %s: the run failed before saving a model; the same command can be rerun", run_dir
+    )
 
 
 def _resume(
@@ -948,7 +952,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             verbose=args.verbose,
         )
     except (ConfigError, EnvironmentNotFoundError, RunDirError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print("uvdms: error: " + " ".join(str(exc).split()), file=sys.stderr)  # one line, as the uvdms command
         return 2
     except KeyboardInterrupt:
         run_dir = args.resume or run_dir_for(args.out, args.env_id, args.algo, args.seed)
