@@ -103,6 +103,8 @@ _joint_states = pb.getJointStates
 _closest_points = pb.getClosestPoints
 _contact_points = pb.getContactPoints
 _perform_collision_detection = pb.performCollisionDetection
+_arctan2 = np.arctan2
+_arcsin = np.arcsin
 
 
 @contextlib.contextmanager
@@ -285,6 +287,7 @@ class UVDMSSim:
         self._contact_pairs: set[tuple[int, int]] = set()
         self._needs_collision_pass = True
         self._t = 0.0
+        self._raw: tuple | None = None  # cached raw state read, see _read_state
         self._nu_prev = (0.0, 0.0, 0.0)
         self._obj_p_prev = (0.0, 0.0, 0.0)
         self._scale = HydroScale()
@@ -389,6 +392,7 @@ class UVDMSSim:
             raise TypeError(f"scale must be a HydroScale, got {type(scale).__name__}")
         self._scale = scale
         self._hydro = h = hydro_coefficients(self._params, scale, arms=self._arms)
+        self._raw = None
         self._client.changeDynamics(
             self._body,
             self._am_link,
@@ -464,6 +468,7 @@ class UVDMSSim:
         for k, j in enumerate(self._joints):
             c.resetJointState(self._body, j, float(q[k]), float(qdot[k]))
         self._t = 0.0
+        self._raw = None
         self._nu_prev = (float(nu[0]), float(nu[1]), float(nu[2]))
         if with_object:
             self._create_object()
@@ -526,31 +531,51 @@ class UVDMSSim:
         k = self._hydro.obj_added_mass * (vx * ex + vy * ey + vz * ez)
         return (k * ex, k * ey, k * ez)
 
+    def _read_state(self) -> tuple:
+        """Raw PyBullet state ``(p_com, quat, v_com, w, joint_states)``, read once per physics state.
+
+        The read is cached until the state changes (a physics step or a reset): :meth:`step` reads it for its
+        sanity check, and the :meth:`state` that follows, and the velocity loop of the next step's first
+        substep, reuse it instead of querying PyBullet again.
+        """
+        raw = self._raw
+        if raw is None:
+            cid, body = self._cid, self._body
+            p_com, quat = _base_pose(body, cid)
+            v_com, w_w = _base_velocity(body, cid)
+            js = _joint_states(body, self._joints, cid) if self._joints else ()
+            raw = self._raw = (p_com, quat, v_com, w_w, js)
+        return raw
+
     def state(self) -> SimState:
         """The current state in NED/FRD, converted from PyBullet's base (COM) pose and velocity.
 
         (Double precision: ``getLinkStates`` would be one query but returns single-precision values.)
+        The conversion is written in scalars around the few numpy calls whose rounding it must keep (the
+        3x3 matrix products and the inverse trigonometric functions give the same bits as
+        :mod:`uvdms_gym.frames`; plain Python products and ``math.atan2`` would differ in the last bit).
         """
         self._check_open()
-        cid, body = self._cid, self._body
-        p_com, quat = _base_pose(body, cid)
-        v_com, w_w = _base_velocity(body, cid)
-        r_wb = frames.quat_xyzw_to_rot(quat)
-        r_g_w = r_wb @ self._r_g
-        w = np.array(w_w)
-        eta = np.empty(6)
-        eta[:3] = frames.world_to_ned(np.array(p_com) - r_g_w)
-        eta[3:] = frames.rot_to_euler(frames.body_rot_world_to_ned(r_wb))
+        (px, py, pz), (x, y, z, w), (vx, vy, vz), (wx, wy, wz), js = self._read_state()
+        # R_WB, the expressions of frames.quat_xyzw_to_rot
+        r_wb = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+        rx, ry, rz = (r_wb @ self._r_g).tolist()  # r_G in world axes
+        # Euler angles of R_NB = S R_WB (frames.rot_to_euler); the +0.0 keeps the signed zeros of the product
+        (r00, _, _), (r10, _, _), (r20, r21, r22) = r_wb.tolist()
+        phi, psi = _arctan2(np.array([0.0 - r21, 0.0 - r10]), np.array([0.0 - r22, r00 + 0.0])).tolist()
+        theta = -float(_arcsin(min(max(0.0 - r20, -1.0), 1.0)))
+        eta = np.array([px - rx, -(py - ry), -(pz - rz), phi, theta, psi])
         # v_origin = v_com - w x r_g
-        v = np.array(v_com)
-        v[0] -= w[1] * r_g_w[2] - w[2] * r_g_w[1]
-        v[1] -= w[2] * r_g_w[0] - w[0] * r_g_w[2]
-        v[2] -= w[0] * r_g_w[1] - w[1] * r_g_w[0]
-        nu = np.empty(6)
-        nu[:3] = r_wb.T @ v
-        nu[3:] = r_wb.T @ w
-        if self._joints:
-            js = _joint_states(body, self._joints, cid)
+        v = np.array([vx - (wy * rz - wz * ry), vy - (wz * rx - wx * rz), vz - (wx * ry - wy * rx)])
+        r_bw = r_wb.T
+        nu = np.concatenate([r_bw @ v, r_bw @ np.array([wx, wy, wz])])
+        if js:
             q = np.array([s[0] for s in js])
             qdot = np.array([s[1] for s in js])
         else:
@@ -675,6 +700,7 @@ class UVDMSSim:
     def bare_step(self) -> None:
         """One ``stepSimulation`` with no hydrodynamics and no inputs (for benchmarks; advances ``t``)."""
         _step_simulation(self._cid)
+        self._raw = None
         self._t += self._dt
 
     def step(
@@ -702,48 +728,69 @@ class UVDMSSim:
             PhysicsError: the state became non-finite or left the sanity bounds (reset required).
         """
         self._check_open()
+        tau_max = self._tau_max
         try:
             tau = np.array(tau, dtype=float)  # a copy: the caller's array is never modified
         except (TypeError, ValueError):
             pass  # _vector below names the problem
-        if not isinstance(tau, np.ndarray) or tau.shape != self._tau_max.shape or not np.isfinite(tau).all():
-            tau = _vector(tau, self._tau_max.size, "tau")  # raises the detailed ValueError
+        if not isinstance(tau, np.ndarray) or tau.shape != tau_max.shape:
+            tau = _vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
         if int(n_substeps) != n_substeps or n_substeps < 1:
             raise ValueError(f"n_substeps must be an integer >= 1, got {n_substeps!r}")
-        saturated = np.abs(tau) > self._tau_max
-        if saturated.any():
-            tau = np.clip(tau, -self._tau_max, self._tau_max)
-        tau_v = tau[:6].tolist()
-        tau_q = tau[6:].tolist()
+        within = np.abs(tau) <= tau_max  # False for NaN/inf and for saturated components
+        saturated = ~within
+        if not within.all():
+            if not np.isfinite(tau).all():
+                tau = _vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
+            tau = np.clip(tau, -tau_max, tau_max)
+        tau_list = tau.tolist()
+        tau_v, tau_q = tau_list[:6], tau_list[6:]
         self._fb_saturated = saturated
+        substep = self._substep
         for _ in range(int(n_substeps)):
-            self._substep(tau_v, tau_q, feedback)
+            substep(tau_v, tau_q, feedback)
         self._needs_collision_pass = False
         if feedback is not None:
             tau, saturated = self._fb_tau, self._fb_saturated
         self._check_state()
         return StepInfo(tau=tau, saturated=saturated, t=self._t, n_substeps=int(n_substeps))
 
-    def _feedback(self, feedback: Callable[[np.ndarray], np.ndarray], nu: tuple[float, ...]) -> tuple[list, list]:
-        """Evaluate a per-substep feedback law at ``zeta = [nu; qdot]``; validate and saturate its output."""
-        z = np.empty(6 + self._n_joints)
-        z[:6] = nu
+    def _feedback(
+        self, feedback: Callable[[np.ndarray], np.ndarray], nu: tuple[float, ...]
+    ) -> tuple[list[float], list[float]]:
+        """Evaluate a per-substep feedback law at ``zeta = [nu; qdot]``; validate and saturate its output.
+
+        ``qdot`` comes from the cached state read when there is one (the first substep of a step follows the
+        previous step's state check), else from one ``getJointStates``.
+        """
         if self._joints:
-            z[6:] = [js[1] for js in _joint_states(self._body, self._joints, self._cid)]
+            raw = self._raw
+            js = raw[4] if raw is not None else _joint_states(self._body, self._joints, self._cid)
+            z = np.array([*nu, *[s[1] for s in js]])
+        else:
+            z = np.array(nu)
         t = np.asarray(feedback(z), dtype=float)
-        if t.shape != self._tau_max.shape or not np.isfinite(t).all():
-            raise ValueError(f"feedback must return a finite tau of shape {self._tau_max.shape}, got {t!r}")
-        sat = np.abs(t) > self._tau_max
-        if sat.any():
-            t = np.clip(t, -self._tau_max, self._tau_max)
-            self._fb_saturated = self._fb_saturated | sat
+        tau_max = self._tau_max
+        if t.shape != tau_max.shape:
+            raise ValueError(f"feedback must return a finite tau of shape {tau_max.shape}, got {t!r}")
+        within = np.abs(t) <= tau_max  # False for NaN/inf and for saturated components
+        if not within.all():
+            if not np.isfinite(t).all():
+                raise ValueError(f"feedback must return a finite tau of shape {tau_max.shape}, got {t!r}")
+            t = np.clip(t, -tau_max, tau_max)
+            self._fb_saturated = self._fb_saturated | ~within
         self._fb_tau = t
-        return t[:6].tolist(), t[6:].tolist()
+        t_list = t.tolist()
+        return t_list[:6], t_list[6:]
 
     def _substep(
         self, tau_v: list[float], tau_q: list[float], feedback: Callable[[np.ndarray], np.ndarray] | None = None
     ) -> None:
-        """One physics step: read state, evaluate hydrodynamics (see :mod:`uvdms_gym.hydro`), apply, step."""
+        """One physics step: read state, evaluate hydrodynamics (see :mod:`uvdms_gym.hydro`), apply, step.
+
+        Plain float arithmetic on the tuples PyBullet returns (numpy's per-call overhead exceeds the arithmetic
+        on these 3-vectors), in the same operation order as :mod:`uvdms_gym.hydro`'s reference functions.
+        """
         cid, body, h = self._cid, self._body, self._hydro
         st = _get_link_states(body, self._state_links, 1, 1, cid)
         origin, (qx, qy, qz, qw), _, _, _, _, (vx, vy, vz), (wx, wy, wz) = st[0]
@@ -771,18 +818,20 @@ class UVDMSSim:
         dl, dq = h.d_lin, h.d_quad
         a1, a2, a3 = h.a_res
         p1, p2, p3 = a1 * u, a2 * v, a3 * w
-        fx = tau_v[0] - (dl[0] + dq[0] * abs(u)) * u - a1 * (u - u0) * inv_dt + (p2 * r - p3 * q)
-        fy = tau_v[1] - (dl[1] + dq[1] * abs(v)) * v - a2 * (v - v0) * inv_dt + (p3 * p - p1 * r)
-        fz = tau_v[2] - (dl[2] + dq[2] * abs(w)) * w - a3 * (w - w0) * inv_dt + (p1 * q - p2 * p)
-        mx = tau_v[3] - (dl[3] + dq[3] * abs(p)) * p + (p2 * w - p3 * v)
-        my = tau_v[4] - (dl[4] + dq[4] * abs(q)) * q + (p3 * u - p1 * w)
-        mz = tau_v[5] - (dl[5] + dq[5] * abs(r)) * r + (p1 * v - p2 * u)
+        t0, t1, t2, t3, t4, t5 = tau_v
+        fx = t0 - (dl[0] + dq[0] * abs(u)) * u - a1 * (u - u0) * inv_dt + (p2 * r - p3 * q)
+        fy = t1 - (dl[1] + dq[1] * abs(v)) * v - a2 * (v - v0) * inv_dt + (p3 * p - p1 * r)
+        fz = t2 - (dl[2] + dq[2] * abs(w)) * w - a3 * (w - w0) * inv_dt + (p1 * q - p2 * p)
+        mx = t3 - (dl[3] + dq[3] * abs(p)) * p + (p2 * w - p3 * v)
+        my = t4 - (dl[4] + dq[4] * abs(q)) * q + (p3 * u - p1 * w)
+        mz = t5 - (dl[5] + dq[5] * abs(r)) * r + (p1 * v - p2 * u)
         # upward hydrostatic force at its body-fixed centroid (world z up)
         up = self._up_force
         cx, cy, cz = self._up_centroid
         ox = r00 * cx + r01 * cy + r02 * cz
         oy = r10 * cx + r11 * cy + r12 * cz
-        _apply_force(
+        apply_force = _apply_force
+        apply_force(
             body,
             -1,
             (r00 * fx + r01 * fy + r02 * fz, r10 * fx + r11 * fy + r12 * fz, r20 * fx + r21 * fy + r22 * fz + up),
@@ -802,10 +851,10 @@ class UVDMSSim:
             cid,
         )
         # arm links: buoyancy at the midpoint (= COM) + Morison drag (hydro.link_force, inlined)
-        k = 1
-        for link, fb, kn, kt, ex, ey, ez in self._link_consts:
-            pos, (qx, qy, qz, qw), _, _, _, _, (vx, vy, vz), _ = st[k]
-            k += 1
+        sqrt, world = math.sqrt, _WORLD
+        for (link, fb, kn, kt, ex, ey, ez), (pos, (qx, qy, qz, qw), _, _, _, _, (vx, vy, vz), _) in zip(
+            self._link_consts, st[1:]
+        ):
             tx = 2.0 * (qy * ez - qz * ey)
             ty = 2.0 * (qz * ex - qx * ez)
             tz = 2.0 * (qx * ey - qy * ex)
@@ -814,21 +863,15 @@ class UVDMSSim:
             az = ez + qw * tz + qx * ty - qy * tx
             vt = vx * ax + vy * ay + vz * az
             nx, ny, nz = vx - vt * ax, vy - vt * ay, vz - vt * az
-            kvn = kn * math.sqrt(nx * nx + ny * ny + nz * nz)
+            kvn = kn * sqrt(nx * nx + ny * ny + nz * nz)
             kvt = kt * abs(vt) * vt
-            _apply_force(
-                body,
-                link,
-                (-kvn * nx - kvt * ax, -kvn * ny - kvt * ay, fb - kvn * nz - kvt * az),
-                pos,
-                _WORLD,
-                cid,
-            )
-        if self._joints:
+            apply_force(body, link, (-kvn * nx - kvt * ax, -kvn * ny - kvt * ay, fb - kvn * nz - kvt * az), pos, world, cid)
+        if tau_q:
             _motor_array(body, self._joints, _TORQUE, forces=tau_q, physicsClientId=cid)
         if self._obj is not None:
             self._object_hydro()
         _step_simulation(cid)
+        self._raw = None
         self._t += self._dt
 
     def _object_hydro(self) -> None:
@@ -852,9 +895,7 @@ class UVDMSSim:
 
     def _check_state(self) -> None:
         """Raise :class:`PhysicsError` if the state is non-finite or beyond the documented sanity bounds."""
-        cid, body = self._cid, self._body
-        pos, _ = _base_pose(body, cid)
-        vel, ang = _base_velocity(body, cid)
+        pos, _, vel, ang, js = self._read_state()  # cached for the state() that usually follows
         # cheap conservative pre-check on PyBullet's COM velocity (components below NU_LIMIT / 2 imply
         # |nu_i| <= sqrt(3) NU_LIMIT / 2 + |w| |r_G| < NU_LIMIT); the exact check only if it fails
         if not (max(map(abs, (*vel, *ang))) < 0.5 * NU_LIMIT and max(map(abs, pos)) < 0.5 * POSITION_LIMIT):
@@ -865,11 +906,12 @@ class UVDMSSim:
                 self._fail(f"|nu| > {NU_LIMIT}: nu = {st.nu}")
             if np.abs(st.eta[:3]).max() > POSITION_LIMIT:
                 self._fail(f"|position| > {POSITION_LIMIT}: eta = {st.eta}")
-        if self._joints:
-            qdot = [s[1] for s in _joint_states(body, self._joints, cid)]
+        if js:
+            qdot = [s[1] for s in js]
             if not max(map(abs, qdot)) <= QDOT_LIMIT:
                 self._fail(f"|qdot| > {QDOT_LIMIT} or non-finite: qdot = {qdot}")
         if self._obj is not None:
+            cid = self._cid
             p, _ = _base_pose(self._obj, cid)
             v, w = _base_velocity(self._obj, cid)
             if not (max(map(abs, (*v, *w))) < NU_LIMIT + QDOT_LIMIT and max(map(abs, p)) < POSITION_LIMIT):

@@ -139,6 +139,9 @@ class UVDMSEnv(gym.Env):
         self._obs = np.zeros(OBS_DIM, np.float32)
         self._preview_times = np.asarray(PREVIEW_TIMES)
         self._contact_d = contact_thresholds(self.params)
+        self._contact_check_d = self._contact_d + CONTACT_MARGIN
+        self._nu_scale = self.zeta_max[:6].copy()
+        self._qdot_scale = self.zeta_max[6:].copy()
         self._closed = False
 
     # ----------------------------------------------------------------- task hooks
@@ -243,11 +246,13 @@ class UVDMSEnv(gym.Env):
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (ACTION_DIM,):
             raise ValueError(f"action must have shape ({ACTION_DIM},), got {a.shape}")
+        within = np.abs(a) <= 1.0  # False for NaN/inf and for entries to clip
+        if within.all():
+            return a, False
         bad = ~np.isfinite(a)
         if bad.any():
             raise ValueError(f"action contains NaN or inf at indices {np.flatnonzero(bad).tolist()}")
-        clipped = bool(np.any(np.abs(a) > 1.0))
-        return (np.clip(a, -1.0, 1.0) if clipped else a), clipped
+        return np.clip(a, -1.0, 1.0), True
 
     def _apply(self, a: np.ndarray) -> tuple[np.ndarray, bool]:
         """Run the control step's physics substeps; return the applied tau and the saturation flag."""
@@ -266,10 +271,10 @@ class UVDMSEnv(gym.Env):
         Only the closest obstacle of a monitored link can touch it first, so checking each near row's pair is
         enough; far rows (almost always all of them) cost nothing.
         """
-        near = np.flatnonzero(dist.d < self._contact_d + CONTACT_MARGIN)
-        if near.size == 0:
+        near = dist.d < self._contact_check_d
+        if not near.any():
             return 0
-        pairs = [(dist.link_frame[i], self._obstacle_link(dist, i)) for i in near]
+        pairs = [(dist.link_frame[i], self._obstacle_link(dist, i)) for i in np.flatnonzero(near)]
         return self._sim.count_contacts(pairs)
 
     def _obstacle_link(self, dist, i: int) -> str:
@@ -281,33 +286,38 @@ class UVDMSEnv(gym.Env):
         st = self._sim.state()
         self._kin.set_state(st.eta, st.q, st.zeta)
         dist = compute_distances(self._kin, "exact")
+        d = dist.d.copy()
         contacts = self._contacts(dist)
         y = self._output()
         refs = self.task.reference(self.t + self._preview_times)
-        r_nb = self._kin.frame_placement("vehicle")[1]
-        blocks, pos_err, ori_err = self._errors(y, refs, r_nb)
-        obs = np.empty(OBS_DIM)
-        obs[0:18] = blocks
-        obs[18:20] = st.eta[3:5]
-        obs[20:26] = st.nu / self.zeta_max[:6]
-        obs[26:38] = np.sin(st.q)
-        obs[38:50] = np.cos(st.q)
-        obs[50:62] = st.qdot / self.zeta_max[6:]
-        obs[62:80] = (np.clip(dist.d, 0.0, CLEARANCE_CLIP) - D1) / (D2 - D1)
+        blocks, pos_err, ori_err = self._errors(y, refs, self._kin.frame_placement("vehicle")[1])
+        q = st.q
+        obs = np.concatenate(
+            (
+                blocks,
+                st.eta[3:5],
+                st.nu / self._nu_scale,
+                np.sin(q),
+                np.cos(q),
+                st.qdot / self._qdot_scale,
+                (np.clip(d, 0.0, CLEARANCE_CLIP) - D1) / (D2 - D1),
+            )
+        )
         np.clip(obs, -OBS_CLIP, OBS_CLIP, out=obs)
         self._obs = obs.astype(np.float32)
+        d_min = float(d.min())
         cost_contact = 1.0 if contacts > 0 else 0.0
-        cost_zone = 1.0 if float(dist.d.min()) < D1 else 0.0
-        info: dict[str, Any] = {
+        cost_zone = 1.0 if d_min < D1 else 0.0
+        info: dict[str, Any] = {  # the state arrays are fresh copies from sim.state(), owned by info
             "t": self.t,
-            "eta": st.eta.copy(),
-            "nu": st.nu.copy(),
-            "q": st.q.copy(),
-            "qdot": st.qdot.copy(),
+            "eta": st.eta,
+            "nu": st.nu,
+            "q": q,
+            "qdot": st.qdot,
             "y": y,
             "y_ref": refs[0],
-            "distances": dist.d.copy(),
-            "min_distance": float(dist.d.min()),
+            "distances": d,
+            "min_distance": d_min,
             "contacts": int(contacts),
             "tracking_error": pos_err,
             "orientation_error": ori_err,

@@ -54,6 +54,9 @@ class VelocityLoop:
         self._kp = np.zeros(18)
         self._ki = np.zeros(18)
         self._cmd = np.zeros(18)
+        self._limit = np.zeros(18)
+        self._neg_limit = np.zeros(18)
+        self._scratch = np.zeros(18)
 
     def reset(self) -> None:
         """Clear the integral state."""
@@ -61,20 +64,30 @@ class VelocityLoop:
 
     def begin(self, zeta_cmd: np.ndarray) -> None:
         """Start a control step: feedforward and gains at the kinematic model's current state."""
-        self._cmd = np.asarray(zeta_cmd, dtype=float)
-        m = self.nominal.mass_matrix()
-        m_eff = 1.0 / np.diag(np.linalg.inv(m))
-        self._kp = m_eff * self.omega
-        self._ki = self._kp * self.omega * self.integral_ratio
-        ff = self.nominal.static_force()
-        ff[:6] += self.nominal.damping(self._cmd[:6])
-        ff[6:] += self.nominal.joint_friction(self._cmd[6:])
+        cmd = self._cmd = np.asarray(zeta_cmd, dtype=float)
+        nominal = self.nominal
+        m_eff = 1.0 / np.linalg.inv(nominal.mass_matrix()).diagonal()
+        kp = self._kp = m_eff * self.omega
+        ki = self._ki = kp * self.omega * self.integral_ratio
+        # the anti-windup bound of the integral is constant over the control step
+        self._limit = limit = self.tau_max / np.maximum(ki, 1e-12)
+        self._neg_limit = -limit
+        ff = nominal.static_force()
+        ff[:6] += nominal.damping(cmd[:6])
+        ff[6:] += nominal.joint_friction(cmd[6:])
         self._ff = ff
 
     def torque(self, zeta: np.ndarray, dt: float) -> np.ndarray:
         """Generalized force for one physics substep at measured velocity ``zeta``."""
         err = self._cmd - zeta
-        self.integral += err * dt
-        limit = self.tau_max / np.maximum(self._ki, 1e-12)
-        np.clip(self.integral, -limit, limit, out=self.integral)
-        return self._ff + self._kp * err + self._ki * self.integral
+        integral, scratch = self.integral, self._scratch
+        np.multiply(err, dt, out=scratch)
+        integral += scratch
+        # np.clip(integral, -limit, limit), as two selections (same values, a third of the cost)
+        np.maximum(integral, self._neg_limit, out=integral)
+        np.minimum(integral, self._limit, out=integral)
+        out = self._kp * err
+        out += self._ff  # the same sum as ff + kp err (addition commutes exactly)
+        np.multiply(self._ki, integral, out=scratch)
+        out += scratch
+        return out
