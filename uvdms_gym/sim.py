@@ -62,7 +62,7 @@ import pybullet as pb
 from pybullet_utils import bullet_client
 
 from uvdms_gym import frames, model
-from uvdms_gym.hydro import HydroCoefficients, HydroScale, hydro_coefficients, object_wrench
+from uvdms_gym.hydro import HydroCoefficients, HydroScale, hydro_coefficients
 from uvdms_gym.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
 
 NU_LIMIT = 50.0
@@ -865,7 +865,9 @@ class UVDMSSim:
             nx, ny, nz = vx - vt * ax, vy - vt * ay, vz - vt * az
             kvn = kn * sqrt(nx * nx + ny * ny + nz * nz)
             kvt = kt * abs(vt) * vt
-            apply_force(body, link, (-kvn * nx - kvt * ax, -kvn * ny - kvt * ay, fb - kvn * nz - kvt * az), pos, world, cid)
+            apply_force(
+                body, link, (-kvn * nx - kvt * ax, -kvn * ny - kvt * ay, fb - kvn * nz - kvt * az), pos, world, cid
+            )
         if tau_q:
             _motor_array(body, self._joints, _TORQUE, forces=tau_q, physicsClientId=cid)
         if self._obj is not None:
@@ -875,18 +877,28 @@ class UVDMSSim:
         self._t += self._dt
 
     def _object_hydro(self) -> None:
-        """Apply the object's hydrodynamic wrench (see :func:`uvdms_gym.hydro.object_wrench`)."""
+        """Apply the object's hydrodynamic wrench (:func:`uvdms_gym.hydro.object_wrench`, inlined)."""
         cid, obj, h = self._cid, self._obj, self._hydro
         pos, (qx, qy, qz, qw) = _base_pose(obj, cid)
-        vel, _ = _base_velocity(obj, cid)
-        e = (2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw))
-        k = h.obj_added_mass * (vel[0] * e[0] + vel[1] * e[1] + vel[2] * e[2])
-        p_ax = (k * e[0], k * e[1], k * e[2])
-        p0 = self._obj_p_prev
+        (vx, vy, vz), _ = _base_velocity(obj, cid)
+        ex, ey, ez = 2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw)
+        vt = vx * ex + vy * ey + vz * ez
+        k = h.obj_added_mass * vt
+        p_ax = (k * ex, k * ey, k * ez)  # axial added momentum
+        p0x, p0y, p0z = self._obj_p_prev
         self._obj_p_prev = p_ax
         inv_dt = self._inv_dt
-        rate = ((p_ax[0] - p0[0]) * inv_dt, (p_ax[1] - p0[1]) * inv_dt, (p_ax[2] - p0[2]) * inv_dt)
-        force, moment = object_wrench(vel, e, rate, h)
+        # Morison drag (hydro.morison_force), lift = buoyancy + weight cancel of the added mass, + dP_ax/dt
+        nx, ny, nz = vx - vt * ex, vy - vt * ey, vz - vt * ez
+        kvn = h.obj_kn * math.sqrt(nx * nx + ny * ny + nz * nz)
+        kvt = h.obj_kt * abs(vt) * vt
+        lift = h.obj_buoyancy + h.obj_added_mass * GRAVITY
+        force = (
+            (-kvn * nx - kvt * ex) + lift * 0.0 + (p_ax[0] - p0x) * inv_dt,
+            (-kvn * ny - kvt * ey) + lift * 0.0 + (p_ax[1] - p0y) * inv_dt,
+            (-kvn * nz - kvt * ez) + lift * 1.0 + (p_ax[2] - p0z) * inv_dt,
+        )
+        moment = (k * (vy * ez - vz * ey), k * (vz * ex - vx * ez), k * (vx * ey - vy * ex))
         _apply_force(obj, -1, force, pos, _WORLD, cid)
         _apply_torque(obj, -1, moment, _WORLD, cid)
 
