@@ -288,6 +288,7 @@ class UVDMSSim:
         self._needs_collision_pass = True
         self._t = 0.0
         self._raw: tuple | None = None  # cached raw state read, see _read_state
+        self._raw_obj: tuple | None = None  # the same for the object, see _read_object
         self._nu_prev = (0.0, 0.0, 0.0)
         self._obj_p_prev = (0.0, 0.0, 0.0)
         self._scale = HydroScale()
@@ -392,7 +393,7 @@ class UVDMSSim:
             raise TypeError(f"scale must be a HydroScale, got {type(scale).__name__}")
         self._scale = scale
         self._hydro = h = hydro_coefficients(self._params, scale, arms=self._arms)
-        self._raw = None
+        self._raw = self._raw_obj = None
         self._client.changeDynamics(
             self._body,
             self._am_link,
@@ -468,7 +469,7 @@ class UVDMSSim:
         for k, j in enumerate(self._joints):
             c.resetJointState(self._body, j, float(q[k]), float(qdot[k]))
         self._t = 0.0
-        self._raw = None
+        self._raw = self._raw_obj = None
         self._nu_prev = (float(nu[0]), float(nu[1]), float(nu[2]))
         if with_object:
             self._create_object()
@@ -547,6 +548,16 @@ class UVDMSSim:
             raw = self._raw = (p_com, quat, v_com, w_w, js)
         return raw
 
+    def _read_object(self) -> tuple:
+        """Raw PyBullet object state ``(p, quat, v, w)`` (world frame), cached like :meth:`_read_state`."""
+        raw = self._raw_obj
+        if raw is None:
+            obj = self._require_object()
+            p, quat = _base_pose(obj, self._cid)
+            v, w = _base_velocity(obj, self._cid)
+            raw = self._raw_obj = (p, quat, v, w)
+        return raw
+
     def state(self) -> SimState:
         """The current state in NED/FRD, converted from PyBullet's base (COM) pose and velocity.
 
@@ -601,21 +612,17 @@ class UVDMSSim:
 
     def object_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Object pose: NED position of its centre (3) and ZYX Euler angles ``[phi, theta, psi]`` (3)."""
-        obj = self._require_object()
-        p, quat = self._client.getBasePositionAndOrientation(obj)
-        r_n = frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(np.array(quat)))
-        return frames.world_to_ned(np.array(p)), frames.rot_to_euler(r_n)
+        p, _, _, _ = self._read_object()
+        return frames.world_to_ned(np.array(p)), frames.rot_to_euler(self.object_rotation())
 
     def object_rotation(self) -> np.ndarray:
         """Object orientation as a rotation matrix ``R_N,object`` (NED)."""
-        obj = self._require_object()
-        _, quat = self._client.getBasePositionAndOrientation(obj)
-        return frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(np.array(quat)))
+        _, quat, _, _ = self._read_object()
+        return frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(quat))
 
     def object_velocity(self) -> np.ndarray:
         """Object twist ``[v; w]`` (6): velocity of its centre and angular velocity, both in NED."""
-        obj = self._require_object()
-        v, w = self._client.getBaseVelocity(obj)
+        _, _, v, w = self._read_object()
         return np.concatenate([frames.world_to_ned(np.array(v)), frames.world_to_ned(np.array(w))])
 
     def grasp_forces(self) -> np.ndarray:
@@ -700,7 +707,7 @@ class UVDMSSim:
     def bare_step(self) -> None:
         """One ``stepSimulation`` with no hydrodynamics and no inputs (for benchmarks; advances ``t``)."""
         _step_simulation(self._cid)
-        self._raw = None
+        self._raw = self._raw_obj = None
         self._t += self._dt
 
     def step(
@@ -873,7 +880,7 @@ class UVDMSSim:
         if self._obj is not None:
             self._object_hydro()
         _step_simulation(cid)
-        self._raw = None
+        self._raw = self._raw_obj = None
         self._t += self._dt
 
     def _object_hydro(self) -> None:
@@ -923,9 +930,7 @@ class UVDMSSim:
             if not max(map(abs, qdot)) <= QDOT_LIMIT:
                 self._fail(f"|qdot| > {QDOT_LIMIT} or non-finite: qdot = {qdot}")
         if self._obj is not None:
-            cid = self._cid
-            p, _ = _base_pose(self._obj, cid)
-            v, w = _base_velocity(self._obj, cid)
+            p, _, v, w = self._read_object()
             if not (max(map(abs, (*v, *w))) < NU_LIMIT + QDOT_LIMIT and max(map(abs, p)) < POSITION_LIMIT):
                 self._fail(f"object state out of bounds or non-finite: position {p}, velocity {v}, {w}")
 

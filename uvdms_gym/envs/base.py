@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from math import acos, cos, sin
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -32,7 +33,7 @@ import numpy as np
 
 from uvdms_gym.distances import compute_distances, contact_thresholds, velocity_damper
 from uvdms_gym.envs.lowlevel import VelocityLoop
-from uvdms_gym.frames import euler_to_rot_batch, rot_error_batch
+from uvdms_gym.frames import euler_to_rot, rot_error
 from uvdms_gym.hydro import HydroScale
 from uvdms_gym.kinematics import KinematicModel
 from uvdms_gym.nominal import NominalDynamics
@@ -376,8 +377,38 @@ def errors_positions(y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple
 
 
 def errors_pose(p: np.ndarray, r: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """Object transport: position error and orientation error (rotation vector), both in the body frame."""
+    """Object transport: position error and orientation error (rotation vector), both in the body frame.
+
+    The orientation errors are :func:`uvdms_gym.frames.rot_error` of ``euler_to_rot(ref)`` and ``r``, written
+    out in floats for the few preview rows (numpy's per-call cost on 3x3 arrays is most of the work);
+    near-identity and half-turn errors go to :func:`~uvdms_gym.frames.rot_error` itself.
+    """
     e_p = refs[:, :3] - p
-    e_o = rot_error_batch(euler_to_rot_batch(refs[:, 3:]), r)
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r.tolist()
+    e_o = []
+    for phi, theta, psi in refs[:, 3:].tolist():
+        cf, sf, ct, st, cp, sp = cos(phi), sin(phi), cos(theta), sin(theta), cos(psi), sin(psi)
+        # R_des = frames.euler_to_rot([phi, theta, psi])
+        d00, d01, d02 = cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st
+        d10, d11, d12 = sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf
+        d20, d21, d22 = -st, ct * sf, ct * cf
+        # rotation vector of R_des r^T: angle from the trace, axis from the skew part
+        e00 = d00 * r00 + d01 * r01 + d02 * r02
+        e11 = d10 * r10 + d11 * r11 + d12 * r12
+        e22 = d20 * r20 + d21 * r21 + d22 * r22
+        angle = acos(min(max((e00 + e11 + e22 - 1.0) / 2.0, -1.0), 1.0))
+        s = sin(angle)
+        if s < 1e-9:
+            e_o.append(rot_error(euler_to_rot((phi, theta, psi)), r))
+            continue
+        k = angle / (2.0 * s)
+        e_o.append(
+            (
+                k * ((d20 * r10 + d21 * r11 + d22 * r12) - (d10 * r20 + d11 * r21 + d12 * r22)),
+                k * ((d00 * r20 + d01 * r21 + d02 * r22) - (d20 * r00 + d21 * r01 + d22 * r02)),
+                k * ((d10 * r00 + d11 * r01 + d12 * r02) - (d00 * r10 + d01 * r11 + d02 * r12)),
+            )
+        )
+    e_o = np.array(e_o, dtype=float)
     blk = np.concatenate([e_p @ r_nb / POS_SCALE, e_o @ r_nb], axis=1).reshape(-1)
     return blk, float(np.linalg.norm(e_p[0])), float(np.linalg.norm(e_o[0]))

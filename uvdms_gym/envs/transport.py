@@ -103,7 +103,7 @@ class TransportEnv(UVDMSEnv):
 
     def _output(self) -> np.ndarray:
         pos, rpy = self._sim.object_pose()
-        self._obj_rot = euler_to_rot(rpy)
+        self._obj_rot = self._sim.object_rotation()  # the matrix rpy came from (no Euler round trip)
         return np.concatenate([pos, rpy])
 
     def _errors(self, y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
