@@ -248,7 +248,7 @@ class UVDMSEnv(gym.Env):
         if a.shape != (ACTION_DIM,):
             raise ValueError(f"action must have shape ({ACTION_DIM},), got {a.shape}")
         within = np.abs(a) <= 1.0  # False for NaN/inf and for entries to clip
-        if within.all():
+        if False not in within.tolist():  # (a list scan: ndarray.all() costs several times more)
             return a, False
         bad = ~np.isfinite(a)
         if bad.any():
@@ -273,7 +273,7 @@ class UVDMSEnv(gym.Env):
         enough; far rows (almost always all of them) cost nothing.
         """
         near = dist.d < self._contact_check_d
-        if not near.any():
+        if True not in near.tolist():
             return 0
         pairs = [(dist.link_frame[i], self._obstacle_link(dist, i)) for i in np.flatnonzero(near)]
         return self._sim.count_contacts(pairs)
@@ -301,12 +301,13 @@ class UVDMSEnv(gym.Env):
                 np.sin(q),
                 np.cos(q),
                 st.qdot / self._qdot_scale,
-                (np.clip(d, 0.0, CLEARANCE_CLIP) - D1) / (D2 - D1),
+                (np.minimum(np.maximum(d, 0.0), CLEARANCE_CLIP) - D1) / (D2 - D1),
             )
         )
-        np.clip(obs, -OBS_CLIP, OBS_CLIP, out=obs)
+        # np.clip(obs, -OBS_CLIP, OBS_CLIP) as two selections (the same values; np.clip's wrapper costs more)
+        np.minimum(np.maximum(obs, -OBS_CLIP, out=obs), OBS_CLIP, out=obs)
         self._obs = obs.astype(np.float32)
-        d_min = float(d.min())
+        d_min = min(d.tolist())
         cost_contact = 1.0 if contacts > 0 else 0.0
         cost_zone = 1.0 if d_min < D1 else 0.0
         info: dict[str, Any] = {  # the state arrays are fresh copies from sim.state(), owned by info
@@ -338,7 +339,7 @@ class UVDMSEnv(gym.Env):
             "track": -w["track"] * info["tracking_error"],
             "orientation": -w["orientation"] * info["orientation_error"],
             "effort": -w["effort"] * float(a @ a) / ACTION_DIM,
-            "proximity": -w["proximity"] * float(np.sum(1.0 - s)),
+            "proximity": -w["proximity"] * float(np.add.reduce(1.0 - s)),  # np.sum without its wrapper
             "contact": -w["contact"] * info["cost_contact"],
         }
 

@@ -16,11 +16,15 @@ It is part of the environment, not of any baseline: an agent or controller in ve
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from uvdms_gym.nominal import NominalDynamics
+
+_LOG = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -56,7 +60,7 @@ class VelocityLoop:
         self._cmd = np.zeros(18)
         self._limit = np.zeros(18)
         self._neg_limit = np.zeros(18)
-        self._scratch = np.zeros(18)
+        _warm_up()
 
     def reset(self) -> None:
         """Clear the integral state."""
@@ -79,15 +83,47 @@ class VelocityLoop:
 
     def torque(self, zeta: np.ndarray, dt: float) -> np.ndarray:
         """Generalized force for one physics substep at measured velocity ``zeta``."""
-        err = self._cmd - zeta
-        integral, scratch = self.integral, self._scratch
-        np.multiply(err, dt, out=scratch)
-        integral += scratch
-        # np.clip(integral, -limit, limit), as two selections (same values, a third of the cost)
-        np.maximum(integral, self._neg_limit, out=integral)
-        np.minimum(integral, self._limit, out=integral)
-        out = self._kp * err
-        out += self._ff  # the same sum as ff + kp err (addition commutes exactly)
-        np.multiply(self._ki, integral, out=scratch)
-        out += scratch
+        out = np.empty(self._cmd.shape[0])  # fresh: the simulator hands it out as the applied tau
+        z = np.asarray(zeta, dtype=float)
+        lo, hi = self._neg_limit, self._limit
+        _pi_update(self._cmd, z, self.integral, float(dt), lo, hi, self._kp, self._ki, self._ff, out)
         return out
+
+
+def _jit(fn):
+    """``numba.njit(cache=True)``, or without the disk cache if numba has no writable cache location."""
+    try:
+        disp = numba.njit(cache=True)(fn)
+        disp._cache._impl.locator.ensure_cache_path()
+    except (RuntimeError, OSError) as exc:  # "cannot cache function ...: no locator available", read-only dir
+        _LOG.warning("numba disk cache unavailable (%s); %s compiles in every process", exc, fn.__name__)
+        return numba.njit(fn)
+    except AttributeError:  # numba internals moved: keep caching, numba reports problems itself
+        pass
+    return disp
+
+
+@_jit
+def _pi_update(cmd, zeta, integral, dt, neg_limit, limit, kp, ki, ff, out):  # pragma: no cover - compiled
+    """One substep of the PI law, elementwise, in the operation order of the numpy form it replaces.
+
+    ``err = cmd - zeta``; ``integral += err dt`` clamped to ``[neg_limit, limit]`` (``np.clip``);
+    ``out = ff + kp err + ki integral``. numba without fastmath neither fuses nor reorders these, so the
+    result has the same bits as the numpy expressions (the same-physics test replays it to 1e-9; it is exact).
+    One compiled call costs about 1 µs against about 8 µs for the nine numpy calls on 18 entries.
+    """
+    for i in range(cmd.shape[0]):
+        err = cmd[i] - zeta[i]
+        v = integral[i] + err * dt
+        if v < neg_limit[i]:  # np.maximum, then np.minimum (NaN passes through both, as in numpy)
+            v = neg_limit[i]
+        if v > limit[i]:
+            v = limit[i]
+        integral[i] = v
+        out[i] = kp[i] * err + ff[i] + ki[i] * v
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) the kernel now, at environment construction, not in a step."""
+    z = np.zeros(1)
+    _pi_update(z, z, z.copy(), 0.0, z, z, z, z, z, z.copy())
