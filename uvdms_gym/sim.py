@@ -178,7 +178,7 @@ class StepInfo:
     @property
     def any_saturated(self) -> bool:
         """Whether any component was saturated."""
-        return bool(self.saturated.any())
+        return True in self.saturated.tolist()  # (a list scan: ndarray.any() costs several times more)
 
 
 def _vector(value: object, n: int, name: str) -> np.ndarray:
@@ -403,6 +403,8 @@ class UVDMSSim:
         # the weight cancellation follows the mass actually set (floored), its centroid shift is negligible
         self._up_force = h.up_force + (max(h.rigid_added_mass, MIN_VIRTUAL_MASS) - h.rigid_added_mass) * GRAVITY
         self._up_centroid = h.up_centroid
+        # the vehicle's constants as one flat tuple (one unpacking per physics step instead of attribute lookups)
+        self._vehicle_consts = (*h.d_lin, *h.d_quad, *h.a_res, self._up_force, *self._up_centroid)
         self._link_consts = tuple(
             (link, h.link_buoyancy[k], h.link_kn[k], h.link_kt[k], *h.link_axis[k])
             for k, link in enumerate(self._joints)
@@ -798,7 +800,7 @@ class UVDMSSim:
         Plain float arithmetic on the tuples PyBullet returns (numpy's per-call overhead exceeds the arithmetic
         on these 3-vectors), in the same operation order as :mod:`uvdms_gym.hydro`'s reference functions.
         """
-        cid, body, h = self._cid, self._body, self._hydro
+        cid, body = self._cid, self._body
         st = _get_link_states(body, self._state_links, 1, 1, cid)
         origin, (qx, qy, qz, qw), _, _, _, _, (vx, vy, vz), (wx, wy, wz) = st[0]
         # R_WB of the body (the added_mass link's frame is the body frame at the origin)
@@ -822,19 +824,16 @@ class UVDMSSim:
         inv_dt = self._inv_dt
         u0, v0, w0 = self._nu_prev
         self._nu_prev = (u, v, w)
-        dl, dq = h.d_lin, h.d_quad
-        a1, a2, a3 = h.a_res
+        dl0, dl1, dl2, dl3, dl4, dl5, dq0, dq1, dq2, dq3, dq4, dq5, a1, a2, a3, up, cx, cy, cz = self._vehicle_consts
         p1, p2, p3 = a1 * u, a2 * v, a3 * w
         t0, t1, t2, t3, t4, t5 = tau_v
-        fx = t0 - (dl[0] + dq[0] * abs(u)) * u - a1 * (u - u0) * inv_dt + (p2 * r - p3 * q)
-        fy = t1 - (dl[1] + dq[1] * abs(v)) * v - a2 * (v - v0) * inv_dt + (p3 * p - p1 * r)
-        fz = t2 - (dl[2] + dq[2] * abs(w)) * w - a3 * (w - w0) * inv_dt + (p1 * q - p2 * p)
-        mx = t3 - (dl[3] + dq[3] * abs(p)) * p + (p2 * w - p3 * v)
-        my = t4 - (dl[4] + dq[4] * abs(q)) * q + (p3 * u - p1 * w)
-        mz = t5 - (dl[5] + dq[5] * abs(r)) * r + (p1 * v - p2 * u)
-        # upward hydrostatic force at its body-fixed centroid (world z up)
-        up = self._up_force
-        cx, cy, cz = self._up_centroid
+        fx = t0 - (dl0 + dq0 * abs(u)) * u - a1 * (u - u0) * inv_dt + (p2 * r - p3 * q)
+        fy = t1 - (dl1 + dq1 * abs(v)) * v - a2 * (v - v0) * inv_dt + (p3 * p - p1 * r)
+        fz = t2 - (dl2 + dq2 * abs(w)) * w - a3 * (w - w0) * inv_dt + (p1 * q - p2 * p)
+        mx = t3 - (dl3 + dq3 * abs(p)) * p + (p2 * w - p3 * v)
+        my = t4 - (dl4 + dq4 * abs(q)) * q + (p3 * u - p1 * w)
+        mz = t5 - (dl5 + dq5 * abs(r)) * r + (p1 * v - p2 * u)
+        # upward hydrostatic force up at its body-fixed centroid c (world z up)
         ox = r00 * cx + r01 * cy + r02 * cz
         oy = r10 * cx + r11 * cy + r12 * cz
         apply_force = _apply_force

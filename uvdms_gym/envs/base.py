@@ -120,6 +120,7 @@ class UVDMSEnv(gym.Env):
             "contact": float(contact_weight),
         }
         self.max_tracking_error = float(max_tracking_error)
+        self._reward_keys = {k: f"reward_{k}" for k in self.weights}
         self.render_mode = render_mode
         self.render_width, self.render_height = int(render_width), int(render_height)
 
@@ -219,7 +220,8 @@ class UVDMSEnv(gym.Env):
         obs, info = self._observe()
         terms = self._reward_terms(a, info)
         reward = float(sum(terms.values()))
-        info.update({f"reward_{k}": v for k, v in terms.items()})
+        keys = self._reward_keys
+        info.update({keys[k]: v for k, v in terms.items()})
         info.update(tau=tau_applied, tau_saturated=saturated, action_clipped=clipped)
         terminated = (self.terminate_on_contact and info["contacts"] > 0) or (
             info["tracking_error"] > self.max_tracking_error
@@ -264,7 +266,7 @@ class UVDMSEnv(gym.Env):
             loop = self._loop
             loop.begin(a * self.zeta_max)  # the kinematic model holds the current state (from _observe)
             res = self._sim.step(np.zeros(ACTION_DIM), n, feedback=lambda z: loop.torque(z, dt))
-        return res.tau, bool(np.any(res.saturated))
+        return res.tau, res.any_saturated
 
     def _contacts(self, dist) -> int:
         """PyBullet's contact report for the rows whose exact distance is within a margin of contact.
