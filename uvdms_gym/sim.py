@@ -50,6 +50,7 @@ reset).
 from __future__ import annotations
 
 import contextlib
+import itertools
 import math
 import os
 import sys
@@ -62,7 +63,7 @@ import pybullet as pb
 from pybullet_utils import bullet_client
 
 from uvdms_gym import frames, model
-from uvdms_gym.hydro import HydroCoefficients, HydroScale, hydro_coefficients
+from uvdms_gym.hydro import HydroCoefficients, HydroScale, hydro_coefficients, link_forces_world, link_table
 from uvdms_gym.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
 
 NU_LIMIT = 50.0
@@ -103,6 +104,7 @@ _joint_states = pb.getJointStates
 _closest_points = pb.getClosestPoints
 _contact_points = pb.getContactPoints
 _perform_collision_detection = pb.performCollisionDetection
+_chain = itertools.chain.from_iterable
 _arctan2 = np.arctan2
 _arcsin = np.arcsin
 
@@ -294,6 +296,8 @@ class UVDMSSim:
         self._scale = HydroScale()
         self._hydro: HydroCoefficients = hydro_coefficients(self._params, self._scale, arms=self._arms)
         self.set_hydro_scale(hydro_scale or HydroScale())
+        # compile (or load from numba's disk cache) the link-force kernel now rather than in the first step
+        link_forces_world(np.zeros(7 * self._link_table.shape[0]), self._link_table, self._link_forces)
         self.reset(np.zeros(6))
 
     # ------------------------------------------------------------------ properties
@@ -405,10 +409,8 @@ class UVDMSSim:
         self._up_centroid = h.up_centroid
         # the vehicle's constants as one flat tuple (one unpacking per physics step instead of attribute lookups)
         self._vehicle_consts = (*h.d_lin, *h.d_quad, *h.a_res, self._up_force, *self._up_centroid)
-        self._link_consts = tuple(
-            (link, h.link_buoyancy[k], h.link_kn[k], h.link_kt[k], *h.link_axis[k])
-            for k, link in enumerate(self._joints)
-        )
+        self._link_table = link_table(h)
+        self._link_forces = np.empty((self._link_table.shape[0], 3))
         if self._obj is not None:
             self._set_object_dynamics()
 
@@ -856,25 +858,14 @@ class UVDMSSim:
             _WORLD,
             cid,
         )
-        # arm links: buoyancy at the midpoint (= COM) + Morison drag (hydro.link_force, inlined)
-        sqrt, world = math.sqrt, _WORLD
-        for (link, fb, kn, kt, ex, ey, ez), (pos, (qx, qy, qz, qw), _, _, _, _, (vx, vy, vz), _) in zip(
-            self._link_consts, st[1:]
-        ):
-            tx = 2.0 * (qy * ez - qz * ey)
-            ty = 2.0 * (qz * ex - qx * ez)
-            tz = 2.0 * (qx * ey - qy * ex)
-            ax = ex + qw * tx + qy * tz - qz * ty
-            ay = ey + qw * ty + qz * tx - qx * tz
-            az = ez + qw * tz + qx * ty - qy * tx
-            vt = vx * ax + vy * ay + vz * az
-            nx, ny, nz = vx - vt * ax, vy - vt * ay, vz - vt * az
-            kvn = kn * sqrt(nx * nx + ny * ny + nz * nz)
-            kvt = kt * abs(vt) * vt
-            apply_force(
-                body, link, (-kvn * nx - kvt * ax, -kvn * ny - kvt * ay, fb - kvn * nz - kvt * az), pos, world, cid
-            )
+        # arm links: buoyancy at the midpoint (= COM) + Morison drag (hydro.link_forces_world, compiled)
         if tau_q:
+            links = st[1:]
+            forces = self._link_forces
+            link_forces_world(np.array(list(_chain([ls[1] + ls[6] for ls in links]))), self._link_table, forces)
+            world = _WORLD
+            for link, force, ls in zip(self._joints, forces.tolist(), links):
+                apply_force(body, link, force, ls[0], world, cid)
             _motor_array(body, self._joints, _TORQUE, forces=tau_q, physicsClientId=cid)
         if self._obj is not None:
             self._object_hydro()

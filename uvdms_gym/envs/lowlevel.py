@@ -16,15 +16,12 @@ It is part of the environment, not of any baseline: an agent or controller in ve
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from uvdms_gym._jit import jit
 from uvdms_gym.nominal import NominalDynamics
-
-_LOG = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -90,20 +87,7 @@ class VelocityLoop:
         return out
 
 
-def _jit(fn):
-    """``numba.njit(cache=True)``, or without the disk cache if numba has no writable cache location."""
-    try:
-        disp = numba.njit(cache=True)(fn)
-        disp._cache._impl.locator.ensure_cache_path()
-    except (RuntimeError, OSError) as exc:  # "cannot cache function ...: no locator available", read-only dir
-        _LOG.warning("numba disk cache unavailable (%s); %s compiles in every process", exc, fn.__name__)
-        return numba.njit(fn)
-    except AttributeError:  # numba internals moved: keep caching, numba reports problems itself
-        pass
-    return disp
-
-
-@_jit
+@jit
 def _pi_update(cmd, zeta, integral, dt, neg_limit, limit, kp, ki, ff, out):  # pragma: no cover - compiled
     """One substep of the PI law, elementwise, in the operation order of the numpy form it replaces.
 
