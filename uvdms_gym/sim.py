@@ -616,8 +616,12 @@ class UVDMSSim:
 
     def object_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Object pose: NED position of its centre (3) and ZYX Euler angles ``[phi, theta, psi]`` (3)."""
+        return self.object_position(), frames.rot_to_euler(self.object_rotation())
+
+    def object_position(self) -> np.ndarray:
+        """NED position of the object's centre (3)."""
         p, _, _, _ = self._read_object()
-        return frames.world_to_ned(np.array(p)), frames.rot_to_euler(self.object_rotation())
+        return frames.world_to_ned(np.array(p))
 
     def object_rotation(self) -> np.ndarray:
         """Object orientation as a rotation matrix ``R_N,object`` (NED)."""
