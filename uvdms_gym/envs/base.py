@@ -336,12 +336,18 @@ class UVDMSEnv(gym.Env):
 
     def _reward_terms(self, a: np.ndarray, info: dict[str, Any]) -> dict[str, float]:
         w = self.weights
-        s = velocity_damper(info["distances"], D1, D2)
+        # S(d) = 1 exactly for d >= D2 ((d - D1) / (D2 - D1) >= 1 is clipped to 1 and sin(pi / 2) rounds to 1),
+        # so the sum is exactly 0 when no distance is below D2 (the usual case): skip evaluating it
+        if info["min_distance"] < D2:
+            s = velocity_damper(info["distances"], D1, D2)
+            near = float(np.add.reduce(1.0 - s))  # np.sum without its wrapper
+        else:
+            near = 0.0
         return {
             "track": -w["track"] * info["tracking_error"],
             "orientation": -w["orientation"] * info["orientation_error"],
             "effort": -w["effort"] * float(a @ a) / ACTION_DIM,
-            "proximity": -w["proximity"] * float(np.add.reduce(1.0 - s)),  # np.sum without its wrapper
+            "proximity": -w["proximity"] * near,
             "contact": -w["contact"] * info["cost_contact"],
         }
 
