@@ -27,19 +27,24 @@ Physics set-up [D]:
   their ODEs within about 1 % (the surge residue is the pitch coupling of the low centre of gravity,
   unchanged at ``dt = 0.002``); the grasp welds stay within 0.2 mm (tested). Smaller ``dt`` costs
   proportionally more and buys little; larger ``dt`` grows the grasp drift as ``dt^2``.
-* cost (same states, median): bare ``stepSimulation`` 12-17 µs, one physics step with hydrodynamics
-  about 40 µs (2.5x), of which about 22 µs are the state read, the arithmetic and the 14 force calls.
+* cost (``uvdms bench sim``, same states, median): bare ``stepSimulation`` 18-24 µs, one physics step with
+  hydrodynamics 2.7x that (3.2x before the compiled link loop), the rest being the state read, the
+  arithmetic and the 15 force calls.
 * caution for controllers: at straight arms the roll joints 1, 3, 5 have tiny effective inertias
   (``1 / (M^-1)_ii`` = 4e-4 to 8e-4 kg m^2), so torques near ``tau_max`` spin them beyond
   :data:`QDOT_LIMIT` within one step (:class:`PhysicsError`).
 
 Per physics step (:meth:`UVDMSSim.step` runs ``n_substeps`` of them with the same ``tau``): one
 ``getLinkStates`` call reads the body origin (the ``added_mass`` link sits there) and the 12 moving links
-with ``computeLinkVelocity=1, computeForwardKinematics=1``; the hydrodynamic loads are evaluated in plain
-float arithmetic; the vehicle wrench (control ``tau_v`` plus hydrodynamics, converted from the body frame)
-is applied at the body origin as a force and a torque in ``WORLD_FRAME``, each link's drag and buoyancy at
-its midpoint; joint torques via ``TORQUE_CONTROL``; then ``stepSimulation``. PyBullet clears external
-forces *and* joint torques after every ``stepSimulation``, so all are reapplied every physics step.
+with ``computeLinkVelocity=1, computeForwardKinematics=1``; the vehicle's loads are evaluated in plain float
+arithmetic, the 12 links' in one compiled call (:func:`uvdms_gym.hydro.link_forces_world`); the vehicle
+wrench (control ``tau_v`` plus hydrodynamics, converted from the body frame) is applied at the body origin as
+a force and a torque in ``WORLD_FRAME``, each link's drag and buoyancy at its midpoint; joint torques via
+``TORQUE_CONTROL``; then ``stepSimulation``. PyBullet clears external forces *and* joint torques after every
+``stepSimulation``, so all are reapplied every physics step. Every PyBullet state query copies its whole
+state buffer, so the state is read once per physics state: the sanity check at the end of :meth:`step`
+caches its read, and :meth:`state`, the object queries and the first substep's velocity loop reuse it until
+the next ``stepSimulation`` or reset (``docs/ARCHITECTURE.md``, Performance).
 
 Failures are never silent: an invalid ``tau`` raises :class:`ValueError`, saturation is reported in
 :class:`StepInfo`, and a state that is non-finite or beyond the sanity bounds :data:`NU_LIMIT`,
