@@ -621,17 +621,29 @@ class UVDMSSim:
 
     def object_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Object pose: NED position of its centre (3) and ZYX Euler angles ``[phi, theta, psi]`` (3)."""
-        return self.object_position(), frames.rot_to_euler(self.object_rotation())
+        p, rpy, _ = self.object_pose_rotation()
+        return p, rpy
 
     def object_position(self) -> np.ndarray:
         """NED position of the object's centre (3)."""
         p, _, _, _ = self._read_object()
-        return frames.world_to_ned(np.array(p))
+        return np.array([p[0], -p[1], -p[2]])  # frames.world_to_ned
 
     def object_rotation(self) -> np.ndarray:
         """Object orientation as a rotation matrix ``R_N,object`` (NED)."""
         _, quat, _, _ = self._read_object()
         return frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(quat))
+
+    def object_pose_rotation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`object_pose` and :meth:`object_rotation` from one conversion: ``(p, rpy, R_N,object)``.
+
+        The Euler angles are :func:`uvdms_gym.frames.rot_to_euler` of the matrix, with its numpy functions.
+        """
+        r = self.object_rotation()
+        (r00, _, _), (r10, _, _), (r20, r21, r22) = r.tolist()
+        phi, psi = _arctan2(np.array([r21, r10]), np.array([r22, r00])).tolist()
+        theta = -float(_arcsin(min(max(r20, -1.0), 1.0)))
+        return self.object_position(), np.array([phi, theta, psi]), r
 
     def object_velocity(self) -> np.ndarray:
         """Object twist ``[v; w]`` (6): velocity of its centre and angular velocity, both in NED."""

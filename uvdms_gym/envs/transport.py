@@ -8,7 +8,7 @@ import numpy as np
 
 from uvdms_gym.envs.base import UVDMSEnv, errors_pose
 from uvdms_gym.envs.tasks import TransportTask, make_transport_task
-from uvdms_gym.frames import euler_to_rot, rot_to_euler
+from uvdms_gym.frames import euler_to_rot
 from uvdms_gym.kinematics import KinematicModel
 
 SUCCESS_POSITION = 0.02
@@ -102,8 +102,8 @@ class TransportEnv(UVDMSEnv):
         return vehicle_pose_for_object(self._kin, self.task.start), np.zeros(12)
 
     def _output(self) -> np.ndarray:
-        r = self._obj_rot = self._sim.object_rotation()  # kept for _errors (no Euler round trip)
-        return np.concatenate([self._sim.object_position(), rot_to_euler(r)])
+        pos, rpy, self._obj_rot = self._sim.object_pose_rotation()  # the matrix is kept for _errors
+        return np.concatenate([pos, rpy])
 
     def _errors(self, y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
         return errors_pose(y[:3], self._obj_rot, refs, r_nb)
