@@ -820,8 +820,9 @@ class UVDMSSim:
     ) -> None:
         """One physics step: read state, evaluate hydrodynamics (see :mod:`uvdms_gym.hydro`), apply, step.
 
-        Plain float arithmetic on the tuples PyBullet returns (numpy's per-call overhead exceeds the arithmetic
-        on these 3-vectors), in the same operation order as :mod:`uvdms_gym.hydro`'s reference functions.
+        The vehicle in plain float arithmetic on the tuples PyBullet returns (numpy's per-call overhead exceeds
+        the arithmetic on these 3-vectors), the links in one compiled call; both in the operation order of
+        :mod:`uvdms_gym.hydro`'s reference functions.
         """
         cid, body = self._cid, self._body
         st = _get_link_states(body, self._state_links, 1, 1, cid)
