@@ -183,3 +183,28 @@ def test_make_step_close_cycles_do_not_leak():
         env.close()  # idempotent
     assert _rss_mb() - before < 50.0
     assert not any(p.isConnected(physicsClientId=c) for c in set(ids))
+
+
+def test_transport_orientation_errors_match_frames_rot_error():
+    """errors_pose's float-arithmetic rotation errors equal frames.rot_error of the Euler references."""
+    from uvdms_gym.envs.base import POS_SCALE, errors_pose
+    from uvdms_gym.frames import euler_to_rot, rot_error
+
+    rng = np.random.default_rng(3)
+    for k in range(200):
+        r = euler_to_rot(rng.uniform(-1.5, 1.5, 3))
+        r_nb = euler_to_rot(rng.uniform(-1.5, 1.5, 3))
+        refs = np.c_[rng.normal(size=(3, 3)), rng.uniform(-1.5, 1.5, (3, 3))]
+        if k % 4 == 1:  # a reference equal to the current orientation (zero error: the delegated branch)
+            refs[0, 3:] = [np.arctan2(r[2, 1], r[2, 2]), -np.arcsin(r[2, 0]), np.arctan2(r[1, 0], r[0, 0])]
+        p = rng.normal(size=3)
+        blk, pos_err, ori_err = errors_pose(p, r, refs, r_nb)
+        e_o = np.array([rot_error(euler_to_rot(ref[3:]), r) for ref in refs])
+        e_p = refs[:, :3] - p
+        expected = np.concatenate([e_p @ r_nb / POS_SCALE, e_o @ r_nb], axis=1).reshape(-1)
+        # at zero error the angle is acos of a trace ~1: rounding of order 1e-16 there moves it by ~1e-8 in
+        # either implementation (sqrt conditioning), elsewhere the two agree to rounding
+        tol = 1e-7 if k % 4 == 1 else 1e-12
+        np.testing.assert_allclose(blk, expected, rtol=0.0, atol=tol)
+        assert pos_err == pytest.approx(np.linalg.norm(e_p[0]), abs=1e-14)
+        assert ori_err == pytest.approx(np.linalg.norm(e_o[0]), abs=tol)

@@ -185,3 +185,24 @@ def test_hydro_is_pure():
     np.testing.assert_array_equal(nu, nu_copy)
     with pytest.raises(dataclasses.FrozenInstanceError):
         c.up_force = 0.0  # type: ignore[misc]
+
+
+def test_compiled_link_forces_match_link_force_with_rotated_axes():
+    """link_forces_world = link_force(v, R(q) e, ...) per link, R from frames (an independent rotation)."""
+    from uvdms_gym.frames import quat_xyzw_to_rot
+
+    c = hydro.hydro_coefficients(P, hydro.HydroScale(link_drag=1.3, buoyancy=0.9))
+    table = hydro.link_table(c)
+    rng = np.random.default_rng(5)
+    n = table.shape[0]
+    quats = rng.normal(size=(n, 4))
+    quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    vels = rng.normal(scale=0.8, size=(n, 3))
+    vels[0] = 0.0  # a link at rest: buoyancy only
+    out = np.empty((n, 3))
+    hydro.link_forces_world(np.concatenate([quats, vels], axis=1).reshape(-1), table, out)
+    for k in range(n):
+        axis = quat_xyzw_to_rot(quats[k]) @ np.array(c.link_axis[k])
+        expected = hydro.link_force(vels[k], axis, c.link_buoyancy[k], c.link_kn[k], c.link_kt[k])
+        np.testing.assert_allclose(out[k], expected, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(out[0], [0.0, 0.0, c.link_buoyancy[0]], atol=1e-15)

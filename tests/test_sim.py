@@ -606,3 +606,48 @@ def test_count_contacts_agrees_with_simulated_self_collision():
         assert a.count_contacts([("right_link1", "left_link1")]) == 0
         with pytest.raises(ValueError, match="unknown link"):
             a.count_contacts([("right_link9", "left_link1")])
+
+
+def _state_from_pybullet(s: UVDMSSim) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """eta, nu, q, qdot straight from PyBullet's queries and the frames helpers (no simulator code)."""
+    c, b = s.client, s.body_id
+    p_com, quat = c.getBasePositionAndOrientation(b)
+    v_com, w_w = c.getBaseVelocity(b)
+    r_wb = frames.quat_xyzw_to_rot(np.array(quat))
+    r_g_w = r_wb @ np.array(P.vehicle.r_g)
+    eta = np.r_[frames.world_to_ned(np.array(p_com) - r_g_w), frames.rot_to_euler(frames.body_rot_world_to_ned(r_wb))]
+    v_o = np.array(v_com) - np.cross(np.array(w_w), r_g_w)
+    nu = np.r_[r_wb.T @ v_o, r_wb.T @ np.array(w_w)]
+    js = c.getJointStates(b, list(s.joint_indices))
+    return eta, nu, np.array([j[0] for j in js]), np.array([j[1] for j in js])
+
+
+def test_state_and_object_queries_follow_every_step_and_reset(sim):
+    """state() and the object queries reuse one PyBullet read per physics state: it must never be stale."""
+    rng = np.random.default_rng(11)
+    q0 = np.zeros(12)
+    sim.reset(np.array([2.0, 0.0, 3.0, 0.1, -0.1, 0.3]), q=q0, with_object=True)
+    loop_tau = rng.uniform(-20.0, 20.0, 18)
+    for k in range(12):
+        if k == 6:  # a reset between steps, after the previous state has been read
+            sim.state()
+            sim.reset(*random_state(rng, scale=0.3))
+        else:
+            sim.step(loop_tau, n_substeps=1 + k % 3, feedback=(lambda z: 0.5 * loop_tau) if k % 2 else None)
+        st = sim.state()
+        for got, expected in zip((st.eta, st.nu, st.q, st.qdot), _state_from_pybullet(sim)):
+            np.testing.assert_allclose(got, expected, rtol=0.0, atol=1e-12)
+        if sim.object_id is not None:
+            p, quat = sim.client.getBasePositionAndOrientation(sim.object_id)
+            v, w = sim.client.getBaseVelocity(sim.object_id)
+            r = frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(np.array(quat)))
+            pos, rpy, rot = sim.object_pose_rotation()
+            np.testing.assert_allclose(pos, frames.world_to_ned(np.array(p)), atol=1e-12)
+            np.testing.assert_allclose(rot, r, atol=1e-12)
+            np.testing.assert_allclose(rpy, frames.rot_to_euler(r), atol=1e-12)
+            np.testing.assert_allclose(sim.object_pose()[1], rpy, atol=0.0)
+            np.testing.assert_allclose(
+                sim.object_velocity(),
+                np.r_[frames.world_to_ned(np.array(v)), frames.world_to_ned(np.array(w))],
+                atol=1e-12,
+            )

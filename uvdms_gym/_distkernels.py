@@ -13,36 +13,14 @@ writable, the kernels compile without a disk cache (a ``logging`` warning says s
 
 from __future__ import annotations
 
-import logging
 import math
 
-import numba
 import numpy as np
 
-_LOG = logging.getLogger(__name__)
+from uvdms_gym._jit import jit
 
 _TINY = 1e-300  # the reference's floor for denominators (never 0/0)
 PLATE_COLS = 14  # per plate: u, v, n (body rows), basis . centre (3), hx, hy
-
-
-def _jit(fn):
-    """``numba.njit(cache=True)``, or without the disk cache if numba's cache location is not writable.
-
-    numba picks the cache directory when the function is decorated but only writes to it after the first
-    compilation, so an unusable location (``NUMBA_CACHE_DIR`` or the package not writable and no user
-    cache directory, e.g. an import from a zip file with a read-only home) would fail inside the first
-    call. The location is therefore probed here, with numba's own check (``ensure_cache_path``: create the
-    directory, write a temporary file); on failure the kernel compiles in every process instead.
-    """
-    try:
-        disp = numba.njit(cache=True)(fn)
-        disp._cache._impl.locator.ensure_cache_path()
-    except (RuntimeError, OSError) as exc:  # RuntimeError: "cannot cache function ...: no locator available"
-        _LOG.warning("numba disk cache unavailable (%s); %s compiles on first use in every process", exc, fn.__name__)
-        return numba.njit(fn)
-    except AttributeError:  # numba internals moved: keep caching, numba reports problems itself
-        pass
-    return disp
 
 
 def plate_table(plates) -> np.ndarray:
@@ -65,7 +43,7 @@ def plate_table(plates) -> np.ndarray:
     return out
 
 
-@_jit
+@jit
 def exact_rows(seg, rot, pos, plates, d, p, e, idx):  # pragma: no cover - compiled; see compute_distances
     """Fill the 18 exact rows ``d (18,)``, ``p (18, 3)``, ``e (18, 3)``, ``idx (18,)`` (int64) in place.
 
@@ -208,7 +186,7 @@ def exact_rows(seg, rot, pos, plates, d, p, e, idx):  # pragma: no cover - compi
         idx[row] = bq
 
 
-@_jit
+@jit
 def jdis_rows(sel, jac, p, e):  # pragma: no cover - compiled; run through distances.distance_jacobian
     """``J_dis`` rows ``sel_i * (n_i . v_k + (P_i x n_i) . w_k)`` for every column ``k``.
 

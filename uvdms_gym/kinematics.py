@@ -32,6 +32,7 @@ from uvdms_gym.params import ARM_SIDES, GRAVITY, JOINT_NAMES, N_DOF, N_JOINTS, U
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _N_CONFIG = 7 + N_JOINTS
+_STRICT_LOWER = np.tri(N_DOF, k=-1, dtype=bool)
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -346,9 +347,11 @@ class KinematicModel:
         """
         m = self._cache.get("M")
         if m is None:
-            pin.crba(self.model, self._dyn, self.config)
-            m = np.triu(self._dyn.M)
-            m = m + np.triu(m, 1).T
+            pin.crba(self.model, self._dyn, self.config)  # fills the upper triangle only
+            upper = self._dyn.M
+            m = upper.copy()
+            np.copyto(m, upper.T, where=_STRICT_LOWER)  # mirror (one masked copy; np.triu twice is 8x slower)
+            m += 0.0  # -0.0 -> +0.0, as the former triu sum did: the same bits downstream
             self._cache["M"] = m
         return m.copy()
 

@@ -88,7 +88,8 @@ class NominalDynamics:
     def mass_matrix(self) -> np.ndarray:
         """``M_n`` (18, 18): rigid body (with the virtual added-mass body) + residual/perturbed added mass."""
         m = self.kin.mass_matrix()
-        m[np.arange(6), np.arange(6)] += self._base_added
+        step = m.shape[0] + 1
+        m.reshape(-1)[: 6 * step : step] += self._base_added  # the first 6 diagonal entries (a view of m)
         return m
 
     def hydrostatics(self) -> np.ndarray:

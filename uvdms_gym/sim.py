@@ -27,19 +27,24 @@ Physics set-up [D]:
   their ODEs within about 1 % (the surge residue is the pitch coupling of the low centre of gravity,
   unchanged at ``dt = 0.002``); the grasp welds stay within 0.2 mm (tested). Smaller ``dt`` costs
   proportionally more and buys little; larger ``dt`` grows the grasp drift as ``dt^2``.
-* cost (same states, median): bare ``stepSimulation`` 12-17 µs, one physics step with hydrodynamics
-  about 40 µs (2.5x), of which about 22 µs are the state read, the arithmetic and the 14 force calls.
+* cost (``uvdms bench sim``, same states, median): bare ``stepSimulation`` 18-24 µs, one physics step with
+  hydrodynamics 2.7x that (3.2x before the compiled link loop), the rest being the state read, the
+  arithmetic and the 15 force calls.
 * caution for controllers: at straight arms the roll joints 1, 3, 5 have tiny effective inertias
   (``1 / (M^-1)_ii`` = 4e-4 to 8e-4 kg m^2), so torques near ``tau_max`` spin them beyond
   :data:`QDOT_LIMIT` within one step (:class:`PhysicsError`).
 
 Per physics step (:meth:`UVDMSSim.step` runs ``n_substeps`` of them with the same ``tau``): one
 ``getLinkStates`` call reads the body origin (the ``added_mass`` link sits there) and the 12 moving links
-with ``computeLinkVelocity=1, computeForwardKinematics=1``; the hydrodynamic loads are evaluated in plain
-float arithmetic; the vehicle wrench (control ``tau_v`` plus hydrodynamics, converted from the body frame)
-is applied at the body origin as a force and a torque in ``WORLD_FRAME``, each link's drag and buoyancy at
-its midpoint; joint torques via ``TORQUE_CONTROL``; then ``stepSimulation``. PyBullet clears external
-forces *and* joint torques after every ``stepSimulation``, so all are reapplied every physics step.
+with ``computeLinkVelocity=1, computeForwardKinematics=1``; the vehicle's loads are evaluated in plain float
+arithmetic, the 12 links' in one compiled call (:func:`uvdms_gym.hydro.link_forces_world`); the vehicle
+wrench (control ``tau_v`` plus hydrodynamics, converted from the body frame) is applied at the body origin as
+a force and a torque in ``WORLD_FRAME``, each link's drag and buoyancy at its midpoint; joint torques via
+``TORQUE_CONTROL``; then ``stepSimulation``. PyBullet clears external forces *and* joint torques after every
+``stepSimulation``, so all are reapplied every physics step. Every PyBullet state query copies its whole
+state buffer, so the state is read once per physics state: the sanity check at the end of :meth:`step`
+caches its read, and :meth:`state`, the object queries and the first substep's velocity loop reuse it until
+the next ``stepSimulation`` or reset (``docs/ARCHITECTURE.md``, Performance).
 
 Failures are never silent: an invalid ``tau`` raises :class:`ValueError`, saturation is reported in
 :class:`StepInfo`, and a state that is non-finite or beyond the sanity bounds :data:`NU_LIMIT`,
@@ -50,6 +55,7 @@ reset).
 from __future__ import annotations
 
 import contextlib
+import itertools
 import math
 import os
 import sys
@@ -63,7 +69,13 @@ from pybullet_utils import bullet_client
 
 from uvdms_gym import frames, model
 from uvdms_gym.display import require_display
-from uvdms_gym.hydro import HydroCoefficients, HydroScale, hydro_coefficients, object_wrench
+from uvdms_gym.hydro import (
+    HydroCoefficients,
+    HydroScale,
+    hydro_coefficients,
+    link_forces_world,
+    link_table,
+)
 from uvdms_gym.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
 
 NU_LIMIT = 50.0
@@ -104,6 +116,9 @@ _joint_states = pb.getJointStates
 _closest_points = pb.getClosestPoints
 _contact_points = pb.getContactPoints
 _perform_collision_detection = pb.performCollisionDetection
+_chain = itertools.chain.from_iterable
+_arctan2 = np.arctan2
+_arcsin = np.arcsin
 
 
 @contextlib.contextmanager
@@ -177,7 +192,7 @@ class StepInfo:
     @property
     def any_saturated(self) -> bool:
         """Whether any component was saturated."""
-        return bool(self.saturated.any())
+        return True in self.saturated.tolist()  # (a list scan: ndarray.any() costs several times more)
 
 
 def _vector(value: object, n: int, name: str) -> np.ndarray:
@@ -288,11 +303,15 @@ class UVDMSSim:
         self._contact_pairs: set[tuple[int, int]] = set()
         self._needs_collision_pass = True
         self._t = 0.0
+        self._raw: tuple | None = None  # cached raw state read, see _read_state
+        self._raw_obj: tuple | None = None  # the same for the object, see _read_object
         self._nu_prev = (0.0, 0.0, 0.0)
         self._obj_p_prev = (0.0, 0.0, 0.0)
         self._scale = HydroScale()
         self._hydro: HydroCoefficients = hydro_coefficients(self._params, self._scale, arms=self._arms)
         self.set_hydro_scale(hydro_scale or HydroScale())
+        # compile (or load from numba's disk cache) the link-force kernel now rather than in the first step
+        link_forces_world(np.zeros(7 * self._link_table.shape[0]), self._link_table, self._link_forces)
         self.reset(np.zeros(6))
 
     # ------------------------------------------------------------------ properties
@@ -392,6 +411,7 @@ class UVDMSSim:
             raise TypeError(f"scale must be a HydroScale, got {type(scale).__name__}")
         self._scale = scale
         self._hydro = h = hydro_coefficients(self._params, scale, arms=self._arms)
+        self._raw = self._raw_obj = None
         self._client.changeDynamics(
             self._body,
             self._am_link,
@@ -401,10 +421,10 @@ class UVDMSSim:
         # the weight cancellation follows the mass actually set (floored), its centroid shift is negligible
         self._up_force = h.up_force + (max(h.rigid_added_mass, MIN_VIRTUAL_MASS) - h.rigid_added_mass) * GRAVITY
         self._up_centroid = h.up_centroid
-        self._link_consts = tuple(
-            (link, h.link_buoyancy[k], h.link_kn[k], h.link_kt[k], *h.link_axis[k])
-            for k, link in enumerate(self._joints)
-        )
+        # the vehicle's constants as one flat tuple (one unpacking per physics step instead of attribute lookups)
+        self._vehicle_consts = (*h.d_lin, *h.d_quad, *h.a_res, self._up_force, *self._up_centroid)
+        self._link_table = link_table(h)
+        self._link_forces = np.empty((self._link_table.shape[0], 3))
         if self._obj is not None:
             self._set_object_dynamics()
 
@@ -467,6 +487,7 @@ class UVDMSSim:
         for k, j in enumerate(self._joints):
             c.resetJointState(self._body, j, float(q[k]), float(qdot[k]))
         self._t = 0.0
+        self._raw = self._raw_obj = None
         self._nu_prev = (float(nu[0]), float(nu[1]), float(nu[2]))
         if with_object:
             self._create_object()
@@ -529,31 +550,61 @@ class UVDMSSim:
         k = self._hydro.obj_added_mass * (vx * ex + vy * ey + vz * ez)
         return (k * ex, k * ey, k * ez)
 
+    def _read_state(self) -> tuple:
+        """Raw PyBullet state ``(p_com, quat, v_com, w, joint_states)``, read once per physics state.
+
+        The read is cached until the state changes (a physics step or a reset): :meth:`step` reads it for its
+        sanity check, and the :meth:`state` that follows, and the velocity loop of the next step's first
+        substep, reuse it instead of querying PyBullet again.
+        """
+        raw = self._raw
+        if raw is None:
+            cid, body = self._cid, self._body
+            p_com, quat = _base_pose(body, cid)
+            v_com, w_w = _base_velocity(body, cid)
+            js = _joint_states(body, self._joints, cid) if self._joints else ()
+            raw = self._raw = (p_com, quat, v_com, w_w, js)
+        return raw
+
+    def _read_object(self) -> tuple:
+        """Raw PyBullet object state ``(p, quat, v, w)`` (world frame), cached like :meth:`_read_state`."""
+        raw = self._raw_obj
+        if raw is None:
+            obj = self._require_object()
+            p, quat = _base_pose(obj, self._cid)
+            v, w = _base_velocity(obj, self._cid)
+            raw = self._raw_obj = (p, quat, v, w)
+        return raw
+
     def state(self) -> SimState:
         """The current state in NED/FRD, converted from PyBullet's base (COM) pose and velocity.
 
         (Double precision: ``getLinkStates`` would be one query but returns single-precision values.)
+        The conversion is written in scalars around the few numpy calls whose rounding it must keep (the
+        3x3 matrix products and the inverse trigonometric functions give the same bits as
+        :mod:`uvdms_gym.frames`; plain Python products and ``math.atan2`` would differ in the last bit).
         """
         self._check_open()
-        cid, body = self._cid, self._body
-        p_com, quat = _base_pose(body, cid)
-        v_com, w_w = _base_velocity(body, cid)
-        r_wb = frames.quat_xyzw_to_rot(quat)
-        r_g_w = r_wb @ self._r_g
-        w = np.array(w_w)
-        eta = np.empty(6)
-        eta[:3] = frames.world_to_ned(np.array(p_com) - r_g_w)
-        eta[3:] = frames.rot_to_euler(frames.body_rot_world_to_ned(r_wb))
+        (px, py, pz), (x, y, z, w), (vx, vy, vz), (wx, wy, wz), js = self._read_state()
+        # R_WB, the expressions of frames.quat_xyzw_to_rot
+        r_wb = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+        rx, ry, rz = (r_wb @ self._r_g).tolist()  # r_G in world axes
+        # Euler angles of R_NB = S R_WB (frames.rot_to_euler); the +0.0 keeps the signed zeros of the product
+        (r00, _, _), (r10, _, _), (r20, r21, r22) = r_wb.tolist()
+        phi, psi = _arctan2(np.array([0.0 - r21, 0.0 - r10]), np.array([0.0 - r22, r00 + 0.0])).tolist()
+        theta = -float(_arcsin(min(max(0.0 - r20, -1.0), 1.0)))
+        eta = np.array([px - rx, -(py - ry), -(pz - rz), phi, theta, psi])
         # v_origin = v_com - w x r_g
-        v = np.array(v_com)
-        v[0] -= w[1] * r_g_w[2] - w[2] * r_g_w[1]
-        v[1] -= w[2] * r_g_w[0] - w[0] * r_g_w[2]
-        v[2] -= w[0] * r_g_w[1] - w[1] * r_g_w[0]
-        nu = np.empty(6)
-        nu[:3] = r_wb.T @ v
-        nu[3:] = r_wb.T @ w
-        if self._joints:
-            js = _joint_states(body, self._joints, cid)
+        v = np.array([vx - (wy * rz - wz * ry), vy - (wz * rx - wx * rz), vz - (wx * ry - wy * rx)])
+        r_bw = r_wb.T
+        nu = np.concatenate([r_bw @ v, r_bw @ np.array([wx, wy, wz])])
+        if js:
             q = np.array([s[0] for s in js])
             qdot = np.array([s[1] for s in js])
         else:
@@ -579,21 +630,33 @@ class UVDMSSim:
 
     def object_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Object pose: NED position of its centre (3) and ZYX Euler angles ``[phi, theta, psi]`` (3)."""
-        obj = self._require_object()
-        p, quat = self._client.getBasePositionAndOrientation(obj)
-        r_n = frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(np.array(quat)))
-        return frames.world_to_ned(np.array(p)), frames.rot_to_euler(r_n)
+        p, rpy, _ = self.object_pose_rotation()
+        return p, rpy
+
+    def object_position(self) -> np.ndarray:
+        """NED position of the object's centre (3)."""
+        p, _, _, _ = self._read_object()
+        return np.array([p[0], -p[1], -p[2]])  # frames.world_to_ned
 
     def object_rotation(self) -> np.ndarray:
         """Object orientation as a rotation matrix ``R_N,object`` (NED)."""
-        obj = self._require_object()
-        _, quat = self._client.getBasePositionAndOrientation(obj)
-        return frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(np.array(quat)))
+        _, quat, _, _ = self._read_object()
+        return frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(quat))
+
+    def object_pose_rotation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`object_pose` and :meth:`object_rotation` from one conversion: ``(p, rpy, R_N,object)``.
+
+        The Euler angles are :func:`uvdms_gym.frames.rot_to_euler` of the matrix, with its numpy functions.
+        """
+        r = self.object_rotation()
+        (r00, _, _), (r10, _, _), (r20, r21, r22) = r.tolist()
+        phi, psi = _arctan2(np.array([r21, r10]), np.array([r22, r00])).tolist()
+        theta = -float(_arcsin(min(max(r20, -1.0), 1.0)))
+        return self.object_position(), np.array([phi, theta, psi]), r
 
     def object_velocity(self) -> np.ndarray:
         """Object twist ``[v; w]`` (6): velocity of its centre and angular velocity, both in NED."""
-        obj = self._require_object()
-        v, w = self._client.getBaseVelocity(obj)
+        _, _, v, w = self._read_object()
         return np.concatenate([frames.world_to_ned(np.array(v)), frames.world_to_ned(np.array(w))])
 
     def grasp_forces(self) -> np.ndarray:
@@ -678,6 +741,7 @@ class UVDMSSim:
     def bare_step(self) -> None:
         """One ``stepSimulation`` with no hydrodynamics and no inputs (for benchmarks; advances ``t``)."""
         _step_simulation(self._cid)
+        self._raw = self._raw_obj = None
         self._t += self._dt
 
     def step(
@@ -705,49 +769,71 @@ class UVDMSSim:
             PhysicsError: the state became non-finite or left the sanity bounds (reset required).
         """
         self._check_open()
+        tau_max = self._tau_max
         try:
             tau = np.array(tau, dtype=float)  # a copy: the caller's array is never modified
         except (TypeError, ValueError):
             pass  # _vector below names the problem
-        if not isinstance(tau, np.ndarray) or tau.shape != self._tau_max.shape or not np.isfinite(tau).all():
-            tau = _vector(tau, self._tau_max.size, "tau")  # raises the detailed ValueError
+        if not isinstance(tau, np.ndarray) or tau.shape != tau_max.shape:
+            tau = _vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
         if int(n_substeps) != n_substeps or n_substeps < 1:
             raise ValueError(f"n_substeps must be an integer >= 1, got {n_substeps!r}")
-        saturated = np.abs(tau) > self._tau_max
-        if saturated.any():
-            tau = np.clip(tau, -self._tau_max, self._tau_max)
-        tau_v = tau[:6].tolist()
-        tau_q = tau[6:].tolist()
+        within = np.abs(tau) <= tau_max  # False for NaN/inf and for saturated components
+        saturated = ~within
+        if False in within.tolist():  # (a list scan: ndarray.all() costs several times more on 18 entries)
+            if not np.isfinite(tau).all():
+                tau = _vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
+            tau = np.clip(tau, -tau_max, tau_max)
+        tau_list = tau.tolist()
+        tau_v, tau_q = tau_list[:6], tau_list[6:]
         self._fb_saturated = saturated
+        substep = self._substep
         for _ in range(int(n_substeps)):
-            self._substep(tau_v, tau_q, feedback)
+            substep(tau_v, tau_q, feedback)
         self._needs_collision_pass = False
         if feedback is not None:
             tau, saturated = self._fb_tau, self._fb_saturated
         self._check_state()
         return StepInfo(tau=tau, saturated=saturated, t=self._t, n_substeps=int(n_substeps))
 
-    def _feedback(self, feedback: Callable[[np.ndarray], np.ndarray], nu: tuple[float, ...]) -> tuple[list, list]:
-        """Evaluate a per-substep feedback law at ``zeta = [nu; qdot]``; validate and saturate its output."""
-        z = np.empty(6 + self._n_joints)
-        z[:6] = nu
+    def _feedback(
+        self, feedback: Callable[[np.ndarray], np.ndarray], nu: tuple[float, ...]
+    ) -> tuple[list[float], list[float]]:
+        """Evaluate a per-substep feedback law at ``zeta = [nu; qdot]``; validate and saturate its output.
+
+        ``qdot`` comes from the cached state read when there is one (the first substep of a step follows the
+        previous step's state check), else from one ``getJointStates``.
+        """
         if self._joints:
-            z[6:] = [js[1] for js in _joint_states(self._body, self._joints, self._cid)]
+            raw = self._raw
+            js = raw[4] if raw is not None else _joint_states(self._body, self._joints, self._cid)
+            z = np.array([*nu, *[s[1] for s in js]])
+        else:
+            z = np.array(nu)
         t = np.asarray(feedback(z), dtype=float)
-        if t.shape != self._tau_max.shape or not np.isfinite(t).all():
-            raise ValueError(f"feedback must return a finite tau of shape {self._tau_max.shape}, got {t!r}")
-        sat = np.abs(t) > self._tau_max
-        if sat.any():
-            t = np.clip(t, -self._tau_max, self._tau_max)
-            self._fb_saturated = self._fb_saturated | sat
+        tau_max = self._tau_max
+        if t.shape != tau_max.shape:
+            raise ValueError(f"feedback must return a finite tau of shape {tau_max.shape}, got {t!r}")
+        within = np.abs(t) <= tau_max  # False for NaN/inf and for saturated components
+        if False in within.tolist():
+            if not np.isfinite(t).all():
+                raise ValueError(f"feedback must return a finite tau of shape {tau_max.shape}, got {t!r}")
+            t = np.clip(t, -tau_max, tau_max)
+            self._fb_saturated = self._fb_saturated | ~within
         self._fb_tau = t
-        return t[:6].tolist(), t[6:].tolist()
+        t_list = t.tolist()
+        return t_list[:6], t_list[6:]
 
     def _substep(
         self, tau_v: list[float], tau_q: list[float], feedback: Callable[[np.ndarray], np.ndarray] | None = None
     ) -> None:
-        """One physics step: read state, evaluate hydrodynamics (see :mod:`uvdms_gym.hydro`), apply, step."""
-        cid, body, h = self._cid, self._body, self._hydro
+        """One physics step: read state, evaluate hydrodynamics (see :mod:`uvdms_gym.hydro`), apply, step.
+
+        The vehicle in plain float arithmetic on the tuples PyBullet returns (numpy's per-call overhead exceeds
+        the arithmetic on these 3-vectors), the links in one compiled call; both in the operation order of
+        :mod:`uvdms_gym.hydro`'s reference functions.
+        """
+        cid, body = self._cid, self._body
         st = _get_link_states(body, self._state_links, 1, 1, cid)
         origin, (qx, qy, qz, qw), _, _, _, _, (vx, vy, vz), (wx, wy, wz) = st[0]
         # R_WB of the body (the added_mass link's frame is the body frame at the origin)
@@ -771,21 +857,20 @@ class UVDMSSim:
         inv_dt = self._inv_dt
         u0, v0, w0 = self._nu_prev
         self._nu_prev = (u, v, w)
-        dl, dq = h.d_lin, h.d_quad
-        a1, a2, a3 = h.a_res
+        dl0, dl1, dl2, dl3, dl4, dl5, dq0, dq1, dq2, dq3, dq4, dq5, a1, a2, a3, up, cx, cy, cz = self._vehicle_consts
         p1, p2, p3 = a1 * u, a2 * v, a3 * w
-        fx = tau_v[0] - (dl[0] + dq[0] * abs(u)) * u - a1 * (u - u0) * inv_dt + (p2 * r - p3 * q)
-        fy = tau_v[1] - (dl[1] + dq[1] * abs(v)) * v - a2 * (v - v0) * inv_dt + (p3 * p - p1 * r)
-        fz = tau_v[2] - (dl[2] + dq[2] * abs(w)) * w - a3 * (w - w0) * inv_dt + (p1 * q - p2 * p)
-        mx = tau_v[3] - (dl[3] + dq[3] * abs(p)) * p + (p2 * w - p3 * v)
-        my = tau_v[4] - (dl[4] + dq[4] * abs(q)) * q + (p3 * u - p1 * w)
-        mz = tau_v[5] - (dl[5] + dq[5] * abs(r)) * r + (p1 * v - p2 * u)
-        # upward hydrostatic force at its body-fixed centroid (world z up)
-        up = self._up_force
-        cx, cy, cz = self._up_centroid
+        t0, t1, t2, t3, t4, t5 = tau_v
+        fx = t0 - (dl0 + dq0 * abs(u)) * u - a1 * (u - u0) * inv_dt + (p2 * r - p3 * q)
+        fy = t1 - (dl1 + dq1 * abs(v)) * v - a2 * (v - v0) * inv_dt + (p3 * p - p1 * r)
+        fz = t2 - (dl2 + dq2 * abs(w)) * w - a3 * (w - w0) * inv_dt + (p1 * q - p2 * p)
+        mx = t3 - (dl3 + dq3 * abs(p)) * p + (p2 * w - p3 * v)
+        my = t4 - (dl4 + dq4 * abs(q)) * q + (p3 * u - p1 * w)
+        mz = t5 - (dl5 + dq5 * abs(r)) * r + (p1 * v - p2 * u)
+        # upward hydrostatic force up at its body-fixed centroid c (world z up)
         ox = r00 * cx + r01 * cy + r02 * cz
         oy = r10 * cx + r11 * cy + r12 * cz
-        _apply_force(
+        apply_force = _apply_force
+        apply_force(
             body,
             -1,
             (r00 * fx + r01 * fy + r02 * fz, r10 * fx + r11 * fy + r12 * fz, r20 * fx + r21 * fy + r22 * fz + up),
@@ -804,49 +889,44 @@ class UVDMSSim:
             _WORLD,
             cid,
         )
-        # arm links: buoyancy at the midpoint (= COM) + Morison drag (hydro.link_force, inlined)
-        k = 1
-        for link, fb, kn, kt, ex, ey, ez in self._link_consts:
-            pos, (qx, qy, qz, qw), _, _, _, _, (vx, vy, vz), _ = st[k]
-            k += 1
-            tx = 2.0 * (qy * ez - qz * ey)
-            ty = 2.0 * (qz * ex - qx * ez)
-            tz = 2.0 * (qx * ey - qy * ex)
-            ax = ex + qw * tx + qy * tz - qz * ty
-            ay = ey + qw * ty + qz * tx - qx * tz
-            az = ez + qw * tz + qx * ty - qy * tx
-            vt = vx * ax + vy * ay + vz * az
-            nx, ny, nz = vx - vt * ax, vy - vt * ay, vz - vt * az
-            kvn = kn * math.sqrt(nx * nx + ny * ny + nz * nz)
-            kvt = kt * abs(vt) * vt
-            _apply_force(
-                body,
-                link,
-                (-kvn * nx - kvt * ax, -kvn * ny - kvt * ay, fb - kvn * nz - kvt * az),
-                pos,
-                _WORLD,
-                cid,
-            )
-        if self._joints:
+        # arm links: buoyancy at the midpoint (= COM) + Morison drag (hydro.link_forces_world, compiled)
+        if tau_q:
+            links = st[1:]
+            forces = self._link_forces
+            link_forces_world(np.array(list(_chain([ls[1] + ls[6] for ls in links]))), self._link_table, forces)
+            world = _WORLD
+            for link, force, ls in zip(self._joints, forces.tolist(), links):
+                apply_force(body, link, force, ls[0], world, cid)
             _motor_array(body, self._joints, _TORQUE, forces=tau_q, physicsClientId=cid)
         if self._obj is not None:
             self._object_hydro()
         _step_simulation(cid)
+        self._raw = self._raw_obj = None
         self._t += self._dt
 
     def _object_hydro(self) -> None:
-        """Apply the object's hydrodynamic wrench (see :func:`uvdms_gym.hydro.object_wrench`)."""
+        """Apply the object's hydrodynamic wrench (:func:`uvdms_gym.hydro.object_wrench`, inlined)."""
         cid, obj, h = self._cid, self._obj, self._hydro
         pos, (qx, qy, qz, qw) = _base_pose(obj, cid)
-        vel, _ = _base_velocity(obj, cid)
-        e = (2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw))
-        k = h.obj_added_mass * (vel[0] * e[0] + vel[1] * e[1] + vel[2] * e[2])
-        p_ax = (k * e[0], k * e[1], k * e[2])
-        p0 = self._obj_p_prev
+        (vx, vy, vz), _ = _base_velocity(obj, cid)
+        ex, ey, ez = 2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw)
+        vt = vx * ex + vy * ey + vz * ez
+        k = h.obj_added_mass * vt
+        p_ax = (k * ex, k * ey, k * ez)  # axial added momentum
+        p0x, p0y, p0z = self._obj_p_prev
         self._obj_p_prev = p_ax
         inv_dt = self._inv_dt
-        rate = ((p_ax[0] - p0[0]) * inv_dt, (p_ax[1] - p0[1]) * inv_dt, (p_ax[2] - p0[2]) * inv_dt)
-        force, moment = object_wrench(vel, e, rate, h)
+        # Morison drag (hydro.morison_force), lift = buoyancy + weight cancel of the added mass, + dP_ax/dt
+        nx, ny, nz = vx - vt * ex, vy - vt * ey, vz - vt * ez
+        kvn = h.obj_kn * math.sqrt(nx * nx + ny * ny + nz * nz)
+        kvt = h.obj_kt * abs(vt) * vt
+        lift = h.obj_buoyancy + h.obj_added_mass * GRAVITY
+        force = (
+            (-kvn * nx - kvt * ex) + lift * 0.0 + (p_ax[0] - p0x) * inv_dt,
+            (-kvn * ny - kvt * ey) + lift * 0.0 + (p_ax[1] - p0y) * inv_dt,
+            (-kvn * nz - kvt * ez) + lift * 1.0 + (p_ax[2] - p0z) * inv_dt,
+        )
+        moment = (k * (vy * ez - vz * ey), k * (vz * ex - vx * ez), k * (vx * ey - vy * ex))
         _apply_force(obj, -1, force, pos, _WORLD, cid)
         _apply_torque(obj, -1, moment, _WORLD, cid)
 
@@ -855,9 +935,7 @@ class UVDMSSim:
 
     def _check_state(self) -> None:
         """Raise :class:`PhysicsError` if the state is non-finite or beyond the documented sanity bounds."""
-        cid, body = self._cid, self._body
-        pos, _ = _base_pose(body, cid)
-        vel, ang = _base_velocity(body, cid)
+        pos, _, vel, ang, js = self._read_state()  # cached for the state() that usually follows
         # cheap conservative pre-check on PyBullet's COM velocity (components below NU_LIMIT / 2 imply
         # |nu_i| <= sqrt(3) NU_LIMIT / 2 + |w| |r_G| < NU_LIMIT); the exact check only if it fails
         if not (max(map(abs, (*vel, *ang))) < 0.5 * NU_LIMIT and max(map(abs, pos)) < 0.5 * POSITION_LIMIT):
@@ -868,13 +946,12 @@ class UVDMSSim:
                 self._fail(f"|nu| > {NU_LIMIT}: nu = {st.nu}")
             if np.abs(st.eta[:3]).max() > POSITION_LIMIT:
                 self._fail(f"|position| > {POSITION_LIMIT}: eta = {st.eta}")
-        if self._joints:
-            qdot = [s[1] for s in _joint_states(body, self._joints, cid)]
+        if js:
+            qdot = [s[1] for s in js]
             if not max(map(abs, qdot)) <= QDOT_LIMIT:
                 self._fail(f"|qdot| > {QDOT_LIMIT} or non-finite: qdot = {qdot}")
         if self._obj is not None:
-            p, _ = _base_pose(self._obj, cid)
-            v, w = _base_velocity(self._obj, cid)
+            p, _, v, w = self._read_object()
             if not (max(map(abs, (*v, *w))) < NU_LIMIT + QDOT_LIMIT and max(map(abs, p)) < POSITION_LIMIT):
                 self._fail(f"object state out of bounds or non-finite: position {p}, velocity {v}, {w}")
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from math import acos, cos, sin
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -33,7 +34,7 @@ import numpy as np
 from uvdms_gym.display import gui_available, require_display
 from uvdms_gym.distances import compute_distances, contact_thresholds, velocity_damper
 from uvdms_gym.envs.lowlevel import VelocityLoop
-from uvdms_gym.frames import euler_to_rot_batch, rot_error_batch
+from uvdms_gym.frames import euler_to_rot, rot_error
 from uvdms_gym.hydro import HydroScale
 from uvdms_gym.kinematics import KinematicModel
 from uvdms_gym.nominal import NominalDynamics
@@ -134,6 +135,7 @@ class UVDMSEnv(gym.Env):
             "contact": float(contact_weight),
         }
         self.max_tracking_error = float(max_tracking_error)
+        self._reward_keys = {k: f"reward_{k}" for k in self.weights}
         self.render_mode = render_mode
         self.render_width, self.render_height = int(render_width), int(render_height)
 
@@ -154,6 +156,9 @@ class UVDMSEnv(gym.Env):
         self._obs = np.zeros(OBS_DIM, np.float32)
         self._preview_times = np.asarray(PREVIEW_TIMES)
         self._contact_d = contact_thresholds(self.params)
+        self._contact_check_d = self._contact_d + CONTACT_MARGIN
+        self._nu_scale = self.zeta_max[:6].copy()
+        self._qdot_scale = self.zeta_max[6:].copy()
         self._closed = False
 
     # ----------------------------------------------------------------- task hooks
@@ -230,7 +235,8 @@ class UVDMSEnv(gym.Env):
         obs, info = self._observe()
         terms = self._reward_terms(a, info)
         reward = float(sum(terms.values()))
-        info.update({f"reward_{k}": v for k, v in terms.items()})
+        keys = self._reward_keys
+        info.update({keys[k]: v for k, v in terms.items()})
         info.update(tau=tau_applied, tau_saturated=saturated, action_clipped=clipped)
         terminated = (self.terminate_on_contact and info["contacts"] > 0) or (
             info["tracking_error"] > self.max_tracking_error
@@ -258,11 +264,13 @@ class UVDMSEnv(gym.Env):
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (ACTION_DIM,):
             raise ValueError(f"action must have shape ({ACTION_DIM},), got {a.shape}")
+        within = np.abs(a) <= 1.0  # False for NaN/inf and for entries to clip
+        if False not in within.tolist():  # (a list scan: ndarray.all() costs several times more)
+            return a, False
         bad = ~np.isfinite(a)
         if bad.any():
             raise ValueError(f"action contains NaN or inf at indices {np.flatnonzero(bad).tolist()}")
-        clipped = bool(np.any(np.abs(a) > 1.0))
-        return (np.clip(a, -1.0, 1.0) if clipped else a), clipped
+        return np.clip(a, -1.0, 1.0), True
 
     def _apply(self, a: np.ndarray) -> tuple[np.ndarray, bool]:
         """Run the control step's physics substeps; return the applied tau and the saturation flag."""
@@ -273,7 +281,7 @@ class UVDMSEnv(gym.Env):
             loop = self._loop
             loop.begin(a * self.zeta_max)  # the kinematic model holds the current state (from _observe)
             res = self._sim.step(np.zeros(ACTION_DIM), n, feedback=lambda z: loop.torque(z, dt))
-        return res.tau, bool(np.any(res.saturated))
+        return res.tau, res.any_saturated
 
     def _contacts(self, dist) -> int:
         """PyBullet's contact report for the rows whose exact distance is within a margin of contact.
@@ -281,10 +289,10 @@ class UVDMSEnv(gym.Env):
         Only the closest obstacle of a monitored link can touch it first, so checking each near row's pair is
         enough; far rows (almost always all of them) cost nothing.
         """
-        near = np.flatnonzero(dist.d < self._contact_d + CONTACT_MARGIN)
-        if near.size == 0:
+        near = dist.d < self._contact_check_d
+        if True not in near.tolist():
             return 0
-        pairs = [(dist.link_frame[i], self._obstacle_link(dist, i)) for i in near]
+        pairs = [(dist.link_frame[i], self._obstacle_link(dist, i)) for i in np.flatnonzero(near)]
         return self._sim.count_contacts(pairs)
 
     def _obstacle_link(self, dist, i: int) -> str:
@@ -296,33 +304,39 @@ class UVDMSEnv(gym.Env):
         st = self._sim.state()
         self._kin.set_state(st.eta, st.q, st.zeta)
         dist = compute_distances(self._kin, "exact")
+        d = dist.d.copy()
         contacts = self._contacts(dist)
         y = self._output()
         refs = self.task.reference(self.t + self._preview_times)
-        r_nb = self._kin.frame_placement("vehicle")[1]
-        blocks, pos_err, ori_err = self._errors(y, refs, r_nb)
-        obs = np.empty(OBS_DIM)
-        obs[0:18] = blocks
-        obs[18:20] = st.eta[3:5]
-        obs[20:26] = st.nu / self.zeta_max[:6]
-        obs[26:38] = np.sin(st.q)
-        obs[38:50] = np.cos(st.q)
-        obs[50:62] = st.qdot / self.zeta_max[6:]
-        obs[62:80] = (np.clip(dist.d, 0.0, CLEARANCE_CLIP) - D1) / (D2 - D1)
-        np.clip(obs, -OBS_CLIP, OBS_CLIP, out=obs)
+        blocks, pos_err, ori_err = self._errors(y, refs, self._kin.frame_placement("vehicle")[1])
+        q = st.q
+        obs = np.concatenate(
+            (
+                blocks,
+                st.eta[3:5],
+                st.nu / self._nu_scale,
+                np.sin(q),
+                np.cos(q),
+                st.qdot / self._qdot_scale,
+                (np.minimum(np.maximum(d, 0.0), CLEARANCE_CLIP) - D1) / (D2 - D1),
+            )
+        )
+        # np.clip(obs, -OBS_CLIP, OBS_CLIP) as two selections (the same values; np.clip's wrapper costs more)
+        np.minimum(np.maximum(obs, -OBS_CLIP, out=obs), OBS_CLIP, out=obs)
         self._obs = obs.astype(np.float32)
+        d_min = min(d.tolist())
         cost_contact = 1.0 if contacts > 0 else 0.0
-        cost_zone = 1.0 if float(dist.d.min()) < D1 else 0.0
-        info: dict[str, Any] = {
+        cost_zone = 1.0 if d_min < D1 else 0.0
+        info: dict[str, Any] = {  # the state arrays are fresh copies from sim.state(), owned by info
             "t": self.t,
-            "eta": st.eta.copy(),
-            "nu": st.nu.copy(),
-            "q": st.q.copy(),
-            "qdot": st.qdot.copy(),
+            "eta": st.eta,
+            "nu": st.nu,
+            "q": q,
+            "qdot": st.qdot,
             "y": y,
             "y_ref": refs[0],
-            "distances": dist.d.copy(),
-            "min_distance": float(dist.d.min()),
+            "distances": d,
+            "min_distance": d_min,
             "contacts": int(contacts),
             "tracking_error": pos_err,
             "orientation_error": ori_err,
@@ -337,12 +351,18 @@ class UVDMSEnv(gym.Env):
 
     def _reward_terms(self, a: np.ndarray, info: dict[str, Any]) -> dict[str, float]:
         w = self.weights
-        s = velocity_damper(info["distances"], D1, D2)
+        # S(d) = 1 exactly for d >= D2 ((d - D1) / (D2 - D1) >= 1 is clipped to 1 and sin(pi / 2) rounds to 1),
+        # so the sum is exactly 0 when no distance is below D2 (the usual case): skip evaluating it
+        if info["min_distance"] < D2:
+            s = velocity_damper(info["distances"], D1, D2)
+            near = float(np.add.reduce(1.0 - s))  # np.sum without its wrapper
+        else:
+            near = 0.0
         return {
             "track": -w["track"] * info["tracking_error"],
             "orientation": -w["orientation"] * info["orientation_error"],
             "effort": -w["effort"] * float(a @ a) / ACTION_DIM,
-            "proximity": -w["proximity"] * float(np.sum(1.0 - s)),
+            "proximity": -w["proximity"] * near,
             "contact": -w["contact"] * info["cost_contact"],
         }
 
@@ -381,8 +401,38 @@ def errors_positions(y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple
 
 
 def errors_pose(p: np.ndarray, r: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """Object transport: position error and orientation error (rotation vector), both in the body frame."""
+    """Object transport: position error and orientation error (rotation vector), both in the body frame.
+
+    The orientation errors are :func:`uvdms_gym.frames.rot_error` of ``euler_to_rot(ref)`` and ``r``, written
+    out in floats for the few preview rows (numpy's per-call cost on 3x3 arrays is most of the work);
+    near-identity and half-turn errors go to :func:`~uvdms_gym.frames.rot_error` itself.
+    """
     e_p = refs[:, :3] - p
-    e_o = rot_error_batch(euler_to_rot_batch(refs[:, 3:]), r)
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r.tolist()
+    e_o = []
+    for phi, theta, psi in refs[:, 3:].tolist():
+        cf, sf, ct, st, cp, sp = cos(phi), sin(phi), cos(theta), sin(theta), cos(psi), sin(psi)
+        # R_des = frames.euler_to_rot([phi, theta, psi])
+        d00, d01, d02 = cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st
+        d10, d11, d12 = sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf
+        d20, d21, d22 = -st, ct * sf, ct * cf
+        # rotation vector of R_des r^T: angle from the trace, axis from the skew part
+        e00 = d00 * r00 + d01 * r01 + d02 * r02
+        e11 = d10 * r10 + d11 * r11 + d12 * r12
+        e22 = d20 * r20 + d21 * r21 + d22 * r22
+        angle = acos(min(max((e00 + e11 + e22 - 1.0) / 2.0, -1.0), 1.0))
+        s = sin(angle)
+        if s < 1e-9:
+            e_o.append(rot_error(euler_to_rot((phi, theta, psi)), r))
+            continue
+        k = angle / (2.0 * s)
+        e_o.append(
+            (
+                k * ((d20 * r10 + d21 * r11 + d22 * r12) - (d10 * r20 + d11 * r21 + d12 * r22)),
+                k * ((d00 * r20 + d01 * r21 + d02 * r22) - (d20 * r00 + d21 * r01 + d22 * r02)),
+                k * ((d10 * r00 + d11 * r01 + d12 * r02) - (d00 * r10 + d01 * r11 + d02 * r12)),
+            )
+        )
+    e_o = np.array(e_o, dtype=float)
     blk = np.concatenate([e_p @ r_nb / POS_SCALE, e_o @ r_nb], axis=1).reshape(-1)
     return blk, float(np.linalg.norm(e_p[0])), float(np.linalg.norm(e_o[0]))

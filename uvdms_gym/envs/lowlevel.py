@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from uvdms_gym._jit import jit
 from uvdms_gym.nominal import NominalDynamics
 
 
@@ -54,6 +55,9 @@ class VelocityLoop:
         self._kp = np.zeros(18)
         self._ki = np.zeros(18)
         self._cmd = np.zeros(18)
+        self._limit = np.zeros(18)
+        self._neg_limit = np.zeros(18)
+        _warm_up()
 
     def reset(self) -> None:
         """Clear the integral state."""
@@ -61,20 +65,49 @@ class VelocityLoop:
 
     def begin(self, zeta_cmd: np.ndarray) -> None:
         """Start a control step: feedforward and gains at the kinematic model's current state."""
-        self._cmd = np.asarray(zeta_cmd, dtype=float)
-        m = self.nominal.mass_matrix()
-        m_eff = 1.0 / np.diag(np.linalg.inv(m))
-        self._kp = m_eff * self.omega
-        self._ki = self._kp * self.omega * self.integral_ratio
-        ff = self.nominal.static_force()
-        ff[:6] += self.nominal.damping(self._cmd[:6])
-        ff[6:] += self.nominal.joint_friction(self._cmd[6:])
+        cmd = self._cmd = np.asarray(zeta_cmd, dtype=float)
+        nominal = self.nominal
+        m_eff = 1.0 / np.linalg.inv(nominal.mass_matrix()).diagonal()
+        kp = self._kp = m_eff * self.omega
+        ki = self._ki = kp * self.omega * self.integral_ratio
+        # the anti-windup bound of the integral is constant over the control step
+        self._limit = limit = self.tau_max / np.maximum(ki, 1e-12)
+        self._neg_limit = -limit
+        ff = nominal.static_force()
+        ff[:6] += nominal.damping(cmd[:6])
+        ff[6:] += nominal.joint_friction(cmd[6:])
         self._ff = ff
 
     def torque(self, zeta: np.ndarray, dt: float) -> np.ndarray:
         """Generalized force for one physics substep at measured velocity ``zeta``."""
-        err = self._cmd - zeta
-        self.integral += err * dt
-        limit = self.tau_max / np.maximum(self._ki, 1e-12)
-        np.clip(self.integral, -limit, limit, out=self.integral)
-        return self._ff + self._kp * err + self._ki * self.integral
+        out = np.empty(self._cmd.shape[0])  # fresh: the simulator hands it out as the applied tau
+        z = np.asarray(zeta, dtype=float)
+        lo, hi = self._neg_limit, self._limit
+        _pi_update(self._cmd, z, self.integral, float(dt), lo, hi, self._kp, self._ki, self._ff, out)
+        return out
+
+
+@jit
+def _pi_update(cmd, zeta, integral, dt, neg_limit, limit, kp, ki, ff, out):  # pragma: no cover - compiled
+    """One substep of the PI law, elementwise, in the operation order of the numpy form it replaces.
+
+    ``err = cmd - zeta``; ``integral += err dt`` clamped to ``[neg_limit, limit]`` (``np.clip``);
+    ``out = ff + kp err + ki integral``. numba without fastmath neither fuses nor reorders these, so the
+    result has the same bits as the numpy expressions (the same-physics test replays it to 1e-9; it is exact).
+    One compiled call costs about 1 µs against about 8 µs for the nine numpy calls on 18 entries.
+    """
+    for i in range(cmd.shape[0]):
+        err = cmd[i] - zeta[i]
+        v = integral[i] + err * dt
+        if v < neg_limit[i]:  # np.maximum, then np.minimum (NaN passes through both, as in numpy)
+            v = neg_limit[i]
+        if v > limit[i]:
+            v = limit[i]
+        integral[i] = v
+        out[i] = kp[i] * err + ff[i] + ki[i] * v
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) the kernel now, at environment construction, not in a step."""
+    z = np.zeros(1)
+    _pi_update(z, z, z.copy(), 0.0, z, z, z, z, z, z.copy())

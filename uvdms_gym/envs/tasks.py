@@ -80,11 +80,15 @@ class CircleTask:
         """End-effector reference ``[p_left; p_right]`` (6) at time ``t``, or ``(N, 6)`` on a grid."""
         t_arr = np.atleast_1d(np.asarray(t, dtype=float))
         phase = self.phase0 + 2.0 * math.pi * t_arr / self.period
-        c, s = np.cos(phase), np.sin(phase)
-        zeros = np.zeros_like(c)
-        right = self.right_center + self.radius * np.stack([zeros, c, s], axis=-1)
-        left = self.left_center + self.radius * np.stack([zeros, -c, s], axis=-1)
-        out = np.concatenate([left, right], axis=-1)
+        rc, rs = self.radius * np.cos(phase), self.radius * np.sin(phase)
+        (lx, ly, lz), (rx, ry, rz) = self.left_center.tolist(), self.right_center.tolist()
+        out = np.empty((t_arr.size, 6))
+        out[:, 0] = lx + self.radius * 0.0  # the x offsets are zero (the circles lie in y-z planes)
+        out[:, 1] = ly - rc
+        out[:, 2] = lz + rs
+        out[:, 3] = rx + self.radius * 0.0
+        out[:, 4] = ry + rc
+        out[:, 5] = rz + rs
         return out[0] if np.ndim(t) == 0 else out
 
 

@@ -102,8 +102,7 @@ class TransportEnv(UVDMSEnv):
         return vehicle_pose_for_object(self._kin, self.task.start), np.zeros(12)
 
     def _output(self) -> np.ndarray:
-        pos, rpy = self._sim.object_pose()
-        self._obj_rot = euler_to_rot(rpy)
+        pos, rpy, self._obj_rot = self._sim.object_pose_rotation()  # the matrix is kept for _errors
         return np.concatenate([pos, rpy])
 
     def _errors(self, y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
