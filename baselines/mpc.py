@@ -374,11 +374,32 @@ class KinematicMPC:
             self._C[rows, self.n_u :] = -np.eye(N_DIS)
         self._A = np.zeros((self.n_eq, self.n))
         self._b = np.zeros(self.n_eq)
-        self._h_reg = np.zeros((self.n, self.n))
-        self._h_reg[: self.n_u, : self.n_u] = np.kron(np.eye(nc), np.diag(self.r_weight))
+        # The QP's arrays, allocated once and rewritten in place by every build (ProxSuite copies them on
+        # ``update``). Only what depends on the step is written: the ``U`` block of ``H`` (``R`` on its diagonal),
+        # ``g[:n_u]``, the ``U`` part of the box, the bounds of the joint-position and collision rows, the
+        # ``J_dis`` blocks of ``C`` and the ``J_eq`` blocks of ``A``; the slack blocks are constant.
+        self._H = np.zeros((self.n, self.n))
         if self.n_s:
-            self._h_reg[self.n_u :, self.n_u :] = cfg.slack_quadratic * np.eye(self.n_s)
-        self._g_slack = np.full(self.n_s, cfg.slack_linear)
+            self._H[self.n_u :, self.n_u :] = cfg.slack_quadratic * np.eye(self.n_s)
+        self._hu4 = self._H[: self.n_u, : self.n_u].reshape(nc, N_DOF, nc, N_DOF)  # a view of the U block
+        self._hu_diag = self._H.reshape(-1)[: self.n_u * (self.n + 1) : self.n + 1]  # a view of its diagonal
+        self._r_diag = np.tile(self.r_weight, nc)
+        self._k_tc2_4 = np.ascontiguousarray(self._k_tc2[:, None, :, None])
+        self._g = np.empty(self.n)
+        self._g[self.n_u :] = cfg.slack_linear
+        self._lo_box = np.zeros(self.n)
+        self._hi_box = np.full(self.n, INF)  # slacks: 0 <= s
+        self._lo_box_u = self._lo_box[: self.n_u].reshape(nc, N_DOF)
+        self._hi_box_u = self._hi_box[: self.n_u].reshape(nc, N_DOF)
+        self._l_pos = self._l[self._pos_rows].reshape(-1, N_JOINTS)
+        self._u_pos = self._u[self._pos_rows].reshape(-1, N_JOINTS)
+        self._u_col = self._u[self._col_rows].reshape(-1, N_DIS)
+        self._col_blocks = [
+            self._C[r0 + N_DIS * j : r0 + N_DIS * (j + 1), N_DOF * j : N_DOF * (j + 1)]
+            for j in range(cfg.n_collision_steps)
+        ]
+        ne = cfg.n_eq_rows
+        self._eq_blocks = [self._A[ne * j : ne * (j + 1), N_DOF * j : N_DOF * (j + 1)] for j in range(nc if self.n_eq else 0)]
 
         self.qp = proxsuite.proxqp.dense.QP(
             self.n, self.n_eq, self.n_in, cfg.box_constraints, proxsuite.proxqp.dense.HessianType.Dense
@@ -442,7 +463,7 @@ class KinematicMPC:
         d = np.asarray(d, dtype=float)
         if v_now is not None and cfg.lookahead > 0.0:
             d = d - cfg.lookahead * np.maximum(0.0, np.asarray(v_now, dtype=float))
-        x = np.clip((np.asarray(d, dtype=float) - cfg.d1) / (cfg.d2 - cfg.d1), 0.0, 1.0)
+        x = np.minimum(np.maximum((d - cfg.d1) / (cfg.d2 - cfg.d1), 0.0), 1.0)  # np.clip's values, cheaper
         s = np.sin(0.5 * np.pi * x) ** 2
         return s * cfg.vbar - cfg.k_escape * np.maximum(0.0, cfg.d1 - d)
 
@@ -471,58 +492,50 @@ class KinematicMPC:
         )
 
     def _build(self, p: MPCProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Write the step's data into the preallocated QP arrays; return ``(H, g, l_box, u_box)`` (the buffers)."""
         cfg = self.config
-        tc, nc = cfg.t_c, cfg.n_c
         e0 = np.asarray(p.e0, dtype=float)
         jy = np.asarray(p.j_y, dtype=float)
         if e0.shape != (cfg.n_p, self.m) or jy.shape != (self.m, N_DOF):
             raise ValueError(f"e0 must be ({cfg.n_p}, {self.m}) and j_y ({self.m}, {N_DOF})")
         q = np.asarray(p.q, dtype=float)
         jq = jy.T * self.q_weight  # J^T Q (18, m)
-        h = self._h_reg.copy()
-        hu = h[: self.n_u, : self.n_u].reshape(nc, N_DOF, nc, N_DOF)  # a view: H_u = kron(K, T_c^2 J^T Q J) + R
-        hu += self._k_tc2[:, None, :, None] * (jq @ jy)[None, :, None, :]
-        g = np.empty(self.n)
-        g[: self.n_u] = (-tc * (jq @ (e0.T @ self.hold))).T.ravel()  # block i: -T_c J^T Q sum_j c_ji e0_j
-        g[self.n_u :] = self._g_slack
+        # H_u = kron(K, T_c^2 J^T Q J) + R, written in place (the slack block is constant)
+        np.multiply(self._k_tc2_4, (jq @ jy)[None, :, None, :], out=self._hu4)
+        self._hu_diag += self._r_diag
+        g = self._g
+        g[: self.n_u] = (-cfg.t_c * (jq @ (e0.T @ self.hold))).T.ravel()  # block i: -T_c J^T Q sum_j c_ji e0_j
 
         lo, hi = self.velocity_bounds(q)
-        lo_box = np.empty(self.n)
-        hi_box = np.empty(self.n)
-        lo_box[: self.n_u].reshape(nc, N_DOF)[:] = lo
-        hi_box[: self.n_u].reshape(nc, N_DOF)[:] = hi
-        lo_box[self.n_u :] = 0.0
-        hi_box[self.n_u :] = INF
+        self._lo_box_u[:] = lo
+        self._hi_box_u[:] = hi
         if self.n_box_rows:
-            self._l[: self.n] = lo_box
-            self._u[: self.n] = hi_box
+            self._l[: self.n] = self._lo_box
+            self._u[: self.n] = self._hi_box
 
         if self.n_pos:
             # Relax the limits just enough that the all-"v*" plan (v* = velocity nearest to zero in the box)
             # stays feasible when q is already outside its limits (never tighter than the true limits).
             v_star = np.minimum(np.maximum(0.0, lo[6:]), hi[6:])
             disp = self._pos_horizon[:, None] * v_star[None, :]  # (steps, 12)
-            self._l[self._pos_rows].reshape(-1, N_JOINTS)[:] = np.minimum(self.q_min - q, disp - 1e-9)
-            self._u[self._pos_rows].reshape(-1, N_JOINTS)[:] = np.maximum(self.q_max - q, disp + 1e-9)
+            np.minimum(self.q_min - q, disp - 1e-9, out=self._l_pos)
+            np.maximum(self.q_max - q, disp + 1e-9, out=self._u_pos)
 
         if self.n_col:
             if p.j_dis is None or p.d is None:
                 raise ValueError("CAMPC needs j_dis and d in the problem")
             jd = np.asarray(p.j_dis, dtype=float)
-            rhs = self.collision_bound(p.d, p.v_dis)
-            r0 = self._col_rows.start
-            for j in range(cfg.n_collision_steps):
-                self._C[r0 + N_DIS * j : r0 + N_DIS * (j + 1), N_DOF * j : N_DOF * (j + 1)] = jd
-            self._u[self._col_rows].reshape(-1, N_DIS)[:] = rhs
+            for block in self._col_blocks:
+                block[:] = jd
+            self._u_col[:] = self.collision_bound(p.d, p.v_dis)
 
         if self.n_eq:
             if p.j_eq is None:
                 raise ValueError("closed_chain needs j_eq in the problem")
             je = np.asarray(p.j_eq, dtype=float)
-            ne = cfg.n_eq_rows
-            for j in range(nc):
-                self._A[ne * j : ne * (j + 1), N_DOF * j : N_DOF * (j + 1)] = je
-        return h, g, lo_box, hi_box
+            for block in self._eq_blocks:
+                block[:] = je
+        return self._H, g, self._lo_box, self._hi_box
 
     def solve(self, problem: MPCProblem) -> MPCStepRecord:
         """Build and solve one step (warm-started from the previous step's solution).
