@@ -399,7 +399,8 @@ class KinematicMPC:
             for j in range(cfg.n_collision_steps)
         ]
         ne = cfg.n_eq_rows
-        self._eq_blocks = [self._A[ne * j : ne * (j + 1), N_DOF * j : N_DOF * (j + 1)] for j in range(nc if self.n_eq else 0)]
+        n_eq_blocks = nc if self.n_eq else 0
+        self._eq_blocks = [self._A[ne * j : ne * (j + 1), N_DOF * j : N_DOF * (j + 1)] for j in range(n_eq_blocks)]
 
         self.qp = proxsuite.proxqp.dense.QP(
             self.n, self.n_eq, self.n_in, cfg.box_constraints, proxsuite.proxqp.dense.HessianType.Dense
