@@ -40,6 +40,7 @@ class MPCController:
         kin: the kinematic model (its state is the last step's).
         mpc: the QP core (one ProxSuite object, allocated once).
         last_distances: the :class:`~uvdms_gym.distances.DistanceResult` of the last CAMPC step.
+        last_distance_us: wall time of the last step's distances and ``J_dis``, µs (0 for plain MPC).
     """
 
     def __init__(
@@ -77,6 +78,7 @@ class MPCController:
         self.mpc = KinematicMPC(replace(cfg, q_weight=tuple(qw)), self.params, n_outputs=m)
         self.last_distances: distances.DistanceResult | None = None
         self.last_problem: MPCProblem | None = None
+        self.last_distance_us = 0.0
 
     def reset(self) -> None:
         """Start a new episode (the next solve is cold; the QP object is kept)."""
@@ -146,9 +148,11 @@ class MPCController:
             e0[:, r0:] = (self.q_nominal - q)[None, :]
         problem = MPCProblem(e0=e0, j_y=j_y, q=q)
         if cfg.collision:
+            t0 = time.perf_counter()
             res = distances.compute_distances(kin, cfg.distance_method, cfg.distance_samples)
             problem.d = res.d
             problem.j_dis = distances.distance_jacobian(kin, res)
+            self.last_distance_us = (time.perf_counter() - t0) * 1e6
             if zeta is not None:
                 problem.v_dis = problem.j_dis @ np.asarray(zeta, dtype=float)
             self.last_distances = res
@@ -167,12 +171,15 @@ class MPCController:
             zeta: measured velocity (18), optional (collision lookahead).
 
         Returns:
-            The step record; ``total_us`` covers the whole step, ``d`` the distances used (CAMPC).
+            The step record; ``total_us`` covers the whole step, ``distance_us`` its distances and ``J_dis``
+            (CAMPC), ``d`` the distances used (CAMPC).
         """
         t0 = time.perf_counter()
+        self.last_distance_us = 0.0
         problem = self.make_problem(eta, q, y_ref, zeta)
         rec = self.mpc.solve(problem)
         rec.total_us = (time.perf_counter() - t0) * 1e6
+        rec.distance_us = self.last_distance_us
         rec.d = problem.d
         return rec
 

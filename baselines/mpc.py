@@ -260,6 +260,9 @@ class MPCStepRecord:
         build_us: wall time to assemble the QP, µs.
         total_us: wall time of the whole step (including kinematics and distances if the caller measured
             them), µs.
+        distance_us: wall time of the distances and ``J_dis`` inside ``total_us`` (0 if the caller did not
+            compute them), µs; ``total_us - solve_us - build_us - distance_us`` is the rest of the model part
+            (kinematics, outputs, reference errors).
         objective: QP objective value.
         plan: the optimal ``U`` reshaped ``(N_c, 18)``.
         retried: the warm-started solve did not converge and the step was re-solved cold.
@@ -279,6 +282,7 @@ class MPCStepRecord:
     plan: np.ndarray
     retried: bool = False
     d: np.ndarray | None = None
+    distance_us: float = 0.0
 
     def as_dict(self) -> dict[str, float | int | str | bool]:
         """Scalar fields for logging (``info`` dicts, JSON)."""
@@ -290,6 +294,7 @@ class MPCStepRecord:
             "solve_us": self.solve_us,
             "build_us": self.build_us,
             "total_us": self.total_us,
+            "distance_us": self.distance_us,
             "objective": self.objective,
         }
 
