@@ -568,8 +568,9 @@ class KinematicMPC:
         if self._initialised:
             qp.update(h, g, a, b, c, lo, up, *box, mu_in=self.config.warm_mu_in)
             qp.solve()
-            iterations = int(qp.results.info.iter)
-            if qp.results.info.status != _SOLVED:
+            info = qp.results.info
+            iterations = int(info.iter)
+            if info.status != _SOLVED:
                 self._initialised = False  # retry cold below (ProxSuite may misreport infeasibility warm)
                 retried = True
         if not self._initialised:
@@ -581,13 +582,14 @@ class KinematicMPC:
             self._initialised = True
             iterations += int(qp.results.info.iter)
         t2 = time.perf_counter()
-        info = qp.results.info
+        results = qp.results
+        info = results.info
         status = _STATUS_NAMES.get(info.status, str(info.status))
         self.n_cold_retries += int(retried)
-        x = qp.results.x
+        x = results.x
         lo_v, hi_v = lo_box[:N_DOF], hi_box[:N_DOF]
-        if np.all(np.isfinite(x)) and status in ("solved", "max_iter", "closest_primal_feasible"):
-            zeta = np.clip(x[:N_DOF], lo_v, hi_v)
+        if status in ("solved", "max_iter", "closest_primal_feasible") and np.isfinite(x).all():
+            zeta = np.minimum(np.maximum(x[:N_DOF], lo_v), hi_v)  # np.clip's values, cheaper
             plan = x[: self.n_u].reshape(self.config.n_c, N_DOF).copy()
             slack = x[self.n_u :].copy() if self.n_s else np.zeros(N_DIS)
         else:
