@@ -396,6 +396,10 @@ class KinematicMPC:
         self._hi_box = np.full(self.n, INF)  # slacks: 0 <= s
         self._lo_box_u = self._lo_box[: self.n_u].reshape(nc, N_DOF)
         self._hi_box_u = self._hi_box[: self.n_u].reshape(nc, N_DOF)
+        self._lo_box_u[:, :6] = -self.zeta_max[:6]
+        self._hi_box_u[:, :6] = self.zeta_max[:6]
+        self._qd_max = np.array(self.zeta_max[6:], dtype=float)
+        self._neg_qd_max = -self._qd_max
         self._l_pos = self._l[self._pos_rows].reshape(-1, N_JOINTS)
         self._u_pos = self._u[self._pos_rows].reshape(-1, N_JOINTS)
         self._u_col = self._u[self._col_rows].reshape(-1, N_DIS)
@@ -441,18 +445,23 @@ class KinematicMPC:
         Returns:
             ``(lo, hi)``.
         """
-        eps = self.config.eps_v
-        zmax = self.zeta_max
-        qd_max = zmax[6:]
         lo = np.empty(N_DOF)
         hi = np.empty(N_DOF)
-        lo[:6], hi[:6] = -zmax[:6], zmax[:6]
-        lo_q = np.maximum(eps * (self.q_min - q), -qd_max)
-        hi_q = np.minimum(eps * (self.q_max - q), qd_max)
-        # Out of limits (e.g. q > q_max) the raw bounds cross: keep the joint free to move back at full speed.
-        lo[6:] = np.minimum(lo_q, qd_max)
-        hi[6:] = np.maximum(hi_q, -qd_max)
+        lo[:6], hi[:6] = -self.zeta_max[:6], self.zeta_max[:6]
+        self._joint_bounds_into(self.q_min - q, self.q_max - q, lo[6:], hi[6:])
         return lo, hi
+
+    def _joint_bounds_into(self, to_min: np.ndarray, to_max: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+        """The joint-rate bounds of :meth:`velocity_bounds` from ``q_min - q``, ``q_max - q``, into ``lo``, ``hi``."""
+        eps = self.config.eps_v
+        qd_max = self._qd_max
+        np.multiply(to_min, eps, out=lo)
+        np.maximum(lo, self._neg_qd_max, out=lo)
+        np.multiply(to_max, eps, out=hi)
+        np.minimum(hi, qd_max, out=hi)
+        # Out of limits (e.g. q > q_max) the raw bounds cross: keep the joint free to move back at full speed.
+        np.minimum(lo, qd_max, out=lo)
+        np.maximum(hi, self._neg_qd_max, out=hi)
 
     def collision_bound(self, d: np.ndarray, v_now: np.ndarray | None = None) -> np.ndarray:
         """Right-hand side of the collision rows: ``S(d) vbar - k_esc max(0, d1 - d)`` (18).
@@ -512,9 +521,11 @@ class KinematicMPC:
         g = self._g
         g[: self.n_u] = (-cfg.t_c * (jq @ (e0.T @ self.hold))).T.ravel()  # block i: -T_c J^T Q sum_j c_ji e0_j
 
-        lo, hi = self.velocity_bounds(q)
-        self._lo_box_u[:] = lo
-        self._hi_box_u[:] = hi
+        to_min, to_max = self.q_min - q, self.q_max - q
+        lo, hi = self._lo_box_u[0], self._hi_box_u[0]  # block 0 (the vehicle part is constant), copied to the others
+        self._joint_bounds_into(to_min, to_max, lo[6:], hi[6:])
+        self._lo_box_u[1:] = lo
+        self._hi_box_u[1:] = hi
         if self.n_box_rows:
             self._l[: self.n] = self._lo_box
             self._u[: self.n] = self._hi_box
@@ -524,8 +535,8 @@ class KinematicMPC:
             # stays feasible when q is already outside its limits (never tighter than the true limits).
             v_star = np.minimum(np.maximum(0.0, lo[6:]), hi[6:])
             disp = self._pos_horizon[:, None] * v_star[None, :]  # (steps, 12)
-            np.minimum(self.q_min - q, disp - 1e-9, out=self._l_pos)
-            np.maximum(self.q_max - q, disp + 1e-9, out=self._u_pos)
+            np.minimum(to_min, disp - 1e-9, out=self._l_pos)
+            np.maximum(to_max, disp + 1e-9, out=self._u_pos)
 
         if self.n_col:
             if p.j_dis is None or p.d is None:
