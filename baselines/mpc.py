@@ -667,9 +667,9 @@ def euler_to_rot_batch(rpy: np.ndarray) -> np.ndarray:
         The rotations.
     """
     rpy = np.asarray(rpy, dtype=float)
-    cf, sf = np.cos(rpy[..., 0]), np.sin(rpy[..., 0])
-    ct, st = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
-    cp, sp = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
+    c, s = np.cos(rpy), np.sin(rpy)  # one call each (elementwise: the same values as per column)
+    cf, ct, cp = c[..., 0], c[..., 1], c[..., 2]
+    sf, st, sp = s[..., 0], s[..., 1], s[..., 2]
     r = np.empty((*rpy.shape[:-1], 3, 3))
     r[..., 0, 0] = cp * ct
     r[..., 0, 1] = -sp * cf + cp * st * sf
