@@ -85,6 +85,7 @@ class UVDMSNominalModel:
         self._m_obj = m
         self._i_obj = np.diag([i_tr, i_ax, i_tr])  # object axis along its own y (see uvdms_gym.model)
         self._net_weight = (m - self.params.water_density * o.volume) * 9.81  # N, down (+z NED)
+        self._f_obj = np.array([0.0, 0.0, self._net_weight])
 
     def evaluate(self, eta: np.ndarray, q: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(Mbar, bbar)`` at the state.
@@ -105,7 +106,7 @@ class UVDMSNominalModel:
             mo = np.zeros((6, 6))
             mo[:3, :3] = self._m_obj * np.eye(3)
             mo[3:, 3:] = r @ self._i_obj @ r.T
-            f = np.array([0.0, 0.0, self._net_weight])
+            f = self._f_obj
             for side in ("left", "right"):
                 jo = self.kin.object_jacobian(side)
                 mbar += 0.5 * jo.T @ mo @ jo
