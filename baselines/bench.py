@@ -108,6 +108,7 @@ class _StepLog:
         self.steps: list[float] = []
         self.solves: list[float] = []
         self.builds: list[float] = []
+        self.distances: list[float] = []
         self.iters: list[int] = []
         self.statuses: list[str] = []
         self.max_slack = 0.0
@@ -119,6 +120,7 @@ class _StepLog:
         self.steps.append(rec.total_us)
         self.solves.append(rec.solve_us)
         self.builds.append(rec.build_us)
+        self.distances.append(rec.distance_us)
         self.iters.append(rec.iterations)
         self.statuses.append(rec.status)
         self.max_slack = max(self.max_slack, rec.max_slack)
@@ -128,8 +130,14 @@ class _StepLog:
             self.xs.append(mpc.qp.results.x.copy())
 
     def stats(self) -> dict[str, float | int]:
-        """Medians of the step, solve, build and model (kinematics + distances + ``J_dis``) times, etc."""
+        """Medians of the step and of its parts, iterations, status counts and the largest slack.
+
+        The split: ``model`` (kinematics + outputs + distances + ``J_dis``) = ``distance`` (distances + ``J_dis``)
+        + ``kinematics`` (the rest of the model part); ``build`` (QP assembly); ``solve`` (ProxSuite update +
+        solve); ``step_excl_distance`` = step - distance. Each is the median over steps of that part.
+        """
         steps, solves, builds = np.array(self.steps), np.array(self.solves), np.array(self.builds)
+        dist = np.array(self.distances)
         return {
             "step_us_median": float(np.median(steps)),
             "step_us_p90": float(np.percentile(steps, 90)),
@@ -137,6 +145,9 @@ class _StepLog:
             "solve_us_median": float(np.median(solves)),
             "build_us_median": float(np.median(builds)),
             "model_us_median": float(np.median(steps - solves - builds)),
+            "distance_us_median": float(np.median(dist)),
+            "kinematics_us_median": float(np.median(steps - solves - builds - dist)),
+            "step_excl_distance_us_median": float(np.median(steps - dist)),
             "iterations_median": float(np.median(self.iters)),
             "iterations_max": int(max(self.iters)),
             "unsolved": int(sum(st != "solved" for st in self.statuses)),
@@ -165,7 +176,8 @@ def benchmark_mpc(
     Returns:
         A flat dict (JSON-ready): ``step_us_median`` (kinematics + distances + build + solve),
         ``step_us_p90``, ``step_us_max``, ``solve_us_median`` (ProxSuite update + solve), ``build_us_median``,
-        ``model_us_median`` (kinematics + distances + ``J_dis``), ``iterations_median``, ``iterations_max``,
+        ``model_us_median`` (kinematics + distances + ``J_dis``) split into ``distance_us_median`` and
+        ``kinematics_us_median``, ``step_excl_distance_us_median``, ``iterations_median``, ``iterations_max``,
         ``unsolved`` (steps not ``"solved"``), ``cold_retries``, QP sizes, and with OSQP ``osqp_us_median``,
         ``osqp_iterations_median``, ``osqp_unsolved``, ``osqp_over_proxsuite`` (ratio of median solve times)
         and ``max_solution_diff`` (largest ``|x_osqp - x_proxsuite|_inf`` over the sequence).
@@ -281,7 +293,8 @@ def benchmark_env_campc(n_steps: int = 500, case: int = 1, warmup: int = 10, osq
 
     Returns:
         ``step_us_median`` (kinematics + distances + ``J_dis`` + QP build + solve), ``step_us_p90``,
-        ``solve_us_median``, ``build_us_median``, ``model_us_median``, ``iterations_median``, ``unsolved``,
+        ``solve_us_median``, ``build_us_median``, ``model_us_median`` (= ``distance_us_median`` +
+        ``kinematics_us_median``), ``step_excl_distance_us_median``, ``iterations_median``, ``unsolved``,
         ``max_slack``, QP sizes, and the OSQP figures with ``osqp_over_proxsuite`` (ratio of median solve times).
     """
     import gymnasium as gym
@@ -332,7 +345,10 @@ def real_time_factor(controller: str = "campc-nndi", env_id: str = "uvdms/Transp
         steps: number of steps (``None``: one whole episode).
 
     Returns:
-        ``{"controller", "env_id", "sim_s", "wall_s", "real_time_factor", "controller_ms_median", "env_ms_median"}``.
+        ``{"controller", "env_id", "steps", "sim_s", "wall_s", "real_time_factor", "controller_ms_median",
+        "env_ms_median", "controller_distance_us_median"}``: the controller's median cost per control step (MPC
+        + dynamic inversion), the environment step's, and the distances + ``J_dis`` inside the controller's
+        (so that each part can be combined with a new cost of the other).
     """
     import time
 
@@ -346,7 +362,7 @@ def real_time_factor(controller: str = "campc-nndi", env_id: str = "uvdms/Transp
         ctl = make_controller(controller, env)
         obs, info = env.reset(seed=0)
         ctl.reset(0)
-        c_ms, e_ms = [], []
+        c_ms, e_ms, d_us = [], [], []
         t_start = time.perf_counter()
         n = 0
         while steps is None or n < steps:
@@ -357,6 +373,8 @@ def real_time_factor(controller: str = "campc-nndi", env_id: str = "uvdms/Transp
             t2 = time.perf_counter()
             c_ms.append((t1 - t0) * 1e3)
             e_ms.append((t2 - t1) * 1e3)
+            last = getattr(ctl, "last_mpc", None)
+            d_us.append(last.distance_us if last is not None else 0.0)
             n += 1
             if term or trunc:
                 break
@@ -373,6 +391,7 @@ def real_time_factor(controller: str = "campc-nndi", env_id: str = "uvdms/Transp
         "real_time_factor": sim_s / wall,
         "controller_ms_median": float(np.median(c_ms)),
         "env_ms_median": float(np.median(e_ms)),
+        "controller_distance_us_median": float(np.median(d_us)),
     }
 
 
@@ -384,8 +403,10 @@ def benchmark_all(quick: bool = False) -> dict:
 
     Returns:
         ``{"campc_env": ..., "campc_kinematic": ..., "di": ..., "di_nn": ..., "real_time_factor": ...}`` plus the
-        headline numbers at the top level: ``campc_step_us_median``, ``osqp_over_proxsuite``,
-        ``campc_nndi_transport_real_time_factor``.
+        headline numbers at the top level: ``campc_step_us_median`` and its split (``campc_distance_us_median``,
+        ``campc_kinematics_us_median``, ``campc_build_us_median``, ``campc_solve_us_median``,
+        ``campc_step_excl_distance_us_median``), ``osqp_over_proxsuite``, ``campc_nndi_transport_real_time_factor``
+        and ``campc_nndi_controller_us_median`` (the controller's own cost per transport step).
     """
     env_res = benchmark_env_campc(n_steps=150 if quick else 490)
     kin_res = benchmark_mpc(n_steps=100 if quick else 300)
@@ -394,10 +415,15 @@ def benchmark_all(quick: bool = False) -> dict:
     rtf = real_time_factor(steps=200 if quick else None)
     return {
         "campc_step_us_median": env_res["step_us_median"],
+        "campc_distance_us_median": env_res["distance_us_median"],
+        "campc_kinematics_us_median": env_res["kinematics_us_median"],
+        "campc_build_us_median": env_res["build_us_median"],
         "campc_solve_us_median": env_res["solve_us_median"],
+        "campc_step_excl_distance_us_median": env_res["step_excl_distance_us_median"],
         "osqp_solve_us_median": env_res.get("osqp_us_median"),
         "osqp_over_proxsuite": env_res.get("osqp_over_proxsuite"),
         "campc_nndi_transport_real_time_factor": rtf["real_time_factor"],
+        "campc_nndi_controller_us_median": rtf["controller_ms_median"] * 1e3,
         "campc_env": env_res,
         "campc_kinematic": kin_res,
         "di": di_res,

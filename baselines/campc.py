@@ -29,6 +29,8 @@ from uvdms_gym.kinematics import KinematicModel
 from uvdms_gym.params import UVDMSParams
 
 OutputKind = Literal["ee_positions", "object_pose"]
+N_JOINTS_POSTURE = 12
+"""Posture outputs (one per joint) added with ``posture_weight > 0``."""
 
 
 class MPCController:
@@ -40,6 +42,7 @@ class MPCController:
         kin: the kinematic model (its state is the last step's).
         mpc: the QP core (one ProxSuite object, allocated once).
         last_distances: the :class:`~uvdms_gym.distances.DistanceResult` of the last CAMPC step.
+        last_distance_us: wall time of the last step's distances and ``J_dis``, µs (0 for plain MPC).
     """
 
     def __init__(
@@ -67,16 +70,21 @@ class MPCController:
         self.params = params or UVDMSParams()
         self.kin = kin or KinematicModel(self.params)
         self.n_att = 2 if cfg.attitude_weight > 0.0 else 0
-        self.n_post = 12 if cfg.posture_weight > 0.0 else 0
+        self.n_post = N_JOINTS_POSTURE if cfg.posture_weight > 0.0 else 0
         m = 6 + self.n_att + self.n_post
         qw = np.ones(m)
         qw[:6] = np.broadcast_to(np.asarray(cfg.q_weight, dtype=float), (6,))
         qw[6 : 6 + self.n_att] = cfg.attitude_weight
         qw[6 + self.n_att :] = cfg.posture_weight
         self.q_nominal: np.ndarray | None = None
+        # constant rows of J_y (the posture outputs' identity); copied and completed at every step
+        self._j_y_template = np.zeros((m, 18))
+        if self.n_post:
+            self._j_y_template[6 + self.n_att :, 6:] = np.eye(N_JOINTS_POSTURE)
         self.mpc = KinematicMPC(replace(cfg, q_weight=tuple(qw)), self.params, n_outputs=m)
         self.last_distances: distances.DistanceResult | None = None
         self.last_problem: MPCProblem | None = None
+        self.last_distance_us = 0.0
 
     def reset(self) -> None:
         """Start a new episode (the next solve is cold; the QP object is kept)."""
@@ -127,7 +135,7 @@ class MPCController:
         y, jy, rot = self.output_and_jacobian()
         m = 6 + self.n_att + self.n_post
         e0 = np.empty((cfg.n_p, m))
-        j_y = np.zeros((m, 18))
+        j_y = self._j_y_template.copy()
         j_y[:6] = jy
         if rot is None:
             e0[:, :6] = y_ref - y[None, :]
@@ -141,19 +149,20 @@ class MPCController:
         if self.n_post:
             if self.q_nominal is None:
                 self.q_nominal = q.copy()
-            r0 = 6 + self.n_att
-            j_y[r0:, 6:] = np.eye(12)
-            e0[:, r0:] = (self.q_nominal - q)[None, :]
+            e0[:, 6 + self.n_att :] = (self.q_nominal - q)[None, :]
         problem = MPCProblem(e0=e0, j_y=j_y, q=q)
         if cfg.collision:
+            t0 = time.perf_counter()
             res = distances.compute_distances(kin, cfg.distance_method, cfg.distance_samples)
             problem.d = res.d
             problem.j_dis = distances.distance_jacobian(kin, res)
+            self.last_distance_us = (time.perf_counter() - t0) * 1e6
             if zeta is not None:
                 problem.v_dis = problem.j_dis @ np.asarray(zeta, dtype=float)
             self.last_distances = res
-        if cfg.closed_chain:
-            problem.j_eq = kin.object_jacobian("left") - kin.object_jacobian("right")
+        if cfg.closed_chain:  # J_o,left - J_o,right; for "object_pose" J_y's first rows are J_o,right already
+            j_right = jy if rot is not None else kin.object_jacobian("right")
+            problem.j_eq = kin.object_jacobian("left") - j_right
         self.last_problem = problem
         return problem
 
@@ -167,12 +176,15 @@ class MPCController:
             zeta: measured velocity (18), optional (collision lookahead).
 
         Returns:
-            The step record; ``total_us`` covers the whole step, ``d`` the distances used (CAMPC).
+            The step record; ``total_us`` covers the whole step, ``distance_us`` its distances and ``J_dis``
+            (CAMPC), ``d`` the distances used (CAMPC).
         """
         t0 = time.perf_counter()
+        self.last_distance_us = 0.0
         problem = self.make_problem(eta, q, y_ref, zeta)
         rec = self.mpc.solve(problem)
         rec.total_us = (time.perf_counter() - t0) * 1e6
+        rec.distance_us = self.last_distance_us
         rec.d = problem.d
         return rec
 

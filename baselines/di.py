@@ -85,6 +85,7 @@ class UVDMSNominalModel:
         self._m_obj = m
         self._i_obj = np.diag([i_tr, i_ax, i_tr])  # object axis along its own y (see uvdms_gym.model)
         self._net_weight = (m - self.params.water_density * o.volume) * 9.81  # N, down (+z NED)
+        self._f_obj = np.array([0.0, 0.0, self._net_weight])
 
     def evaluate(self, eta: np.ndarray, q: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(Mbar, bbar)`` at the state.
@@ -105,7 +106,7 @@ class UVDMSNominalModel:
             mo = np.zeros((6, 6))
             mo[:3, :3] = self._m_obj * np.eye(3)
             mo[3:, 3:] = r @ self._i_obj @ r.T
-            f = np.array([0.0, 0.0, self._net_weight])
+            f = self._f_obj
             for side in ("left", "right"):
                 jo = self.kin.object_jacobian(side)
                 mbar += 0.5 * jo.T @ mo @ jo
@@ -219,10 +220,11 @@ class RBFNetwork:
         self.width = float(width)
         self.weights = np.zeros((n_hidden, n_out))
         self._c2 = np.einsum("ij,ij->i", self.centers, self.centers)
+        self._two_centers = 2.0 * self.centers  # exact doubling, kept instead of recomputed per call
 
     def features(self, x: np.ndarray) -> np.ndarray:
         """Hidden-layer output ``h(x)`` (n_hidden)."""
-        d2 = self._c2 - 2.0 * self.centers @ x + x @ x
+        d2 = self._c2 - self._two_centers @ x + x @ x
         return np.exp(-np.maximum(d2, 0.0) / (2.0 * self.width**2))
 
     def output(self, h: np.ndarray) -> np.ndarray:
@@ -265,6 +267,7 @@ class DynamicInversionController:
         self.lam, self.P = lyapunov_matrix(self.k_p, self.k_i, cfg.q_lyap)
         self.Q = cfg.q_lyap * np.eye(2 * N_DOF)
         self._bt_p = self.P[N_DOF:, :].copy()  # B^T P (18 x 36)
+        self._eye = np.eye(N_DOF)
         self._rm_gain = 1.0 - np.exp(-self.k_rm * cfg.dt)
         self.net = RBFNetwork(2 * N_DOF + 12 + 3, N_DOF, cfg.n_hidden, cfg.rbf_width, cfg.center_range, cfg.seed)
         self._inv_scale = np.concatenate(
@@ -329,7 +332,7 @@ class DynamicInversionController:
         if a_eq is not None:
             a_eq = np.asarray(a_eq, dtype=float)
             m_inv_at = np.linalg.solve(mbar, a_eq.T)
-            proj = np.eye(N_DOF) - m_inv_at @ np.linalg.solve(a_eq @ m_inv_at, a_eq)
+            proj = self._eye - m_inv_at @ np.linalg.solve(a_eq @ m_inv_at, a_eq)
         e2 = self.zeta_rm - zeta
         if proj is not None:
             e2 = proj @ e2
@@ -348,14 +351,14 @@ class DynamicInversionController:
         saturated = np.zeros(N_DOF, dtype=bool)
         if cfg.saturate:
             saturated = np.abs(tau) > self.tau_max
-            tau = np.clip(tau, -self.tau_max, self.tau_max)
+            tau = np.minimum(np.maximum(tau, -self.tau_max), self.tau_max)  # np.clip's values, cheaper
         # updates (forward Euler over dt); saturated DOFs neither integrate nor adapt (anti-windup)
         active = ~saturated
         if h is not None:
             s = self._bt_p @ e
             s[saturated] = 0.0
             w = self.net.weights
-            w -= cfg.dt * self.kappa * (np.outer(h, s) + cfg.sigma * w)
+            w -= cfg.dt * self.kappa * (np.multiply.outer(h, s) + cfg.sigma * w)
         self.e1 += cfg.dt * e2 * active
         self.zeta_rm += self._rm_gain * (zeta_cmd - self.zeta_rm)
         self.tau_prev = tau.copy()

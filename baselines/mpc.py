@@ -260,6 +260,9 @@ class MPCStepRecord:
         build_us: wall time to assemble the QP, µs.
         total_us: wall time of the whole step (including kinematics and distances if the caller measured
             them), µs.
+        distance_us: wall time of the distances and ``J_dis`` inside ``total_us`` (0 if the caller did not
+            compute them), µs; ``total_us - solve_us - build_us - distance_us`` is the rest of the model part
+            (kinematics, outputs, reference errors).
         objective: QP objective value.
         plan: the optimal ``U`` reshaped ``(N_c, 18)``.
         retried: the warm-started solve did not converge and the step was re-solved cold.
@@ -279,6 +282,7 @@ class MPCStepRecord:
     plan: np.ndarray
     retried: bool = False
     d: np.ndarray | None = None
+    distance_us: float = 0.0
 
     def as_dict(self) -> dict[str, float | int | str | bool]:
         """Scalar fields for logging (``info`` dicts, JSON)."""
@@ -290,6 +294,7 @@ class MPCStepRecord:
             "solve_us": self.solve_us,
             "build_us": self.build_us,
             "total_us": self.total_us,
+            "distance_us": self.distance_us,
             "objective": self.objective,
         }
 
@@ -374,11 +379,37 @@ class KinematicMPC:
             self._C[rows, self.n_u :] = -np.eye(N_DIS)
         self._A = np.zeros((self.n_eq, self.n))
         self._b = np.zeros(self.n_eq)
-        self._h_reg = np.zeros((self.n, self.n))
-        self._h_reg[: self.n_u, : self.n_u] = np.kron(np.eye(nc), np.diag(self.r_weight))
+        # The QP's arrays, allocated once and rewritten in place by every build (ProxSuite copies them on
+        # ``update``). Only what depends on the step is written: the ``U`` block of ``H`` (``R`` on its diagonal),
+        # ``g[:n_u]``, the ``U`` part of the box, the bounds of the joint-position and collision rows, the
+        # ``J_dis`` blocks of ``C`` and the ``J_eq`` blocks of ``A``; the slack blocks are constant.
+        self._H = np.zeros((self.n, self.n))
         if self.n_s:
-            self._h_reg[self.n_u :, self.n_u :] = cfg.slack_quadratic * np.eye(self.n_s)
-        self._g_slack = np.full(self.n_s, cfg.slack_linear)
+            self._H[self.n_u :, self.n_u :] = cfg.slack_quadratic * np.eye(self.n_s)
+        self._hu4 = self._H[: self.n_u, : self.n_u].reshape(nc, N_DOF, nc, N_DOF)  # a view of the U block
+        self._hu_diag = self._H.reshape(-1)[: self.n_u * (self.n + 1) : self.n + 1]  # a view of its diagonal
+        self._r_diag = np.tile(self.r_weight, nc)
+        self._k_tc2_4 = np.ascontiguousarray(self._k_tc2[:, None, :, None])
+        self._g = np.empty(self.n)
+        self._g[self.n_u :] = cfg.slack_linear
+        self._lo_box = np.zeros(self.n)
+        self._hi_box = np.full(self.n, INF)  # slacks: 0 <= s
+        self._lo_box_u = self._lo_box[: self.n_u].reshape(nc, N_DOF)
+        self._hi_box_u = self._hi_box[: self.n_u].reshape(nc, N_DOF)
+        self._lo_box_u[:, :6] = -self.zeta_max[:6]
+        self._hi_box_u[:, :6] = self.zeta_max[:6]
+        self._qd_max = np.array(self.zeta_max[6:], dtype=float)
+        self._neg_qd_max = -self._qd_max
+        self._l_pos = self._l[self._pos_rows].reshape(-1, N_JOINTS)
+        self._u_pos = self._u[self._pos_rows].reshape(-1, N_JOINTS)
+        self._u_col = self._u[self._col_rows].reshape(-1, N_DIS)
+        self._col_blocks = [
+            self._C[r0 + N_DIS * j : r0 + N_DIS * (j + 1), N_DOF * j : N_DOF * (j + 1)]
+            for j in range(cfg.n_collision_steps)
+        ]
+        ne = cfg.n_eq_rows
+        n_eq_blocks = nc if self.n_eq else 0
+        self._eq_blocks = [self._A[ne * j : ne * (j + 1), N_DOF * j : N_DOF * (j + 1)] for j in range(n_eq_blocks)]
 
         self.qp = proxsuite.proxqp.dense.QP(
             self.n, self.n_eq, self.n_in, cfg.box_constraints, proxsuite.proxqp.dense.HessianType.Dense
@@ -414,18 +445,23 @@ class KinematicMPC:
         Returns:
             ``(lo, hi)``.
         """
-        eps = self.config.eps_v
-        zmax = self.zeta_max
-        qd_max = zmax[6:]
         lo = np.empty(N_DOF)
         hi = np.empty(N_DOF)
-        lo[:6], hi[:6] = -zmax[:6], zmax[:6]
-        lo_q = np.maximum(eps * (self.q_min - q), -qd_max)
-        hi_q = np.minimum(eps * (self.q_max - q), qd_max)
-        # Out of limits (e.g. q > q_max) the raw bounds cross: keep the joint free to move back at full speed.
-        lo[6:] = np.minimum(lo_q, qd_max)
-        hi[6:] = np.maximum(hi_q, -qd_max)
+        lo[:6], hi[:6] = -self.zeta_max[:6], self.zeta_max[:6]
+        self._joint_bounds_into(self.q_min - q, self.q_max - q, lo[6:], hi[6:])
         return lo, hi
+
+    def _joint_bounds_into(self, to_min: np.ndarray, to_max: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+        """The joint-rate bounds of :meth:`velocity_bounds` from ``q_min - q``, ``q_max - q``, into ``lo``, ``hi``."""
+        eps = self.config.eps_v
+        qd_max = self._qd_max
+        np.multiply(to_min, eps, out=lo)
+        np.maximum(lo, self._neg_qd_max, out=lo)
+        np.multiply(to_max, eps, out=hi)
+        np.minimum(hi, qd_max, out=hi)
+        # Out of limits (e.g. q > q_max) the raw bounds cross: keep the joint free to move back at full speed.
+        np.minimum(lo, qd_max, out=lo)
+        np.maximum(hi, self._neg_qd_max, out=hi)
 
     def collision_bound(self, d: np.ndarray, v_now: np.ndarray | None = None) -> np.ndarray:
         """Right-hand side of the collision rows: ``S(d) vbar - k_esc max(0, d1 - d)`` (18).
@@ -442,7 +478,7 @@ class KinematicMPC:
         d = np.asarray(d, dtype=float)
         if v_now is not None and cfg.lookahead > 0.0:
             d = d - cfg.lookahead * np.maximum(0.0, np.asarray(v_now, dtype=float))
-        x = np.clip((np.asarray(d, dtype=float) - cfg.d1) / (cfg.d2 - cfg.d1), 0.0, 1.0)
+        x = np.minimum(np.maximum((d - cfg.d1) / (cfg.d2 - cfg.d1), 0.0), 1.0)  # np.clip's values, cheaper
         s = np.sin(0.5 * np.pi * x) ** 2
         return s * cfg.vbar - cfg.k_escape * np.maximum(0.0, cfg.d1 - d)
 
@@ -471,58 +507,52 @@ class KinematicMPC:
         )
 
     def _build(self, p: MPCProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Write the step's data into the preallocated QP arrays; return ``(H, g, l_box, u_box)`` (the buffers)."""
         cfg = self.config
-        tc, nc = cfg.t_c, cfg.n_c
         e0 = np.asarray(p.e0, dtype=float)
         jy = np.asarray(p.j_y, dtype=float)
         if e0.shape != (cfg.n_p, self.m) or jy.shape != (self.m, N_DOF):
             raise ValueError(f"e0 must be ({cfg.n_p}, {self.m}) and j_y ({self.m}, {N_DOF})")
         q = np.asarray(p.q, dtype=float)
         jq = jy.T * self.q_weight  # J^T Q (18, m)
-        h = self._h_reg.copy()
-        hu = h[: self.n_u, : self.n_u].reshape(nc, N_DOF, nc, N_DOF)  # a view: H_u = kron(K, T_c^2 J^T Q J) + R
-        hu += self._k_tc2[:, None, :, None] * (jq @ jy)[None, :, None, :]
-        g = np.empty(self.n)
-        g[: self.n_u] = (-tc * (jq @ (e0.T @ self.hold))).T.ravel()  # block i: -T_c J^T Q sum_j c_ji e0_j
-        g[self.n_u :] = self._g_slack
+        # H_u = kron(K, T_c^2 J^T Q J) + R, written in place (the slack block is constant)
+        np.multiply(self._k_tc2_4, (jq @ jy)[None, :, None, :], out=self._hu4)
+        self._hu_diag += self._r_diag
+        g = self._g
+        g[: self.n_u] = (-cfg.t_c * (jq @ (e0.T @ self.hold))).T.ravel()  # block i: -T_c J^T Q sum_j c_ji e0_j
 
-        lo, hi = self.velocity_bounds(q)
-        lo_box = np.empty(self.n)
-        hi_box = np.empty(self.n)
-        lo_box[: self.n_u].reshape(nc, N_DOF)[:] = lo
-        hi_box[: self.n_u].reshape(nc, N_DOF)[:] = hi
-        lo_box[self.n_u :] = 0.0
-        hi_box[self.n_u :] = INF
+        to_min, to_max = self.q_min - q, self.q_max - q
+        lo, hi = self._lo_box_u[0], self._hi_box_u[0]  # block 0 (the vehicle part is constant), copied to the others
+        self._joint_bounds_into(to_min, to_max, lo[6:], hi[6:])
+        self._lo_box_u[1:] = lo
+        self._hi_box_u[1:] = hi
         if self.n_box_rows:
-            self._l[: self.n] = lo_box
-            self._u[: self.n] = hi_box
+            self._l[: self.n] = self._lo_box
+            self._u[: self.n] = self._hi_box
 
         if self.n_pos:
             # Relax the limits just enough that the all-"v*" plan (v* = velocity nearest to zero in the box)
             # stays feasible when q is already outside its limits (never tighter than the true limits).
             v_star = np.minimum(np.maximum(0.0, lo[6:]), hi[6:])
             disp = self._pos_horizon[:, None] * v_star[None, :]  # (steps, 12)
-            self._l[self._pos_rows].reshape(-1, N_JOINTS)[:] = np.minimum(self.q_min - q, disp - 1e-9)
-            self._u[self._pos_rows].reshape(-1, N_JOINTS)[:] = np.maximum(self.q_max - q, disp + 1e-9)
+            np.minimum(to_min, disp - 1e-9, out=self._l_pos)
+            np.maximum(to_max, disp + 1e-9, out=self._u_pos)
 
         if self.n_col:
             if p.j_dis is None or p.d is None:
                 raise ValueError("CAMPC needs j_dis and d in the problem")
             jd = np.asarray(p.j_dis, dtype=float)
-            rhs = self.collision_bound(p.d, p.v_dis)
-            r0 = self._col_rows.start
-            for j in range(cfg.n_collision_steps):
-                self._C[r0 + N_DIS * j : r0 + N_DIS * (j + 1), N_DOF * j : N_DOF * (j + 1)] = jd
-            self._u[self._col_rows].reshape(-1, N_DIS)[:] = rhs
+            for block in self._col_blocks:
+                block[:] = jd
+            self._u_col[:] = self.collision_bound(p.d, p.v_dis)
 
         if self.n_eq:
             if p.j_eq is None:
                 raise ValueError("closed_chain needs j_eq in the problem")
             je = np.asarray(p.j_eq, dtype=float)
-            ne = cfg.n_eq_rows
-            for j in range(nc):
-                self._A[ne * j : ne * (j + 1), N_DOF * j : N_DOF * (j + 1)] = je
-        return h, g, lo_box, hi_box
+            for block in self._eq_blocks:
+                block[:] = je
+        return self._H, g, self._lo_box, self._hi_box
 
     def solve(self, problem: MPCProblem) -> MPCStepRecord:
         """Build and solve one step (warm-started from the previous step's solution).
@@ -549,8 +579,9 @@ class KinematicMPC:
         if self._initialised:
             qp.update(h, g, a, b, c, lo, up, *box, mu_in=self.config.warm_mu_in)
             qp.solve()
-            iterations = int(qp.results.info.iter)
-            if qp.results.info.status != _SOLVED:
+            info = qp.results.info
+            iterations = int(info.iter)
+            if info.status != _SOLVED:
                 self._initialised = False  # retry cold below (ProxSuite may misreport infeasibility warm)
                 retried = True
         if not self._initialised:
@@ -562,13 +593,14 @@ class KinematicMPC:
             self._initialised = True
             iterations += int(qp.results.info.iter)
         t2 = time.perf_counter()
-        info = qp.results.info
+        results = qp.results
+        info = results.info
         status = _STATUS_NAMES.get(info.status, str(info.status))
         self.n_cold_retries += int(retried)
-        x = qp.results.x
+        x = results.x
         lo_v, hi_v = lo_box[:N_DOF], hi_box[:N_DOF]
-        if np.all(np.isfinite(x)) and status in ("solved", "max_iter", "closest_primal_feasible"):
-            zeta = np.clip(x[:N_DOF], lo_v, hi_v)
+        if status in ("solved", "max_iter", "closest_primal_feasible") and np.isfinite(x).all():
+            zeta = np.minimum(np.maximum(x[:N_DOF], lo_v), hi_v)  # np.clip's values, cheaper
             plan = x[: self.n_u].reshape(self.config.n_c, N_DOF).copy()
             slack = x[self.n_u :].copy() if self.n_s else np.zeros(N_DIS)
         else:
@@ -635,9 +667,9 @@ def euler_to_rot_batch(rpy: np.ndarray) -> np.ndarray:
         The rotations.
     """
     rpy = np.asarray(rpy, dtype=float)
-    cf, sf = np.cos(rpy[..., 0]), np.sin(rpy[..., 0])
-    ct, st = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
-    cp, sp = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
+    c, s = np.cos(rpy), np.sin(rpy)  # one call each (elementwise: the same values as per column)
+    cf, ct, cp = c[..., 0], c[..., 1], c[..., 2]
+    sf, st, sp = s[..., 0], s[..., 1], s[..., 2]
     r = np.empty((*rpy.shape[:-1], 3, 3))
     r[..., 0, 0] = cp * ct
     r[..., 0, 1] = -sp * cf + cp * st * sf
@@ -649,6 +681,10 @@ def euler_to_rot_batch(rpy: np.ndarray) -> np.ndarray:
     r[..., 2, 1] = ct * sf
     r[..., 2, 2] = ct * cf
     return r
+
+
+_VEE_PLUS = (np.array([2, 0, 1]), np.array([1, 2, 0]))
+_VEE_MINUS = (np.array([1, 2, 0]), np.array([2, 0, 1]))
 
 
 def rotation_errors(r_des: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -667,12 +703,15 @@ def rotation_errors(r_des: np.ndarray, r: np.ndarray) -> np.ndarray:
     from uvdms_gym.frames import rot_error
 
     re = np.asarray(r_des) @ np.asarray(r).T
-    v = np.stack([re[:, 2, 1] - re[:, 1, 2], re[:, 0, 2] - re[:, 2, 0], re[:, 1, 0] - re[:, 0, 1]], axis=-1)
-    cos_a = np.clip((np.trace(re, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    v = re[:, _VEE_PLUS[0], _VEE_PLUS[1]] - re[:, _VEE_MINUS[0], _VEE_MINUS[1]]  # [R32 - R23, R13 - R31, R21 - R12]
+    # the trace summed in np.trace's order and clipped with min/max: the same values for less per-call overhead
+    cos_a = np.minimum(np.maximum((re[:, 0, 0] + re[:, 1, 1] + re[:, 2, 2] - 1.0) / 2.0, -1.0), 1.0)
     angle = np.arccos(cos_a)
     s = np.sin(angle)
-    out = np.empty_like(v)
     ok = s > 1e-6
+    if ok.all():  # the usual case: no angle near 0 or pi
+        return (angle / (2.0 * s))[:, None] * v
+    out = np.empty_like(v)
     out[ok] = (angle[ok] / (2.0 * s[ok]))[:, None] * v[ok]
     small = ~ok & (angle < 0.5)
     out[small] = 0.5 * v[small]

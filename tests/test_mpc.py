@@ -113,6 +113,43 @@ def test_cost_matches_its_definition():
         assert np.isclose(x @ mats.H @ x + 2 * mats.g @ x + const, direct, rtol=1e-10)
 
 
+@pytest.mark.parametrize(
+    "cfg",
+    [MPCConfig(), MPCConfig(box_constraints=False), MPCConfig(collision=False), MPCConfig(closed_chain=True)],
+    ids=["campc", "campc-rows", "mpc", "closed-chain"],
+)
+def test_in_place_matrices_match_a_from_scratch_assembly_whatever_came_before(cfg):
+    """The QP arrays are rewritten in place every step: they equal an independent Kronecker assembly of the
+    step's problem, and do not depend on the problems built before (nor on their J_dis / J_eq blocks)."""
+    rng = np.random.default_rng(11)
+    mpc = KinematicMPC(cfg)
+    for _ in range(3):  # earlier steps with different data (d close to d1: active damper bounds)
+        mpc.solve(random_problem(rng, d_range=(0.04, 0.1)))
+    p = random_problem(rng)
+    got = mpc.qp_matrices(p)
+    fresh = KinematicMPC(cfg).qp_matrices(p)
+    for name in ("H", "g", "A", "b", "C", "l", "u", "l_box", "u_box"):
+        assert np.array_equal(getattr(got, name), getattr(fresh, name)), name
+
+    nc, n_u, tc = cfg.n_c, 18 * cfg.n_c, cfg.t_c
+    hold = hold_matrix(cfg.n_p, nc)
+    jtqj = p.j_y.T @ np.diag(mpc.q_weight) @ p.j_y
+    h_u = np.kron(tc**2 * hold.T @ hold, jtqj) + np.kron(np.eye(nc), np.diag(mpc.r_weight))
+    assert np.allclose(got.H[:n_u, :n_u], h_u, rtol=1e-12, atol=1e-12)
+    assert np.allclose(got.g[:n_u], -tc * np.kron(hold.T, p.j_y.T @ np.diag(mpc.q_weight)) @ p.e0.ravel())
+    lo, hi = mpc.velocity_bounds(p.q)
+    assert np.array_equal(got.l_box[:n_u], np.tile(lo, nc)) and np.array_equal(got.u_box[:n_u], np.tile(hi, nc))
+    if cfg.collision:
+        rows = slice(mpc.n_in - 18 * nc, mpc.n_in)
+        assert np.array_equal(got.C[rows, :n_u], np.kron(np.eye(nc), p.j_dis))
+        assert np.array_equal(got.C[rows, n_u:], np.tile(-np.eye(18), (nc, 1)))
+        assert np.array_equal(got.u[rows], np.tile(mpc.collision_bound(p.d), nc))
+        assert np.array_equal(got.H[n_u:, n_u:], cfg.slack_quadratic * np.eye(18))
+        assert np.all(got.H[:n_u, n_u:] == 0.0) and np.all(got.g[n_u:] == cfg.slack_linear)
+    if cfg.closed_chain:
+        assert np.array_equal(got.A[:, :n_u], np.kron(np.eye(nc), p.j_eq))
+
+
 def test_rotation_errors_match_scalar_version():
     rng = np.random.default_rng(2)
     rpy = rng.uniform(-1.2, 1.2, size=(20, 3))

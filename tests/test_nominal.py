@@ -62,3 +62,20 @@ def test_bias_adds_damping_and_added_mass_terms():
     m = nd.mass_matrix()
     assert np.allclose(m - kin.mass_matrix(), np.diag(np.r_[v.residual_added_mass, np.zeros(12)]))
     assert np.allclose(m, m.T) and np.all(np.linalg.eigvalsh(m) > 0)
+
+
+def test_added_mass_coriolis_matches_cross_products_with_all_six_coefficients():
+    """With a perturbed added mass every diagonal coefficient enters: [w x a1; v x a1 + w x a2] (np.cross)."""
+    nd = NominalDynamics(KinematicModel(), NominalScale(added_mass=1.4))
+    m = nd._base_added
+    assert np.all(m > 0.0)  # all six terms active
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        nu = rng.normal(size=6)
+        v, w = nu[:3], nu[3:]
+        a1, a2 = m[:3] * v, m[3:] * w
+        expected = np.concatenate([np.cross(w, a1), np.cross(v, a1) + np.cross(w, a2)])
+        assert np.allclose(nd.added_mass_coriolis(nu), expected, rtol=1e-14, atol=1e-14)
+    # C_A(nu) nu does no work on the vehicle: nu . (C_A nu) = 0
+    nu = rng.normal(size=6)
+    assert abs(nu @ nd.added_mass_coriolis(nu)) < 1e-10

@@ -110,10 +110,22 @@ class NominalDynamics:
 
     def added_mass_coriolis(self, nu: np.ndarray) -> np.ndarray:
         """Residual/perturbed added-mass Coriolis ``C_A(nu) nu`` (6) for the diagonal part in ``_base_added``."""
-        a1 = self._base_added[:3] * nu[:3]
-        a2 = self._base_added[3:] * nu[3:]
-        w = nu[3:]
-        return np.concatenate([np.cross(w, a1), np.cross(nu[:3], a1) + np.cross(w, a2)])
+        # [w x a1; v x a1 + w x a2] with a1 = m_lin v, a2 = m_ang w, written out on floats: the same products and
+        # differences as np.cross (bit for bit), without its per-call overhead (np.cross: ~15 us per call)
+        m0, m1, m2, m3, m4, m5 = self._base_added.tolist()
+        u, v, w, p, q, r = np.asarray(nu, dtype=float)[:6].tolist()
+        ax, ay, az = m0 * u, m1 * v, m2 * w
+        bx, by, bz = m3 * p, m4 * q, m5 * r
+        return np.array(
+            [
+                q * az - r * ay,
+                r * ax - p * az,
+                p * ay - q * ax,
+                (v * az - w * ay) + (q * bz - r * by),
+                (w * ax - u * az) + (r * bx - p * bz),
+                (u * ay - v * ax) + (p * by - q * bx),
+            ]
+        )
 
     def bias(self) -> np.ndarray:
         """``b_n(q, zeta)`` (18) at the kinematic model's state (needs ``zeta``)."""
