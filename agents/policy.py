@@ -45,7 +45,8 @@ from stable_baselines3.common.vec_env import VecNormalize
 from agents.algos import ALGOS
 from agents.config import ConfigError, is_unit_scale, plain_policy_kwargs, resolve_policy_kwargs
 from agents.paths import trained_agents_dir
-from agents.train import package_versions
+from uvdms_gym.evaluation import check_action_mode
+from uvdms_gym.provenance import package_versions
 
 TRUSTED_DIR = trained_agents_dir()
 """The shipped agents (the checkout's ``trained_agents/`` or its installed copy, :mod:`agents.paths`): SB3 zips
@@ -157,7 +158,7 @@ class AgentController:
 
         An agent's observation layout and reward are those of its training environment: a CircleTrack agent
         evaluated on Transport gets observations of the same shape but another meaning. Evaluation code
-        (``baselines.controllers.check_agent``, used by ``uvdms evaluate`` and the leaderboard) calls this.
+        (:func:`check_agent`, used by ``uvdms evaluate`` and the leaderboard) calls this.
 
         Args:
             env_id: Id of the evaluation environment (``None``: unknown, nothing to check).
@@ -200,6 +201,28 @@ class AgentController:
         with torch.no_grad():
             action, _ = self.policy.predict(self.normalize(obs), deterministic=True)
         return action if self.action_scale == 1.0 else (self.action_scale * action).astype(action.dtype)
+
+
+def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
+    """Check that a loaded agent fits ``env``: its action mode and its observation/action shapes.
+
+    An agent trained on another environment id gets a warning (:class:`EnvMismatchWarning`), not an error:
+    running it elsewhere is allowed, but never silently.
+
+    Raises:
+        ValueError: On a mismatch (the message names the expected and found values).
+    """
+    mode = (getattr(agent, "env_kwargs", None) or {}).get("action_mode", "velocity")
+    check_action_mode(f"agent {name}", env, mode)
+    if hasattr(agent, "check_env_id") and env.spec is not None:
+        agent.check_env_id(env.spec.id)  # warns (EnvMismatchWarning) on another env id
+    if tuple(agent.observation_space.shape) != tuple(env.observation_space.shape):
+        raise ValueError(
+            f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "
+            f"{env.observation_space.shape}"
+        )
+    if tuple(agent.action_space.shape) != tuple(env.action_space.shape):
+        raise ValueError(f"agent {name} outputs actions of shape {agent.action_space.shape}")
 
 
 # ------------------------------------------------------------------------------------------------------

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uvdms_gym import _distkernels, frames
+from uvdms_gym.params import D1, D2
 
 N_ROWS = 18
 SIDES = ("left", "right")
@@ -302,7 +303,7 @@ def _pick_min_sample(dist, q, pts, a, b, n, many):
 # --------------------------------------------------------------------------------------------------------
 # Velocity damper
 # --------------------------------------------------------------------------------------------------------
-def velocity_damper(d: np.ndarray | float, d1: float = 0.05, d2: float = 0.12) -> np.ndarray:
+def velocity_damper(d: np.ndarray | float, d1: float = D1, d2: float = D2) -> np.ndarray:
     """Velocity damper ``S(d)`` (docs/MODEL.md section 4): 0 for ``d <= d1``, 1 for ``d >= d2``, ``sin^2`` between.
 
     ``S(d) = sin^2((pi/2) (d - d1)/(d2 - d1))`` on ``d1 < d < d2``; continuous and non-decreasing.
