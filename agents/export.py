@@ -23,6 +23,7 @@ from gymnasium import spaces
 from agents.algos import ALGOS
 from agents.config import ConfigError, is_unit_scale, plain_policy_kwargs, resolve_policy_kwargs
 from agents.policy import AgentController, ExportFormatError, ObsNormalizer, Which, load_agent
+from uvdms_gym.io import write_json_atomic
 from uvdms_gym.provenance import package_versions
 
 FORMAT_NAME = "uvdms-agent-weights"
@@ -110,7 +111,7 @@ def export_controller(agent: AgentController, out_path: str | Path, *, overwrite
         "versions": package_versions(),
         "files": files,
     }
-    (out / AGENT_JSON).write_text(json.dumps(document, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    write_json_atomic(out / AGENT_JSON, document)
     return out
 
 
