@@ -1,6 +1,6 @@
 """``uvdms`` subcommands of the agents package: ``uvdms train`` and ``uvdms export-agent``.
 
-``uvdms_gym.cli`` imports this module when it exists and calls :func:`register` with its subparsers.
+:mod:`uvdms_cli.main` imports this module and calls :func:`register` with its subparsers.
 ``uvdms train`` takes exactly the arguments of ``python -m agents.train`` (the parser is shared);
 ``uvdms export-agent RUN_DIR OUT`` writes the weights-only export of :func:`agents.policy.export_agent`.
 """
@@ -80,7 +80,7 @@ def _train_argv(args: argparse.Namespace) -> list[str]:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from uvdms_gym.cli import check_make_kwargs, parse_kv
+    from uvdms_gym.kwargs import check_make_kwargs, parse_kv
 
     if args.resume is None and (args.algo is None or args.env_id is None):
         args._train_parser.error("--algo and --env are required unless --resume DIR is given")
@@ -123,7 +123,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     try:
         out = export_agent(args.run_dir, args.out, which=args.which, trust=args.trust, overwrite=args.overwrite)
-    except zipfile.BadZipFile as exc:  # other errors are reported by uvdms_gym.cli.main as one line
+    except zipfile.BadZipFile as exc:  # other errors are reported by uvdms_cli.main.main as one line
         raise ValueError(
             f"{args.run_dir}: a model file is not a valid zip archive, corrupt or truncated ({exc})"
         ) from None

@@ -4,7 +4,7 @@ For every folder ``trained_agents/<name>/`` this runs ``uvdms evaluate --control
 --env <its env> --env-kwargs <its task> --episodes 10 --seed 1000 --out trained_agents/<name>/evaluation.json``
 (as a subprocess, so the command line itself is exercised), then evaluates the references once per task
 into ``trained_agents/reference/<task>_{campc,random}.json`` (``campc`` through the same command; the random
-policy through :func:`baselines.evaluate.run_episode`, as it is not a named controller), rewrites each agent
+policy through :func:`uvdms_gym.evaluation.run_episode`, as it is not a named controller), rewrites each agent
 folder's ``README.md`` with its numbers (:func:`agents.ship.write_readme`) and prints the markdown table of the
 README.
 
@@ -28,7 +28,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
+from uvdms_gym.provenance import REPO_ROOT
+
 SHIPPED_DIR = REPO_ROOT / "trained_agents"
 REFERENCE_DIR = SHIPPED_DIR / "reference"
 EVAL_SEED = 1000
@@ -95,11 +96,12 @@ def run_uvdms_evaluate(
 def evaluate_random(
     env_id: str, task: Mapping[str, Any], out: Path, episodes: int, seed: int, *, zero: bool = False
 ) -> dict[str, Any]:
-    """The uniform random (or zero) policy through :func:`baselines.evaluate.run_episode`; same JSON shape."""
+    """The uniform random (or zero) policy through :func:`uvdms_gym.evaluation.run_episode`; same JSON shape."""
     import gymnasium as gym
 
     import uvdms_gym  # noqa: F401
-    from baselines.evaluate import run_episode, summarize, write_json_atomic
+    from uvdms_gym.evaluation import run_episode, summarize
+    from uvdms_gym.io import write_json_atomic
 
     env = gym.make(env_id, **task)
     try:

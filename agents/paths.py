@@ -12,10 +12,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from uvdms_gym.provenance import REPO_ROOT  # the one repository-root lookup (site-packages after an install)
+
 PACKAGE_DIR = Path(__file__).resolve().parent
 """The ``agents`` package directory."""
-REPO_ROOT = PACKAGE_DIR.parent
-"""The source checkout (for an editable install or ``PYTHONPATH``); ``site-packages`` after an install."""
 TRAIN_CONFIGS = "train_configs"
 """Folder name of the training configurations."""
 TRAINED_AGENTS = "trained_agents"

@@ -6,7 +6,7 @@
 * :mod:`baselines.cascade` — MPC outer loop + DI inner loop (:class:`CascadeController`);
 * :mod:`baselines.controllers` — the controller interface shared with agents and the named baselines ``mpc``,
   ``campc``, ``campc-di``, ``campc-nndi`` (:func:`make_controller`);
-* :mod:`baselines.evaluate` — episodes -> JSON metrics (:func:`run_episode`, :func:`evaluate`; ``uvdms evaluate``);
+* :mod:`baselines.evaluate` — deprecated aliases (0.2) of :mod:`uvdms_gym.evaluation` (episodes -> JSON metrics);
 * :mod:`baselines.reproduce` — the paper's experiments, figures and acceptance checks (``uvdms reproduce``);
 * :mod:`baselines.bench` — timings (:func:`benchmark_all`: ``uvdms bench mpc``) and the OSQP replay.
 """

@@ -22,9 +22,9 @@ from typing import Literal
 
 import numpy as np
 
-from baselines.mpc import KinematicMPC, MPCConfig, MPCProblem, MPCStepRecord, euler_to_rot_batch, rotation_errors
+from baselines.mpc import KinematicMPC, MPCConfig, MPCProblem, MPCStepRecord
 from uvdms_gym import distances
-from uvdms_gym.frames import euler_rate_matrix
+from uvdms_gym.frames import euler_rate_matrix, euler_to_rot_batch, rot_error_batch, wrap_angle
 from uvdms_gym.kinematics import KinematicModel
 from uvdms_gym.params import UVDMSParams
 
@@ -141,7 +141,7 @@ class MPCController:
             e0[:, :6] = y_ref - y[None, :]
         else:
             e0[:, :3] = y_ref[:, :3] - y[None, :3]
-            e0[:, 3:6] = rotation_errors(euler_to_rot_batch(y_ref[:, 3:6]), rot)
+            e0[:, 3:6] = rot_error_batch(euler_to_rot_batch(y_ref[:, 3:6]), rot)
         if self.n_att:
             t = euler_rate_matrix(eta[3:6])
             j_y[6:8, 3:6] = t[:2]
@@ -211,7 +211,7 @@ def resample_reference(t_grid: np.ndarray, y_grid: np.ndarray, times: np.ndarray
         y[:, cols] = np.unwrap(y[:, cols], axis=0)
     out = np.stack([np.interp(times, t_grid, y[:, i]) for i in range(y.shape[1])], axis=-1)
     if cols:
-        out[:, cols] = (out[:, cols] + np.pi) % (2.0 * np.pi) - np.pi
+        out[:, cols] = wrap_angle(out[:, cols])
     return out
 
 

@@ -1,9 +1,10 @@
-"""One controller interface for baselines and trained agents, and the named baselines built from an environment.
+"""The named baselines built from an environment, as controllers of the benchmark's protocol.
 
-A controller is anything with ``reset(seed)`` and ``predict(obs, info) -> action`` (the :class:`Controller`
-protocol), the action in the environment's normalised space ``[-1, 1]^18``. Baselines may expose
-``last_record`` (a dict with ``status``, ``iterations``, ``max_slack``, ``wall_us`` and more) after each
-``predict``; agents do not.
+Every baseline follows :class:`uvdms_gym.evaluation.Controller` (``reset(seed)``, ``predict(obs, info) -> action``,
+the action in the environment's normalised space ``[-1, 1]^18``; re-exported here) and exposes ``last_record``
+(a dict with ``status``, ``iterations``, ``max_slack``, ``wall_us`` and more) after each ``predict``. Trained
+agents follow the same protocol (:class:`agents.policy.AgentController`); resolving a name *or* an agent path
+to a controller is the composition layer's job (:mod:`leaderboard.registry`).
 
 Named baselines (:data:`BASELINES`; :func:`make_controller`):
 
@@ -35,13 +36,13 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 import numpy as np
 
 from baselines.campc import MPCController, task_config
 from baselines.di import DIConfig, DynamicInversionController, UVDMSNominalModel
+from uvdms_gym.evaluation import Controller, check_action_mode
 
 BASELINES: dict[str, dict[str, Any]] = {
     "mpc": {"action_mode": "velocity", "collision": False},
@@ -50,19 +51,6 @@ BASELINES: dict[str, dict[str, Any]] = {
     "campc-nndi": {"action_mode": "torque", "collision": True, "use_nn": True},
 }
 """The named baselines: required action mode, collision rows, RBF network."""
-
-
-@runtime_checkable
-class Controller(Protocol):
-    """What :func:`baselines.evaluate.run_episode` drives: baselines and trained agents alike."""
-
-    def reset(self, seed: int | None = None) -> None:
-        """Start an episode (called right after ``env.reset(seed=seed)``)."""
-        ...
-
-    def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
-        """The action (18, in ``[-1, 1]``) for the current observation and ``info``."""
-        ...
 
 
 def task_of(env: Any) -> str:
@@ -230,15 +218,6 @@ class CascadeTorqueController(_MPCBase):
         return action.astype(np.float32)
 
 
-def _check_mode(name: str, env: Any, required: str) -> None:
-    mode = getattr(env.unwrapped, "action_mode", None)
-    if mode != required:
-        raise ValueError(
-            f"controller {name!r} needs action_mode={required!r} but the environment has action_mode={mode!r}; "
-            f"create it with env_kwargs action_mode={required}"
-        )
-
-
 def make_baseline(name: str, env: Any, **kwargs: Any) -> Controller:
     """A named baseline for ``env``.
 
@@ -256,7 +235,7 @@ def make_baseline(name: str, env: Any, **kwargs: Any) -> Controller:
     if name not in BASELINES:
         raise ValueError(f"unknown baseline {name!r}; choose one of {sorted(BASELINES)} or give a path to an agent")
     spec = BASELINES[name]
-    _check_mode(name, env, spec["action_mode"])
+    check_action_mode(name, env, spec["action_mode"])
     if spec["action_mode"] == "velocity":
         return MPCVelocityController(env, collision=spec["collision"], **kwargs)
     return CascadeTorqueController(env, use_nn=spec["use_nn"], collision=spec["collision"], **kwargs)
@@ -267,51 +246,18 @@ def required_action_mode(spec: str) -> str | None:
     return BASELINES[spec]["action_mode"] if spec in BASELINES else None
 
 
-def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) -> Controller:
-    """A controller from a baseline name or a path to a trained agent.
+def make_controller(spec: str, env: Any, **kwargs: Any) -> Controller:
+    """A named baseline for ``env`` (:func:`make_baseline`).
 
-    Args:
-        spec: a name of :data:`BASELINES`, or a path: a weights-only export directory, a run directory or an
-            SB3 zip (:func:`agents.policy.load_agent`).
-        env: the environment the controller will drive.
-        trust: allow unpickling an agent's SB3/VecNormalize files (see :mod:`agents.policy`).
-        **kwargs: baseline options (:func:`make_baseline`).
-
-    Returns:
-        The controller.
+    Deprecated for agent paths since 0.2: ``baselines`` does not import ``agents``; resolve a name *or* a path
+    with :func:`leaderboard.registry.make_controller`.
 
     Raises:
-        ValueError: unknown name / missing path, or an action-mode or observation/action-space mismatch.
+        ValueError: ``spec`` is not a baseline name (the message names the registry), or an action-mode mismatch.
     """
-    if spec in BASELINES:
-        return make_baseline(spec, env, **kwargs)
-    path = Path(spec)
-    if not path.exists():
-        raise ValueError(f"{spec!r} is neither a baseline ({', '.join(BASELINES)}) nor an existing agent path")
-    from agents.policy import load_agent
-
-    agent = load_agent(path, trust=trust)
-    check_agent(agent, env, spec)
-    return agent
-
-
-def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
-    """Check that a loaded agent fits ``env``: its action mode and its observation/action shapes.
-
-    An agent trained on another environment id gets a warning (``agents.policy.EnvMismatchWarning``), not an
-    error: running it elsewhere is allowed, but never silently.
-
-    Raises:
-        ValueError: on a mismatch (the message names the expected and found values).
-    """
-    mode = (getattr(agent, "env_kwargs", None) or {}).get("action_mode", "velocity")
-    _check_mode(f"agent {name}", env, mode)
-    if hasattr(agent, "check_env_id") and env.spec is not None:
-        agent.check_env_id(env.spec.id)  # warns (agents.policy.EnvMismatchWarning) on another env id
-    if tuple(agent.observation_space.shape) != tuple(env.observation_space.shape):
+    if spec not in BASELINES:
         raise ValueError(
-            f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "
-            f"{env.observation_space.shape}"
+            f"unknown baseline {spec!r}; choose one of {sorted(BASELINES)}, or load an agent path with "
+            "leaderboard.registry.make_controller"
         )
-    if tuple(agent.action_space.shape) != tuple(env.action_space.shape):
-        raise ValueError(f"agent {name} outputs actions of shape {agent.action_space.shape}")
+    return make_baseline(spec, env, **kwargs)

@@ -41,6 +41,7 @@ from typing import Protocol
 import numpy as np
 import scipy.linalg
 
+from uvdms_gym.frames import wrap_angle
 from uvdms_gym.kinematics import KinematicModel
 from uvdms_gym.nominal import NominalDynamics, NominalScale
 from uvdms_gym.params import UVDMSParams
@@ -291,7 +292,7 @@ class DynamicInversionController:
 
     def network_input(self, zeta: np.ndarray, q: np.ndarray, eta2: np.ndarray) -> np.ndarray:
         """Normalised network input ``x`` (51) from ``tau_prev`` and the state."""
-        eta2w = (np.asarray(eta2, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
+        eta2w = wrap_angle(np.asarray(eta2, dtype=float))
         return np.concatenate([self.tau_prev, zeta, q, eta2w]) * self._inv_scale
 
     def step(

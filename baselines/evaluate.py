@@ -1,439 +1,83 @@
-"""Evaluation of any controller (baseline or trained agent) on a UVDMS environment: episodes -> JSON metrics.
+"""Deprecated: the evaluation protocol moved to :mod:`uvdms_gym.evaluation` (release 0.2; removed in 0.3).
 
-:func:`run_episode` drives one episode and returns the per-episode metrics (:data:`EPISODE_KEYS`);
-:func:`evaluate` runs several seeded episodes of a controller named by a string (a baseline name or an agent
-path), averages them and writes the result to a JSON file atomically. ``uvdms evaluate`` is its command line.
+The benchmark's definition of a result (:func:`~uvdms_gym.evaluation.run_episode`, the per-episode metrics,
+the success rule, :func:`~uvdms_gym.evaluation.summarize`) belongs to the environment package, not to one
+competitor. The old names still work here and emit a ``DeprecationWarning`` naming their new home
+(``CHANGELOG.md`` lists them):
 
-Definitions (per episode):
-
-* samples: the state after :meth:`reset` (``t = 0``) and after every step (``t = k control_dt``);
-* ``return``: sum of the rewards; ``cost``: sum of ``info["cost"]``; ``contacts``: steps with a reported
-  contact (``info["contacts"] > 0``); ``zone_steps``: steps with ``info["cost_zone"]`` (a distance below d1);
-* ``min_distance`` / ``min_distance_by_pair``: minimum over all samples of the 18 distances (m, rows as in
-  ``docs/ARCHITECTURE.md``) — the collision metrics cover the whole run;
-* ``rmse_pos`` (m): over the samples with ``t >= env.unwrapped.tracking_transient`` (5 s for the circle tasks,
-  0 for transport); circle tracking: ``sqrt(mean_k (|e_left|^2 + |e_right|^2) / 2)`` with ``e = y - y_ref`` of each
-  end effector, i.e. the RMS of the two end effectors' position errors; transport: ``sqrt(mean_k |p - p_ref|^2)``
-  of the object position;
-* ``rmse_ori`` (rad, transport only, else ``None``): RMS over the same samples of the rotation angle between the
-  object's orientation and the reference (``info["orientation_error"]``);
-* ``final_pos_error`` (m): ``info["tracking_error"]`` at the last sample (circle: mean of the two end effectors'
-  error norms; transport: object position error); ``final_ori_error`` (rad): transport only;
-* ``success``: the episode was not cut short by a termination (contact, tracking error, physics) and had no
-  contact; circle tracking also needs ``rmse_pos <= 0.03`` m (:data:`CIRCLE_SUCCESS_RMSE`); transport needs
-  ``info["is_success"]`` at the last sample (object within 2 cm and 2 degrees of the goal after the move);
-* ``controller_ms_median``: median wall time of ``controller.predict`` (ms);
-* ``qp_slack_max``: largest collision slack of the MPC over the run (m/s; ``None`` for controllers without a QP,
-  e.g. agents); ``qp_unsolved``: steps whose QP did not reach ``"solved"`` (``None`` likewise);
-* ``steps``, ``terminated``, ``truncated``, ``physics_error`` (the message, or ``None``).
-
-With ``save_trajectory`` an episode also holds ``trajectory``: lists over the samples of ``t``, ``y``, ``y_ref``,
-``distances``, ``eta``, ``nu``, ``q``, ``qdot``, ``action``, ``tau`` (the generalized force applied during the step
-that ended at the sample; zeros at ``t = 0``), ``zeta_cmd`` (the MPC command, ``None`` without an MPC) and
-``nn_output`` (the network's compensation ``Deltahat`` of the dynamic inversion; ``None`` unless the controller
-has one).
+=======================  ===========================================================================
+old name                 new home
+=======================  ===========================================================================
+``run_episode``          :func:`uvdms_gym.evaluation.run_episode`
+``summarize``            :func:`uvdms_gym.evaluation.summarize`
+``tracking_rmse``        :func:`uvdms_gym.evaluation.tracking_rmse`
+``is_transport``         :func:`uvdms_gym.evaluation.is_transport`
+``controller_settings``  :func:`uvdms_gym.evaluation.controller_settings`
+``EPISODE_KEYS``         :data:`uvdms_gym.evaluation.EPISODE_KEYS` (also ``TRAJECTORY_KEYS``,
+                         ``CIRCLE_SUCCESS_RMSE``)
+``write_json_atomic``    :func:`uvdms_gym.io.write_json_atomic`
+``evaluate``             :func:`leaderboard.registry.evaluate` (baseline names and agent paths); the
+                         alias here takes baseline names only, since ``baselines`` may not import ``agents``
+=======================  ===========================================================================
 """
 
 from __future__ import annotations
 
-import json
-import math
-import os
-import time
-from pathlib import Path
+import warnings
 from typing import Any
 
-import numpy as np
-
-from uvdms_gym.provenance import git_info, package_versions, timing_record
-
-EPISODE_KEYS: tuple[str, ...] = (
-    "seed",
-    "return",
-    "cost",
-    "contacts",
-    "zone_steps",
-    "min_distance",
-    "min_distance_by_pair",
-    "rmse_pos",
-    "rmse_ori",
-    "final_pos_error",
-    "final_ori_error",
-    "success",
-    "controller_ms_median",
-    "qp_slack_max",
-    "qp_unsolved",
-    "steps",
-    "terminated",
-    "truncated",
-    "physics_error",
-)
-"""Keys of every episode dict returned by :func:`run_episode` (plus ``trajectory`` with ``save_trajectory``)."""
-
-CIRCLE_SUCCESS_RMSE = 0.03
-"""Circle tracking succeeds with no contact and ``rmse_pos`` at most this (m)."""
-
-TRAJECTORY_KEYS: tuple[str, ...] = (
-    "t",
-    "y",
-    "y_ref",
-    "distances",
-    "eta",
-    "nu",
-    "q",
-    "qdot",
-    "action",
-    "tau",
-    "zeta_cmd",
-    "nn_output",
-)
-"""Keys of an episode's ``trajectory``."""
+_MOVED: dict[str, str] = {
+    "run_episode": "uvdms_gym.evaluation",
+    "summarize": "uvdms_gym.evaluation",
+    "tracking_rmse": "uvdms_gym.evaluation",
+    "is_transport": "uvdms_gym.evaluation",
+    "controller_settings": "uvdms_gym.evaluation",
+    "EPISODE_KEYS": "uvdms_gym.evaluation",
+    "TRAJECTORY_KEYS": "uvdms_gym.evaluation",
+    "CIRCLE_SUCCESS_RMSE": "uvdms_gym.evaluation",
+    "write_json_atomic": "uvdms_gym.io",
+}
+"""Deprecated name -> the module that holds it now."""
 
 
-def _json_value(x: Any) -> Any:
-    """Plain JSON value: arrays to lists, numpy scalars to Python, non-finite floats to ``None``."""
-    if isinstance(x, dict):
-        return {str(k): _json_value(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json_value(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _json_value(x.tolist())
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, (int, np.integer)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        x = float(x)
-        return x if math.isfinite(x) else None
-    return x
+def __getattr__(name: str) -> Any:
+    """The moved names, with a ``DeprecationWarning`` (PEP 562)."""
+    if name not in _MOVED:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from uvdms_gym import evaluation, io
+
+    module = {"uvdms_gym.evaluation": evaluation, "uvdms_gym.io": io}[_MOVED[name]]
+    warnings.warn(
+        f"baselines.evaluate.{name} is deprecated; import it from {_MOVED[name]}", DeprecationWarning, stacklevel=2
+    )
+    return getattr(module, name)
 
 
-def is_transport(env: Any) -> bool:
-    """Whether the environment tracks an object pose (transport) rather than end-effector positions."""
-    return bool(getattr(env.unwrapped, "with_object", False))
+def evaluate(controller_spec: str, env_id: str, env_kwargs: dict | None = None, *args: Any, **options: Any) -> dict:
+    """Deprecated: evaluate a named baseline; use :func:`leaderboard.registry.evaluate` (agents too).
 
-
-def tracking_rmse(
-    t: np.ndarray, y: np.ndarray, y_ref: np.ndarray, transport: bool, transient: float
-) -> tuple[float, float | None]:
-    """Position and orientation RMSE of a trajectory (definitions in the module docstring).
-
-    Args:
-        t: sample times (N).
-        y: tracked outputs (N, 6): ``[p_left; p_right]`` or the object pose ``[x y z phi theta psi]``.
-        y_ref: references (N, 6), same layout.
-        transport: object pose (``True``) or two end-effector positions.
-        transient: samples with ``t < transient`` are left out.
-
-    Returns:
-        ``(rmse_pos, rmse_ori)``; ``rmse_ori`` is ``None`` for end-effector tracking. ``nan`` if no sample is left.
-    """
-    t, y, y_ref = np.asarray(t, float), np.asarray(y, float), np.asarray(y_ref, float)
-    keep = t >= transient - 1e-9
-    if not keep.any():
-        return math.nan, (math.nan if transport else None)
-    y, y_ref = y[keep], y_ref[keep]
-    if not transport:
-        e = (y - y_ref).reshape(-1, 2, 3)
-        return float(np.sqrt(np.mean(np.sum(e**2, axis=2)))), None
-    from uvdms_gym.frames import euler_to_rot_batch
-
-    pos = float(np.sqrt(np.mean(np.sum((y[:, :3] - y_ref[:, :3]) ** 2, axis=1))))
-    r_rel = np.einsum("nji,njk->nik", euler_to_rot_batch(y_ref[:, 3:]), euler_to_rot_batch(y[:, 3:]))
-    cos_a = np.clip((np.trace(r_rel, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
-    return pos, float(np.sqrt(np.mean(np.arccos(cos_a) ** 2)))
-
-
-def run_episode(env: Any, controller: Any, seed: int, *, save_trajectory: bool = False) -> dict:
-    """Run one episode of ``controller`` on ``env`` from ``env.reset(seed=seed)`` to termination or truncation.
-
-    Args:
-        env: a UVDMS environment (``gymnasium.make`` result, with its time limit).
-        controller: anything with ``reset(seed)`` and ``predict(obs, info) -> action`` (optional ``last_record``
-            with ``max_slack``/``status``, optional ``last_di`` with the network output).
-        seed: the episode seed (environment and controller).
-        save_trajectory: also return the time series (``trajectory``).
-
-    Returns:
-        A JSON-serialisable dict with the keys of :data:`EPISODE_KEYS` (definitions in the module docstring).
-    """
-    u = env.unwrapped
-    transport = is_transport(env)
-    obs, info = env.reset(seed=seed)
-    controller.reset(seed)
-    n_dis = len(info["distances"])
-    d_min = np.array(info["distances"], dtype=float)
-    ts, ys, refs, ori_err = [info["t"]], [info["y"]], [info["y_ref"]], [info["orientation_error"]]
-    traj: dict[str, list] = {k: [] for k in TRAJECTORY_KEYS}
-
-    def record(info: dict, action: np.ndarray | None, tau: np.ndarray | None) -> None:
-        if not save_trajectory:
-            return
-        rec = getattr(controller, "last_record", None) or {}
-        di = getattr(controller, "last_di", None)
-        traj["t"].append(info["t"])
-        traj["y"].append(info["y"])
-        traj["y_ref"].append(info["y_ref"])
-        traj["distances"].append(info["distances"])
-        traj["eta"].append(info["eta"])
-        traj["nu"].append(info["nu"])
-        traj["q"].append(info["q"])
-        traj["qdot"].append(info["qdot"])
-        traj["action"].append(np.zeros(env.action_space.shape) if action is None else action)
-        traj["tau"].append(np.zeros(18) if tau is None else tau)
-        traj["zeta_cmd"].append(None if action is None or "zeta_cmd" not in rec else rec["zeta_cmd"])
-        traj["nn_output"].append(None if action is None or di is None else di.delta_hat)
-
-    record(info, None, None)
-    ret = cost = 0.0
-    contacts = zone = steps = 0
-    slack_max: float | None = None
-    unsolved: int | None = None
-    times_ms: list[float] = []
-    terminated = truncated = False
-    physics_error = None
-    has_nn = False
-    while True:
-        t0 = time.perf_counter()
-        action = np.asarray(controller.predict(obs, info))
-        times_ms.append((time.perf_counter() - t0) * 1e3)
-        rec = getattr(controller, "last_record", None)
-        if rec and "max_slack" in rec:
-            slack_max = max(slack_max or 0.0, float(rec["max_slack"]))
-            unsolved = (unsolved or 0) + int(rec.get("status", "solved") != "solved")
-        has_nn = has_nn or getattr(controller, "last_di", None) is not None
-        obs, reward, terminated, truncated, info = env.step(action)
-        steps += 1
-        ret += float(reward)
-        cost += float(info["cost"])
-        contacts += int(info["contacts"] > 0)
-        zone += int(info["cost_zone"] > 0)
-        np.minimum(d_min, info["distances"], out=d_min)
-        ts.append(info["t"])
-        ys.append(info["y"])
-        refs.append(info["y_ref"])
-        ori_err.append(info["orientation_error"])
-        record(info, action, info.get("tau"))
-        if info.get("physics_error"):
-            physics_error = str(info["physics_error"])
-        if terminated or truncated:
-            break
-    rmse_pos, rmse_ori = tracking_rmse(np.array(ts), np.array(ys), np.array(refs), transport, u.tracking_transient)
-    if transport:
-        success = bool(info["is_success"])
-    else:
-        success = math.isfinite(rmse_pos) and rmse_pos <= CIRCLE_SUCCESS_RMSE
-    success = success and contacts == 0 and not terminated and physics_error is None
-    out: dict[str, Any] = {
-        "seed": seed,
-        "return": ret,
-        "cost": cost,
-        "contacts": contacts,
-        "zone_steps": zone,
-        "min_distance": float(d_min.min()),
-        "min_distance_by_pair": d_min[:n_dis],
-        "rmse_pos": rmse_pos,
-        "rmse_ori": rmse_ori,
-        "final_pos_error": float(info["tracking_error"]),
-        "final_ori_error": float(info["orientation_error"]) if transport else None,
-        "success": success,
-        "controller_ms_median": float(np.median(times_ms)),
-        "qp_slack_max": slack_max,
-        "qp_unsolved": unsolved,
-        "steps": steps,
-        "terminated": bool(terminated),
-        "truncated": bool(truncated),
-        "physics_error": physics_error,
-    }
-    if save_trajectory:
-        if not has_nn:
-            traj["nn_output"] = None  # type: ignore[assignment]
-        out["trajectory"] = traj
-    return _json_value(out)
-
-
-def summarize(episodes: list[dict]) -> dict:
-    """Means over episodes of every numeric (or boolean: the fraction) key, elementwise for lists.
-
-    ``None`` values are left out of a mean; a key that is ``None`` in every episode is ``None``. Also
-    ``episodes`` (count) and ``success_rate`` (= mean of ``success``).
-    """
-    out: dict[str, Any] = {"episodes": len(episodes)}
-    for key in EPISODE_KEYS:
-        if key in ("seed", "physics_error"):
-            continue
-        vals = [ep[key] for ep in episodes if ep.get(key) is not None]
-        if not vals:
-            out[key] = None
-        elif isinstance(vals[0], list):
-            out[key] = np.mean(np.array(vals, dtype=float), axis=0)
-        else:
-            out[key] = float(np.mean(np.array(vals, dtype=float)))
-    out["success_rate"] = out.get("success")
-    out["physics_errors"] = sum(ep.get("physics_error") is not None for ep in episodes)
-    return _json_value(out)
-
-
-def write_json_atomic(path: str | Path, data: Any) -> Path:
-    """Write ``data`` as JSON to ``path`` through a temporary file in the same folder and ``os.replace``."""
-    path = Path(path)
-    if path.parent != Path(""):
-        path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return path
-
-
-def evaluate(
-    controller_spec: str,
-    env_id: str,
-    env_kwargs: dict | None = None,
-    episodes: int = 5,
-    seed: int = 0,
-    *,
-    out: str | None = None,
-    save_trajectory: bool = False,
-    progress: bool = True,
-    trust: bool = False,
-) -> dict:
-    """Evaluate a controller over ``episodes`` seeded episodes (seeds ``seed, seed + 1, ...``).
-
-    A baseline's required ``action_mode`` is filled into ``env_kwargs`` when not given (an explicit, different
-    one raises ``ValueError``); an agent's environment gets the ``action_mode`` the agent was trained with
-    unless given.
-
-    Args:
-        controller_spec: a baseline name (``mpc``, ``campc``, ``campc-di``, ``campc-nndi``) or a path to an agent.
-        env_id: Gymnasium id, e.g. ``"uvdms/CircleTrack-v0"``.
-        env_kwargs: ``gymnasium.make`` keyword arguments.
-        episodes: number of episodes (>= 1).
-        seed: seed of the first episode.
-        out: JSON file to write (atomically); ``None`` writes nothing.
-        save_trajectory: keep each episode's time series.
-        progress: show a tqdm progress bar.
-        trust: allow unpickling an agent's SB3 files.
-
-    Returns:
-        ``{"episodes": [...], "summary": {...}, "meta": {...}}``; ``meta`` holds the controller spec, env id,
-        effective env kwargs, seeds, package versions, git revision, wall time, the machine and the load
-        around the timed episodes (``timing``: :func:`uvdms_gym.provenance.timing_record`; the per-episode
-        ``controller_ms_median`` is only comparable between runs with ``overloaded`` false on the same
-        machine) and the controller's settings.
+    The baseline's ``action_mode`` is filled into ``env_kwargs`` when not given (an explicit, different one
+    raises ``ValueError``). Further arguments (``episodes``, ``seed``, ``out``, ``save_trajectory``, ``progress``)
+    and the result as :func:`leaderboard.registry.evaluate`; ``trust`` is accepted and unused.
 
     Raises:
-        ValueError: ``episodes < 1``, unknown controller, a folder that is not an agent, a corrupt agent
-            archive, or an action-mode mismatch.
+        ValueError: ``controller_spec`` is not a baseline name (agents: :func:`leaderboard.registry.evaluate`),
+            ``episodes < 1``, or an action-mode mismatch.
     """
-    import gymnasium as gym
+    from baselines.controllers import BASELINES, make_baseline
+    from uvdms_gym.evaluation import evaluate_controller
 
-    import uvdms_gym  # noqa: F401  (registers the environments)
-    from baselines.controllers import BASELINES, make_controller
-
-    if episodes < 1:
-        raise ValueError(f"episodes must be >= 1, got {episodes}")
-    kwargs = dict(env_kwargs or {})
-    agent = None
-    if controller_spec in BASELINES:
-        kwargs.setdefault("action_mode", BASELINES[controller_spec]["action_mode"])
-    else:
-        path = Path(controller_spec)
-        if not path.exists():
-            raise ValueError(f"{controller_spec!r} is neither a baseline ({', '.join(BASELINES)}) nor an agent path")
-        agent = _load_agent(path, trust)
-        kwargs.setdefault("action_mode", (agent.env_kwargs or {}).get("action_mode", "velocity"))
-    seeds = [int(seed) + i for i in range(episodes)]
-    env = gym.make(env_id, **kwargs)
-    try:
-        with timing_record() as timing:
-            t_start = time.perf_counter()
-            controller = make_controller(controller_spec, env, trust=trust) if agent is None else agent
-            if agent is not None:
-                from baselines.controllers import check_agent
-
-                check_agent(agent, env, controller_spec)
-            bar = None
-            if progress:
-                from tqdm.auto import tqdm
-
-                bar = tqdm(seeds, desc=f"{controller_spec} on {env_id}", unit="ep", leave=False)
-            results = []
-            for s in bar if bar is not None else seeds:
-                ep = run_episode(env, controller, s, save_trajectory=save_trajectory)
-                results.append(ep)
-                if bar is not None:
-                    rmse = f"{ep['rmse_pos']:.4f}" if ep["rmse_pos"] is not None else "nan"
-                    bar.set_postfix(rmse=rmse, c=ep["contacts"])
-            if bar is not None:
-                bar.close()
-            wall_s = time.perf_counter() - t_start
-        settings = controller_settings(controller)
-    finally:
-        env.close()
-    result = {
-        "episodes": results,
-        "summary": summarize(results),
-        "meta": _json_value(
-            {
-                "controller": controller_spec,
-                "env_id": env_id,
-                "env_kwargs": kwargs,
-                "episodes": episodes,
-                "seeds": seeds,
-                "versions": package_versions(),
-                "git": git_info(),
-                "wall_s": wall_s,
-                "timing": timing,
-                "controller_settings": settings,
-            }
-        ),
-    }
-    if out is not None:
-        write_json_atomic(out, result)
-    return result
-
-
-AGENT_FILES: tuple[str, ...] = ("agent.json", "model.zip", "final_model.zip", "best_model.zip")
-"""Files that make a folder an agent: a weights-only export, a shipped agent, or a run directory."""
-
-
-def _load_agent(path: Path, trust: bool) -> Any:
-    """:func:`agents.policy.load_agent` with the errors of a wrong path or a corrupt archive named.
-
-    Raises:
-        ValueError: A folder holding none of :data:`AGENT_FILES`, or a model that is not a valid zip archive.
-    """
-    import zipfile
-
-    from agents.policy import load_agent
-
-    if path.is_dir() and not any((path / name).is_file() for name in AGENT_FILES):
+    warnings.warn(
+        "baselines.evaluate.evaluate is deprecated; use leaderboard.registry.evaluate", DeprecationWarning, stacklevel=2
+    )
+    if controller_spec not in BASELINES:
         raise ValueError(
-            f"{path} is not an agent folder: it holds none of {', '.join(AGENT_FILES)} (a weights-only export, "
-            "a shipped agent or a run directory)"
+            f"baselines.evaluate.evaluate takes a baseline name ({', '.join(BASELINES)}), got {controller_spec!r}; "
+            "evaluate agents with leaderboard.registry.evaluate or `uvdms evaluate`"
         )
-    try:
-        return load_agent(path, trust=trust)
-    except zipfile.BadZipFile as exc:
-        raise ValueError(f"{path}: a model file is not a valid zip archive, corrupt or truncated ({exc})") from None
-
-
-def controller_settings(controller: Any) -> dict:
-    """The configuration of a baseline (MPC and DI dataclasses as dicts) or an agent's description."""
-    from dataclasses import asdict, is_dataclass
-
-    out: dict[str, Any] = {"class": type(controller).__name__}
-    mpc = getattr(controller, "mpc", None)
-    if mpc is not None and is_dataclass(getattr(mpc, "config", None)):
-        out["mpc"] = asdict(mpc.config)
-    di = getattr(controller, "di", None)
-    if di is not None and is_dataclass(getattr(di, "config", None)):
-        out["di"] = asdict(di.config)
-    for attr in ("algo", "env_id", "num_timesteps", "source"):
-        if hasattr(controller, attr):
-            out[attr] = getattr(controller, attr)
-    return _json_value(out)
+    kwargs = dict(env_kwargs or {})
+    kwargs.setdefault("action_mode", BASELINES[controller_spec]["action_mode"])
+    options.pop("trust", None)  # baselines load no files
+    return evaluate_controller(
+        lambda env: make_baseline(controller_spec, env), env_id, kwargs, *args, label=controller_spec, **options
+    )

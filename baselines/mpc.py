@@ -8,7 +8,7 @@ The controller is split into four parts, each usable on its own:
   ``N_p x N_c``): ``c_{j,i} = 1`` for ``i < min(j, N_c - 1)`` and ``c_{j,N_c-1} = max(0, j - N_c + 1)``.
 * **cost** — ``sum_{j=1..N_p} |y_d(k+j) - ybar(j)|^2_Q + sum_{j=0..N_c-1} |zeta_j|^2_R`` plus the slack penalty.
   The caller gives the *reference error* ``e0(j) = y_d(k+j) - y(k)`` (``N_p x m``) with angles already
-  wrapped (for an orientation: the rotation-error vector of :func:`rotation_errors`, which the angular
+  wrapped (for an orientation: the rotation-error vector of :func:`uvdms_gym.frames.rot_error_batch`, which the angular
   rows of ``J_y`` integrate to first order), so the predicted error is ``e0(j) - T_c J_y sum_{i<j} zeta_i``.
 * **constraints** (all on the frozen state at time ``k``):
 
@@ -51,7 +51,6 @@ u_box``), ``x = [U; s]``; the objective is half the cost above (plus a constant)
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Literal
@@ -59,7 +58,7 @@ from typing import Literal
 import numpy as np
 import proxsuite
 
-from uvdms_gym.params import UVDMSParams
+from uvdms_gym.params import D1, D2, UVDMSParams
 
 N_DOF = 18
 N_JOINTS = 12
@@ -141,8 +140,8 @@ class MPCConfig:
     collision: bool = True
     collision_steps: int | None = None
     vbar: float = 0.3
-    d1: float = 0.05
-    d2: float = 0.12
+    d1: float = D1
+    d2: float = D2
     k_escape: float = 1.0
     lookahead: float = 0.3
     slack_linear: float = 1.0e4
@@ -654,72 +653,3 @@ class KinematicMPC:
             The predicted distances.
         """
         return self.predict_outputs(np.asarray(d, dtype=float), -np.asarray(j_dis), plan)
-
-
-# ---------------------------------------------------------------------- reference errors
-def euler_to_rot_batch(rpy: np.ndarray) -> np.ndarray:
-    """ZYX Euler angles ``(..., 3)`` -> rotation matrices ``(..., 3, 3)`` (``Rz(psi) Ry(theta) Rx(phi)``).
-
-    Args:
-        rpy: roll, pitch, yaw.
-
-    Returns:
-        The rotations.
-    """
-    rpy = np.asarray(rpy, dtype=float)
-    c, s = np.cos(rpy), np.sin(rpy)  # one call each (elementwise: the same values as per column)
-    cf, ct, cp = c[..., 0], c[..., 1], c[..., 2]
-    sf, st, sp = s[..., 0], s[..., 1], s[..., 2]
-    r = np.empty((*rpy.shape[:-1], 3, 3))
-    r[..., 0, 0] = cp * ct
-    r[..., 0, 1] = -sp * cf + cp * st * sf
-    r[..., 0, 2] = sp * sf + cp * cf * st
-    r[..., 1, 0] = sp * ct
-    r[..., 1, 1] = cp * cf + sf * st * sp
-    r[..., 1, 2] = -cp * sf + st * sp * cf
-    r[..., 2, 0] = -st
-    r[..., 2, 1] = ct * sf
-    r[..., 2, 2] = ct * cf
-    return r
-
-
-_VEE_PLUS = (np.array([2, 0, 1]), np.array([1, 2, 0]))
-_VEE_MINUS = (np.array([1, 2, 0]), np.array([2, 0, 1]))
-
-
-def rotation_errors(r_des: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Rotation-error vectors (axis * angle, inertial frame) taking ``r`` to each ``r_des`` (vectorised).
-
-    The angle is in ``[0, pi]`` (wrapped by construction); to first order the vector changes by
-    ``-omega dt`` when the body turns at the inertial angular velocity ``omega``.
-
-    Args:
-        r_des: desired rotations (N, 3, 3).
-        r: current rotation (3, 3).
-
-    Returns:
-        Errors (N, 3).
-    """
-    from uvdms_gym.frames import rot_error
-
-    re = np.asarray(r_des) @ np.asarray(r).T
-    v = re[:, _VEE_PLUS[0], _VEE_PLUS[1]] - re[:, _VEE_MINUS[0], _VEE_MINUS[1]]  # [R32 - R23, R13 - R31, R21 - R12]
-    # the trace summed in np.trace's order and clipped with min/max: the same values for less per-call overhead
-    cos_a = np.minimum(np.maximum((re[:, 0, 0] + re[:, 1, 1] + re[:, 2, 2] - 1.0) / 2.0, -1.0), 1.0)
-    angle = np.arccos(cos_a)
-    s = np.sin(angle)
-    ok = s > 1e-6
-    if ok.all():  # the usual case: no angle near 0 or pi
-        return (angle / (2.0 * s))[:, None] * v
-    out = np.empty_like(v)
-    out[ok] = (angle[ok] / (2.0 * s[ok]))[:, None] * v[ok]
-    small = ~ok & (angle < 0.5)
-    out[small] = 0.5 * v[small]
-    for i in np.flatnonzero(~ok & ~small):  # angle ~ pi: rare, use the careful scalar version
-        out[i] = rot_error(r_des[i], r)
-    return out
-
-
-def wrap(a: np.ndarray) -> np.ndarray:
-    """Wrap angles to ``[-pi, pi)``."""
-    return (np.asarray(a) + math.pi) % (2.0 * math.pi) - math.pi

@@ -1,6 +1,6 @@
 """``uvdms reproduce``: the paper's experiments on the simulator, as figures, a summary and acceptance checks.
 
-Experiments (all with :func:`baselines.evaluate.run_episode`, seed 0 unless stated):
+Experiments (all with :func:`uvdms_gym.evaluation.run_episode`, seed 0 unless stated):
 
 * Case 1 and Case 2 circle tracking (``uvdms/CircleTrack-v0``, ``case=1|2``, velocity mode,
   ``terminate_on_contact=False`` so that plain MPC runs on through its collisions), ``mpc`` vs ``campc``;
@@ -26,9 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from baselines.evaluate import run_episode, write_json_atomic
+from uvdms_gym.evaluation import run_episode
+from uvdms_gym.frames import wrap_angle
+from uvdms_gym.io import write_json_atomic
+from uvdms_gym.params import D1, D2
 
-D1, D2 = 0.05, 0.12
 ROW_RIGHT_LINK3_FRAME = 8
 """Distance row of right link 3 vs the nearest frame plate (rows 6-11: right links 1..6 vs plates)."""
 ROW_RIGHT_LINK5_LEFT_ARM = 4
@@ -105,10 +107,6 @@ def run_experiments(quick: bool = False, progress: bool = True) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------------- numbers
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
-
-
 def transport_numbers(ep: dict) -> dict:
     """The transport acceptance quantities of an episode with a trajectory."""
     tr = ep["trajectory"]
@@ -116,7 +114,7 @@ def transport_numbers(ep: dict) -> dict:
     y, y_ref, eta, q = (np.array(tr[k]) for k in ("y", "y_ref", "eta", "q"))
     return {
         "final_pos_error_m": float(np.linalg.norm(y[-1, :3] - y_ref[-1, :3])),
-        "final_yaw_error_deg": float(abs(np.degrees(_wrap(y[-1, 5] - y_ref[-1, 5])))),
+        "final_yaw_error_deg": float(abs(np.degrees(wrap_angle(y[-1, 5] - y_ref[-1, 5])))),
         "final_ori_error_deg": float(np.degrees(ep["final_ori_error"])),
         "max_roll_pitch_deg": float(np.degrees(np.abs(eta[t >= 0.0, 3:5]).max())),
         "max_joint_difference_deg": float(np.degrees(np.abs(q[:, :6] - q[:, 6:]).max())),

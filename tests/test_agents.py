@@ -599,7 +599,7 @@ def test_max_episode_steps_and_alive_bonus(tmp_path, config_dir):
 
 
 def test_uvdms_train_and_export_agent_commands(tmp_path, config_dir, capsys):
-    from uvdms_gym.cli import main as uvdms_main
+    from uvdms_cli.main import main as uvdms_main
 
     with pytest.raises(SystemExit) as info:
         uvdms_main(["train", "--help"])
@@ -777,9 +777,8 @@ def test_agent_on_another_env_id_warns():
     """An agent evaluated on an env id other than its training env's gets a warning naming both ids."""
     import warnings
 
-    from agents.policy import EnvMismatchWarning
-    from baselines.controllers import check_agent
-    from baselines.evaluate import evaluate
+    from agents.policy import EnvMismatchWarning, check_agent
+    from leaderboard.registry import evaluate
 
     folder = REPO / "trained_agents" / "circle_case1_ppo"
     agent = load_agent(folder)

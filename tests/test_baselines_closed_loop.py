@@ -12,10 +12,10 @@ import pytest
 
 import uvdms_gym  # noqa: F401
 from baselines.controllers import BASELINES, Controller, make_controller
-from baselines.evaluate import run_episode
 from baselines.reproduce import ROW_RIGHT_LINK3_FRAME, ROW_RIGHT_LINK5_LEFT_ARM, transport_numbers
+from uvdms_gym.evaluation import run_episode
+from uvdms_gym.params import D1
 
-D1 = 0.05
 CIRCLE, TRANSPORT = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"
 
 
@@ -119,7 +119,7 @@ def test_action_mode_mismatch_names_the_required_mode(spec):
 def test_unknown_controller_is_rejected():
     env = gym.make(CIRCLE)
     try:
-        with pytest.raises(ValueError, match="neither a baseline"):
+        with pytest.raises(ValueError, match=r"unknown baseline .no-such-controller.*leaderboard\.registry"):
             make_controller("no-such-controller", env)
     finally:
         env.close()

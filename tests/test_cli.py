@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 import uvdms_gym  # noqa: F401  (registers the ids)
+from uvdms_cli.main import main as uvdms_main
 from uvdms_gym import display, provenance
-from uvdms_gym.cli import main as uvdms_main
 
 REPO = Path(__file__).resolve().parents[1]
 UVDMS = Path(sys.executable).parent / "uvdms"
@@ -274,7 +274,7 @@ def test_bench_json_records_machine_and_load(monkeypatch, capsys):
 
 
 def test_evaluate_json_records_machine_and_load(tmp_path):
-    from baselines.evaluate import evaluate
+    from leaderboard.registry import evaluate
 
     result = evaluate("campc", CIRCLE, {"max_episode_steps": 3}, episodes=1, out=str(tmp_path / "e.json"))
     timing = json.loads((tmp_path / "e.json").read_text())["meta"]["timing"]
@@ -302,7 +302,7 @@ def _fake_episode(env, controller, seed, save_trajectory):
 
 @pytest.mark.parametrize("load, marked", [(0.0, False), (1000.0, True)])
 def test_leaderboard_marks_timings_taken_under_overload(load, marked, tmp_path, monkeypatch):
-    from uvdms_gym import leaderboard as lb
+    import leaderboard as lb
 
     backend = lb.Backend(
         make_env=lambda spec: _FakeEnv(), make_controller=lambda s, e, t: None, run_episode=_fake_episode
@@ -328,7 +328,7 @@ def test_leaderboard_marks_timings_taken_under_overload(load, marked, tmp_path, 
 
 
 def test_corrupt_archives_are_named_before_any_episode(workspace):
-    from uvdms_gym import leaderboard as lb
+    import leaderboard as lb
 
     with pytest.raises(ValueError, match=r"truncated\.zip"):
         lb.resolve_entries([str(workspace / "truncated.zip")], trust=True)
@@ -337,7 +337,7 @@ def test_corrupt_archives_are_named_before_any_episode(workspace):
 
 
 def test_make_kwargs_are_checked_against_the_entry_points_signature():
-    from uvdms_gym.cli import check_make_kwargs, parse_kv
+    from uvdms_gym.kwargs import check_make_kwargs, parse_kv
 
     check_make_kwargs(CIRCLE, {"case": 1, "control_dt": 0.02, "max_episode_steps": 5})  # subclass and base keys
     check_make_kwargs("uvdms_gym:" + TRANSPORT, {"goal": "paper", "hydro_randomization": 0.3})

@@ -1,4 +1,4 @@
-"""``baselines.evaluate`` and ``uvdms evaluate``: JSON schema, metric definitions, determinism, agents."""
+"""``uvdms_gym.evaluation`` and ``uvdms evaluate``: JSON schema, metric definitions, determinism, agents."""
 
 from __future__ import annotations
 
@@ -14,8 +14,8 @@ import pytest
 import yaml
 
 import uvdms_gym  # noqa: F401
-from baselines.controllers import make_controller
-from baselines.evaluate import EPISODE_KEYS, TRAJECTORY_KEYS, evaluate, run_episode
+from leaderboard.registry import evaluate, make_controller
+from uvdms_gym.evaluation import EPISODE_KEYS, TRAJECTORY_KEYS, run_episode
 
 CIRCLE, TRANSPORT = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"
 SHORT = {"max_episode_steps": 40}  # gymnasium.make's own keyword: short episodes for the schema tests
@@ -162,14 +162,14 @@ def test_baseline_mode_is_filled_in():
 
 def test_cli_evaluate(tmp_path):
     out = tmp_path / "r.json"
-    cmd = [sys.executable, "-m", "uvdms_gym.cli", "evaluate", "--controller", "campc", "--env", CIRCLE]
+    cmd = [sys.executable, "-m", "uvdms_cli", "evaluate", "--controller", "campc", "--env", CIRCLE]
     cmd += ["--env-kwargs", "case=2", "max_episode_steps=20", "--episodes", "2", "--seed", "3", "--out", str(out)]
     proc = subprocess.run([*cmd, "--no-progress"], capture_output=True, text=True, timeout=300, check=True)
     summary = json.loads(proc.stdout)
     data = json.loads(out.read_text())
     assert summary == data["summary"] and data["meta"]["seeds"] == [3, 4]
     assert data["meta"]["env_kwargs"]["case"] == 2
-    base = [sys.executable, "-m", "uvdms_gym.cli", "evaluate", "--controller", "campc", "--env", CIRCLE]
+    base = [sys.executable, "-m", "uvdms_cli", "evaluate", "--controller", "campc", "--env", CIRCLE]
     bad = subprocess.run(
         [*base, "--env-kwargs", "action_mode=torque", "--no-progress"],
         capture_output=True,

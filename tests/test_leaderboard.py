@@ -11,8 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from uvdms_gym import leaderboard as lb
-from uvdms_gym.cli import main as uvdms_main
+import leaderboard as lb
+import leaderboard.cache
+import leaderboard.runner
+from uvdms_cli.main import main as uvdms_main
+from uvdms_gym.io import _umask, write_json_atomic
 
 CIRCLE = "uvdms/CircleTrack-v0"
 TINY_TASKS = (
@@ -178,11 +181,11 @@ def test_force_recomputes_everything(tmp_path):
 
 
 def test_atomic_write_leaves_no_temporary_files(tmp_path):
-    lb.atomic_write_json(tmp_path / "a" / "x.json", {"v": 1})
+    write_json_atomic(tmp_path / "a" / "x.json", {"v": 1})
     assert [p.name for p in (tmp_path / "a").iterdir()] == ["x.json"]
-    assert (tmp_path / "a" / "x.json").stat().st_mode & 0o777 == 0o666 & ~lb._umask()
+    assert (tmp_path / "a" / "x.json").stat().st_mode & 0o777 == 0o666 & ~_umask()
     with pytest.raises(ValueError):
-        lb.atomic_write_json(tmp_path / "a" / "x.json", {"v": math.nan})
+        write_json_atomic(tmp_path / "a" / "x.json", {"v": math.nan})
     assert [p.name for p in (tmp_path / "a").iterdir()] == ["x.json"]
     assert json.loads((tmp_path / "a" / "x.json").read_text()) == {"v": 1}
 
@@ -194,7 +197,7 @@ def test_cache_key_depends_on_entry_task_seed_and_version(monkeypatch):
     assert base != lb.cache_key(lb.cache_material(entry, task, 2, False))
     assert base != lb.cache_key(lb.cache_material(entry, TINY_TASKS[1], 1, False))
     assert base != lb.cache_key(lb.cache_material(BASELINE_ENTRIES[1], task, 1, False))
-    monkeypatch.setattr(lb, "PACKAGE_VERSION", "9.9.9")
+    monkeypatch.setattr(leaderboard.cache, "PACKAGE_VERSION", "9.9.9")
     assert base != lb.cache_key(lb.cache_material(entry, task, 1, False))
 
 
@@ -458,7 +461,7 @@ def test_pickle_zip_from_outside_the_repo_is_refused_without_trust(tmp_path, tin
 # Command line (fake backend)
 # ------------------------------------------------------------------------------------------------------
 def test_cli_prints_ranked_tables_and_reuses_the_cache(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(lb, "DEFAULT_BACKEND", FAKE)
+    monkeypatch.setattr(leaderboard.runner, "DEFAULT_BACKEND", FAKE)
     argv = ["leaderboard", "--quick", "--entries", "campc", "campc-nndi", "--tasks", "case1", "case2"]
     argv += ["--out", str(tmp_path / "out"), "--no-progress", "--no-plots", "--agents-dir", str(tmp_path)]
     CALLS.clear()

@@ -13,11 +13,9 @@ from baselines.mpc import (
     KinematicMPC,
     MPCConfig,
     MPCProblem,
-    euler_to_rot_batch,
     hold_matrix,
-    rotation_errors,
 )
-from uvdms_gym.frames import euler_to_rot, rot_error
+from uvdms_gym.frames import euler_to_rot, euler_to_rot_batch, rot_error, rot_error_batch
 from uvdms_gym.params import UVDMSParams
 
 PARAMS = UVDMSParams()
@@ -157,7 +155,7 @@ def test_rotation_errors_match_scalar_version():
     r_des = euler_to_rot_batch(rpy)
     assert np.allclose(r_des, np.array([euler_to_rot(a) for a in rpy]))
     r = euler_to_rot([0.1, -0.2, 0.3])
-    got = rotation_errors(r_des, r)
+    got = rot_error_batch(r_des, r)
     want = np.array([rot_error(rd, r) for rd in r_des])
     assert np.allclose(got, want, atol=1e-7)
 

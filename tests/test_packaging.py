@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-SOURCE_PACKAGES = ("uvdms_gym", "baselines", "agents")
+SOURCE_PACKAGES = ("uvdms_gym", "baselines", "agents", "leaderboard", "uvdms_cli")
 MAX_MODEL_BYTES = 5 * 2**20
 SHIPPED_FILES = ("model.zip", "vecnormalize.pkl", "config.yml", "meta.json", "evaluation.json", "README.md")
 
@@ -89,7 +89,7 @@ def test_unpacked_wheel_finds_configs_and_agents_from_any_directory(wheel, tmp_p
 import json, agents, uvdms_gym
 from agents.config import default_config_path, load_config
 from agents.policy import TRUSTED_DIR, load_agent
-from uvdms_gym.leaderboard import find_agent_folders, resolve_entries
+from leaderboard import find_agent_folders, resolve_entries
 cfg = load_config(default_config_path("ppo"), "ppo", "uvdms/CircleTrack-v0")
 folders = find_agent_folders(TRUSTED_DIR)
 agent = load_agent(folders[0])

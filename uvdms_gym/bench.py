@@ -1,7 +1,9 @@
-"""Benchmarks behind ``uvdms bench {sim,env,mpc} --json``: medians (µs) and ratios measured in one run.
+"""Benchmarks behind ``uvdms bench {sim,env} --json``: medians (µs) and ratios measured in one run.
 
-Timings are medians of repeated blocks (each block averages many calls, so timer overhead is negligible).
-They are measurements, never test assertions.
+``uvdms bench mpc`` runs :func:`baselines.bench.benchmark_all` and ``uvdms bench train``
+:func:`agents.bench.bench_train`; the command layer (:mod:`uvdms_cli.main`) dispatches them, so this package imports
+neither. Timings are medians of repeated blocks (each block averages many calls, so timer overhead is
+negligible). They are measurements, never test assertions.
 """
 
 from __future__ import annotations
@@ -190,10 +192,3 @@ def bench_env(quick: bool = False) -> dict:
     result["bare_step_us"] = bare_us
     result["warmup_steps"] = warmup
     return result
-
-
-def bench_mpc(quick: bool = False) -> dict:
-    """CAMPC control-step cost and the same QP sequence on OSQP (see ``baselines``)."""
-    from baselines.bench import benchmark_all
-
-    return benchmark_all(quick=quick)

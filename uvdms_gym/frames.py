@@ -135,28 +135,61 @@ def rot_error(r_des: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def euler_to_rot_batch(rpy: np.ndarray) -> np.ndarray:
-    """Vectorised :func:`euler_to_rot`: ``(N, 3)`` Euler angles -> ``(N, 3, 3)`` rotations."""
+    """Vectorised :func:`euler_to_rot`: ZYX Euler angles ``(..., 3)`` -> rotations ``(..., 3, 3)`` (``Rz Ry Rx``).
+
+    Args:
+        rpy: roll, pitch, yaw.
+
+    Returns:
+        The rotations.
+    """
     rpy = np.asarray(rpy, dtype=float)
-    cf, sf = np.cos(rpy[:, 0]), np.sin(rpy[:, 0])
-    ct, st = np.cos(rpy[:, 1]), np.sin(rpy[:, 1])
-    cp, sp = np.cos(rpy[:, 2]), np.sin(rpy[:, 2])
-    out = np.empty((rpy.shape[0], 3, 3))
-    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st
-    out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf
-    out[:, 2, 0], out[:, 2, 1], out[:, 2, 2] = -st, ct * sf, ct * cf
-    return out
+    c, s = np.cos(rpy), np.sin(rpy)  # one call each (elementwise: the same values as per column)
+    cf, ct, cp = c[..., 0], c[..., 1], c[..., 2]
+    sf, st, sp = s[..., 0], s[..., 1], s[..., 2]
+    r = np.empty((*rpy.shape[:-1], 3, 3))
+    r[..., 0, 0] = cp * ct
+    r[..., 0, 1] = -sp * cf + cp * st * sf
+    r[..., 0, 2] = sp * sf + cp * cf * st
+    r[..., 1, 0] = sp * ct
+    r[..., 1, 1] = cp * cf + sf * st * sp
+    r[..., 1, 2] = -cp * sf + st * sp * cf
+    r[..., 2, 0] = -st
+    r[..., 2, 1] = ct * sf
+    r[..., 2, 2] = ct * cf
+    return r
+
+
+_VEE_PLUS = (np.array([2, 0, 1]), np.array([1, 2, 0]))
+_VEE_MINUS = (np.array([1, 2, 0]), np.array([2, 0, 1]))
 
 
 def rot_error_batch(r_des: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Vectorised :func:`rot_error` for ``(N, 3, 3)`` desired rotations and one current rotation ``r``."""
-    re = r_des @ r.T
-    cos_a = np.clip((np.trace(re, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    """Vectorised :func:`rot_error`: error vectors (axis * angle, inertial frame) taking ``r`` to each ``r_des``.
+
+    The angle is in ``[0, pi]`` (wrapped by construction); to first order the vector changes by
+    ``-omega dt`` when the body turns at the inertial angular velocity ``omega``.
+
+    Args:
+        r_des: desired rotations (N, 3, 3).
+        r: current rotation (3, 3).
+
+    Returns:
+        Errors (N, 3).
+    """
+    re = np.asarray(r_des) @ np.asarray(r).T
+    v = re[:, _VEE_PLUS[0], _VEE_PLUS[1]] - re[:, _VEE_MINUS[0], _VEE_MINUS[1]]  # [R32 - R23, R13 - R31, R21 - R12]
+    # the trace summed in np.trace's order and clipped with min/max: the same values for less per-call overhead
+    cos_a = np.minimum(np.maximum((re[:, 0, 0] + re[:, 1, 1] + re[:, 2, 2] - 1.0) / 2.0, -1.0), 1.0)
     angle = np.arccos(cos_a)
-    v = np.stack([re[:, 2, 1] - re[:, 1, 2], re[:, 0, 2] - re[:, 2, 0], re[:, 1, 0] - re[:, 0, 1]], axis=1)
     s = np.sin(angle)
+    ok = s > 1e-6
+    if ok.all():  # the usual case: no angle near 0 or pi
+        return (angle / (2.0 * s))[:, None] * v
     out = np.empty_like(v)
-    regular = s >= 1e-9
-    out[regular] = (angle[regular] / (2.0 * s[regular]))[:, None] * v[regular]
-    for i in np.flatnonzero(~regular):  # identity or a half turn: the scalar version handles both
+    out[ok] = (angle[ok] / (2.0 * s[ok]))[:, None] * v[ok]
+    small = ~ok & (angle < 0.5)
+    out[small] = 0.5 * v[small]
+    for i in np.flatnonzero(~ok & ~small):  # angle ~ pi: rare, use the careful scalar version
         out[i] = rot_error(r_des[i], r)
     return out

@@ -288,6 +288,13 @@ JOINT_NAMES: tuple[str, ...] = tuple(f"{s}_joint{i}" for s in ARM_SIDES for i in
 N_JOINTS = 12
 N_DOF = 18
 
+D1 = 0.05
+"""Collision-zone threshold d1 of docs/MODEL.md section 4 (m): a distance below it is in the collision zone
+(``info["cost_zone"]``; the velocity damper's bound reaches zero there). The one definition: the environments,
+the MPC defaults, the distance kernels, the leaderboard plots and ``uvdms reproduce`` import it."""
+D2 = 0.12
+"""Anti-collision-zone threshold d2 of docs/MODEL.md section 4 (m): the velocity damper acts below it."""
+
 # Initial joint angles of the collision tasks [S4], with the signs fixed by the project [D] so that the
 # initial configuration is collision-free and mirror-symmetric motion negates roll joints 1, 3, 5. With these
 # signs the shoulder pitches up, elbow and wrist down: both end effectors start about 0.8 m ahead of their

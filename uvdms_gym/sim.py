@@ -54,12 +54,10 @@ reset).
 
 from __future__ import annotations
 
-import contextlib
 import itertools
 import math
-import os
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType, TracebackType
 
@@ -76,6 +74,7 @@ from uvdms_gym.hydro import (
     link_forces_world,
     link_table,
 )
+from uvdms_gym.io import quiet_c_stream
 from uvdms_gym.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
 
 NU_LIMIT = 50.0
@@ -119,27 +118,6 @@ _perform_collision_detection = pb.performCollisionDetection
 _chain = itertools.chain.from_iterable
 _arctan2 = np.arctan2
 _arcsin = np.arcsin
-
-
-@contextlib.contextmanager
-def _quiet_stdout() -> Iterator[None]:
-    """Silence the C-level stdout (PyBullet prints solver changes there) for the duration of the block."""
-    try:
-        sys.stdout.flush()
-        fd = sys.stdout.fileno()
-        saved = os.dup(fd)
-    except (AttributeError, OSError, ValueError):  # no real stdout (e.g. redirected to a non-file)
-        yield
-        return
-    try:
-        with open(os.devnull, "w") as devnull:
-            os.dup2(devnull.fileno(), fd)
-            try:
-                yield
-            finally:
-                os.dup2(saved, fd)
-    finally:
-        os.close(saved)
 
 
 class PhysicsError(RuntimeError):
@@ -249,7 +227,7 @@ class UVDMSSim:
             require_display()  # without a display PyBullet's GUI connect calls exit(): raise instead
             self._client = bullet_client.BulletClient(connection_mode=pb.GUI)
         else:
-            with _quiet_stdout():  # DIRECT connect prints "argv[0]=" on the C stdout
+            with quiet_c_stream(sys.stdout):  # DIRECT connect prints "argv[0]=" on the C stdout
                 self._client = bullet_client.BulletClient(connection_mode=pb.DIRECT)
         self._closed = False
         try:
@@ -263,7 +241,7 @@ class UVDMSSim:
         self._cid: int = self._client._client
         c = self._client
         c.setGravity(0.0, 0.0, -GRAVITY)
-        with _quiet_stdout():  # switching the solver prints two lines on the C stdout
+        with quiet_c_stream(sys.stdout):  # switching the solver prints two lines on the C stdout
             c.setPhysicsEngineParameter(
                 fixedTimeStep=self._dt,
                 constraintSolverType=pb.CONSTRAINT_SOLVER_LCP_DANTZIG,

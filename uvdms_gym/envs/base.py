@@ -38,7 +38,7 @@ from uvdms_gym.frames import euler_to_rot, rot_error
 from uvdms_gym.hydro import HydroScale
 from uvdms_gym.kinematics import KinematicModel
 from uvdms_gym.nominal import NominalDynamics
-from uvdms_gym.params import UVDMSParams
+from uvdms_gym.params import D1, D2, UVDMSParams
 from uvdms_gym.sim import PhysicsError, UVDMSSim
 
 PREVIEW_TIMES: tuple[float, ...] = (0.0, 0.4, 0.8)
@@ -46,8 +46,6 @@ PREVIEW_TIMES: tuple[float, ...] = (0.0, 0.4, 0.8)
 POS_SCALE = 0.5
 """Position errors in the observation are divided by this, m."""
 OBS_CLIP = 10.0
-D1, D2 = 0.05, 0.12
-"""Collision-zone and anti-collision-zone thresholds of docs/MODEL.md section 4, m."""
 CLEARANCE_CLIP = 0.3
 OBS_DIM = 80
 ACTION_DIM = 18

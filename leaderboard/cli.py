@@ -1,4 +1,4 @@
-"""``uvdms leaderboard``: rank the baselines and trained agents (thin wrapper over :mod:`uvdms_gym.leaderboard`)."""
+"""``uvdms leaderboard``: rank the baselines and trained agents (thin wrapper over :mod:`leaderboard`)."""
 
 from __future__ import annotations
 
@@ -72,7 +72,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
 
     import torch
 
-    from uvdms_gym import leaderboard as lb
+    import leaderboard as lb
 
     torch.set_num_threads(1)  # tiny MLP policies: one thread is fastest and leaves the other core free
     tasks = lb.select_tasks(args.tasks, quick=args.quick)
@@ -81,7 +81,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
             raise ValueError(f"--max-episode-steps must be >= 1, got {args.max_episode_steps}")
         tasks = tuple(replace(t, max_episode_steps=args.max_episode_steps) for t in tasks)
     episodes = args.episodes if args.episodes is not None else (lb.QUICK_EPISODES if args.quick else None)
-    # bad entries, seeds or files raise; uvdms_gym.cli.main reports them as one line (exit status 2)
+    # bad entries, seeds or files raise; uvdms_cli.main.main reports them as one line (exit status 2)
     entries = lb.resolve_entries(args.entries, agents_dir=args.agents_dir, trust=args.trust)
     result = lb.run_leaderboard(
         entries,

@@ -1,0 +1,202 @@
+"""Leaderboard: the baselines and trained agents ranked on collisions and tracking error, with bootstrap CIs.
+
+:func:`run_leaderboard` evaluates a set of **entries** (the named baselines ``mpc``, ``campc``, ``campc-di``,
+``campc-nndi``, every agent folder in the shipped-agents directory, and any agent checkpoint given by path)
+on a **task suite** (:data:`TASKS`: the paper's Case 1, Case 2 and transport, plus held-out randomised
+variants with ``hydro_randomization=0.3``) and writes ``leaderboard.md``, ``leaderboard.csv``, one JSON per
+entry and PNG plots. The ``uvdms leaderboard`` command (:mod:`leaderboard.cli`) wraps it. Modules:
+:mod:`~leaderboard.tasks` (task suite, tracks, seeds), :mod:`~leaderboard.entries`, :mod:`~leaderboard.registry`
+(name or path -> controller), :mod:`~leaderboard.stats` (bootstrap CIs, ranking), :mod:`~leaderboard.cache`,
+:mod:`~leaderboard.runner`, :mod:`~leaderboard.report` and :mod:`~leaderboard.plots`; this package re-exports
+their public names.
+
+Tracks
+    Entries are ranked separately in two tracks, by the action mode they command: ``velocity`` (``mpc``,
+    ``campc``, agents unless their ``env_kwargs`` say ``action_mode: torque``) and ``torque``
+    (``campc-di``, ``campc-nndi``). An entry runs only on its own track's action mode. An agent runs only on
+    the tasks of the environment id it was trained on (a CircleTrack agent on every circle task, including
+    the case it was not trained on; a Transport agent on the transport tasks); baselines run on every task.
+
+Seeds
+    Episode ``i`` of every task uses seed ``SEED_BASE + i`` (:data:`SEED_BASE` = 2,000,000,000), far above
+    the training scheme of :mod:`agents.train` (training envs ``seed + 1000 k + i``, its evaluation envs
+    ``seed + 1,000,000 + i``). Every integer stored under a key containing ``seed`` in an agent's
+    ``meta.json``, ``config.yml`` or ``agent.json`` is collected and :func:`check_seed_disjointness` refuses
+    to run if an evaluation seed is among them.
+
+Statistics
+    Per entry and task, every per-episode metric of :func:`uvdms_gym.evaluation.run_episode` is aggregated as
+    its mean with a 95 % bootstrap confidence interval (:func:`bootstrap_ci`: ``scipy.stats.bootstrap``,
+    BCa, 9,999 resamples, fixed seed; the percentile method if BCa is not finite; an all-equal sample gives
+    the zero-width interval ``[x, x]``; fewer than two values give no interval). Two per-episode 0/1
+    indicators are added, ``contact_free`` (no physical contact) and ``contact_free_success`` (the episode's
+    ``success`` and no contact); their rates, like the success rate, are means of 0/1 values. The paper's
+    tasks have a fixed start and no randomisation, so the episodes of a deterministic controller there are
+    identical and their intervals have zero width; the randomised tasks carry the spread. Tables print an interval as
+    ``mean ± h`` with ``h = max(mean - low, high - mean)`` (bootstrap intervals are asymmetric; the CSV and
+    JSON hold the exact bounds).
+
+Ranking (within each track and task, :func:`rank_rows`)
+    1. Sort by contact-free success rate (higher first), then tracking RMSE ``rmse_pos`` (lower first; an
+       entry without an RMSE sorts after those with one), then name.
+    2. Walk the sorted list. An entry is **tied** with the first entry of the current tie group (its
+       leader) if both their contact-free-success intervals and their RMSE intervals overlap (closed
+       intervals, and two intervals less than :data:`TIE_TOLERANCE` apart (0.1 mm of RMSE) count as
+       overlapping; a missing interval counts as the single point of its mean; two missing RMSEs overlap).
+       Otherwise it starts a new group. Every member of a group gets the group's rank, which is one plus the
+       number of entries ranked before the group (standard competition ranking: 1, 2=, 2=, 4); tied ranks
+       print as ``2=``.
+
+Cache
+    Every (entry, task, seed) result is a JSON file under the cache directory, keyed by the SHA-256 of the
+    entry identity (name and kind; for agents the SHA-256 of their model files), the task spec (env id,
+    keyword arguments incl. the action mode, step limit, whether a trajectory is stored), the seed and the
+    package version. Files are written atomically (temporary file + ``os.replace``) and reused on re-runs;
+    ``force=True`` recomputes. A file that cannot be parsed or does not match its key is reported with
+    ``logging.warning`` (by path) and recomputed.
+
+Timings
+    ``controller_ms_median`` is wall-clock time, so every computed episode stores a ``timing`` record
+    (:func:`uvdms_gym.provenance.timing_record`: CPU model, core count, 1-minute load average at the start and
+    end of the episode) in its cached result, and the run keeps one for itself. ``leaderboard.md`` states the
+    machine(s) and loads, and marks with :data:`OVERLOAD_MARK` every timing cell of a row in which an episode
+    ran with a load above the core count; ``leaderboard.csv`` has ``timing_episodes_overloaded``,
+    ``timing_episodes_unknown_load``, ``timing_load_1min_max`` and ``timing_machine`` per row.
+
+Safety
+    Weights-only agent exports (:func:`agents.policy.load_weights_only`) evaluate without trust. A full SB3
+    zip contains pickles: it is refused (:class:`agents.policy.UntrustedFileError`) unless it lies inside the
+    repository's ``trained_agents/`` folder or ``trust=True``; the check runs before any evaluation.
+"""
+
+from __future__ import annotations
+
+from leaderboard.cache import (
+    CACHE_FORMAT,
+    PACKAGE_VERSION,
+    REQUIRED_KEYS,
+    CorruptCacheError,
+    cache_key,
+    cache_material,
+    cache_path,
+    compact_result,
+    read_cached,
+)
+from leaderboard.entries import (
+    BASELINES,
+    DEFAULT_ENTRIES,
+    Entry,
+    agent_checksum,
+    agent_entry,
+    agent_env,
+    check_seed_disjointness,
+    find_agent_folders,
+    is_weights_only,
+    resolve_entries,
+    slugify,
+    training_seeds,
+)
+from leaderboard.plots import PLOT_METRICS, write_plots
+from leaderboard.report import OVERLOAD_MARK, TABLE_METRICS, TIMING_METRICS, markdown_tables, timing_text, write_outputs
+from leaderboard.runner import (
+    DEFAULT_BACKEND,
+    Backend,
+    Job,
+    LeaderboardResult,
+    compute_job,
+    make_env,
+    plan_jobs,
+    run_leaderboard,
+)
+from leaderboard.stats import (
+    BOOTSTRAP_SEED,
+    CONFIDENCE,
+    METRICS,
+    N_RESAMPLES,
+    TIE_TOLERANCE,
+    RankedRow,
+    Stat,
+    aggregate,
+    bootstrap_ci,
+    episode_indicators,
+    intervals_overlap,
+    rank_rows,
+    timing_summary,
+)
+from leaderboard.tasks import (
+    CIRCLE_ID,
+    DEFAULT_EPISODES,
+    HYDRO_RANDOMIZATION,
+    QUICK_EPISODES,
+    SEED_BASE,
+    TASKS,
+    TRACKS,
+    TRANSPORT_ID,
+    Task,
+    evaluation_seeds,
+    select_tasks,
+)
+
+__all__ = [
+    "BASELINES",
+    "BOOTSTRAP_SEED",
+    "CACHE_FORMAT",
+    "CIRCLE_ID",
+    "CONFIDENCE",
+    "DEFAULT_BACKEND",
+    "DEFAULT_ENTRIES",
+    "DEFAULT_EPISODES",
+    "HYDRO_RANDOMIZATION",
+    "METRICS",
+    "N_RESAMPLES",
+    "OVERLOAD_MARK",
+    "PACKAGE_VERSION",
+    "PLOT_METRICS",
+    "QUICK_EPISODES",
+    "REQUIRED_KEYS",
+    "SEED_BASE",
+    "TABLE_METRICS",
+    "TASKS",
+    "TIE_TOLERANCE",
+    "TIMING_METRICS",
+    "TRACKS",
+    "TRANSPORT_ID",
+    "Backend",
+    "CorruptCacheError",
+    "Entry",
+    "Job",
+    "LeaderboardResult",
+    "RankedRow",
+    "Stat",
+    "Task",
+    "agent_checksum",
+    "agent_entry",
+    "agent_env",
+    "aggregate",
+    "bootstrap_ci",
+    "cache_key",
+    "cache_material",
+    "cache_path",
+    "check_seed_disjointness",
+    "compact_result",
+    "compute_job",
+    "episode_indicators",
+    "evaluation_seeds",
+    "find_agent_folders",
+    "intervals_overlap",
+    "is_weights_only",
+    "make_env",
+    "markdown_tables",
+    "plan_jobs",
+    "rank_rows",
+    "read_cached",
+    "resolve_entries",
+    "run_leaderboard",
+    "select_tasks",
+    "slugify",
+    "timing_summary",
+    "timing_text",
+    "training_seeds",
+    "write_outputs",
+    "write_plots",
+]

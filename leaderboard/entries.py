@@ -1,0 +1,295 @@
+"""Leaderboard entries: the named baselines and agent folders or checkpoints, read without unpickling.
+
+An agent's entry holds its training environment (it runs only on that environment's tasks), a checksum of its
+model files (the cache key) and every seed recorded in its run files (:func:`check_seed_disjointness`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import re
+import zipfile
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from leaderboard.registry import TRACK_OF
+from leaderboard.tasks import TRACKS, Task
+
+log = logging.getLogger("uvdms.leaderboard")
+
+BASELINES: dict[str, str] = TRACK_OF
+"""Named baselines and their tracks (:data:`leaderboard.registry.TRACK_OF`)."""
+DEFAULT_ENTRIES: tuple[str, ...] = ("baselines", "agents")
+"""``baselines`` stands for the four named baselines, ``agents`` for every agent folder in ``agents_dir``."""
+_AGENT_MODEL_SUFFIXES = (".zip", ".pkl", ".pt", ".npz")
+_AGENT_CONFIG_NAMES = ("agent.json", "config.yml", "config.yaml")
+_SEED_FILES = ("meta.json", "config.yml", "config.yaml", "agent.json")
+
+
+@dataclass(frozen=True)
+class Entry:
+    """A competitor: a named baseline or an agent (folder or checkpoint).
+
+    Attributes:
+        name: Display name (unique within a run).
+        kind: ``"baseline"`` or ``"agent"``.
+        spec: What ``make_controller`` receives: the baseline name or the agent path.
+        track: ``"velocity"`` or ``"torque"``.
+        env_id: The environment id an agent was trained on (``None``: runs on every task).
+        checksum: SHA-256 over the agent's model files (``None`` for baselines).
+        training_seeds: Every seed recorded in the agent's run files.
+        weights_only: The agent is a weights-only export (never unpickled).
+    """
+
+    name: str
+    kind: str
+    spec: str
+    track: str
+    env_id: str | None = None
+    checksum: str | None = None
+    training_seeds: frozenset[int] = frozenset()
+    weights_only: bool = False
+
+    def identity(self) -> dict[str, Any]:
+        """What identifies the entry's behaviour in the cache key (agents: by content, not path)."""
+        return {"name": self.name, "kind": self.kind, "checksum": self.checksum}
+
+    def runs_on(self, task: Task) -> bool:
+        """Whether the entry is evaluated on ``task`` (agents: only their training environment id)."""
+        return self.env_id is None or self.env_id == task.env_id
+
+    @property
+    def slug(self) -> str:
+        """File-system-safe name."""
+        return slugify(self.name)
+
+
+def slugify(name: str) -> str:
+    """``name`` with every character outside ``[A-Za-z0-9._-]`` replaced by ``_``."""
+    return re.sub(r"[^A-Za-z0-9._-]", "_", name) or "_"
+
+
+def resolve_entries(
+    tokens: Sequence[str] | None = None,
+    *,
+    agents_dir: str | Path | None = None,
+    trust: bool = False,
+) -> list[Entry]:
+    """Turn command-line entry tokens into :class:`Entry` objects (and check that loading them is safe).
+
+    Args:
+        tokens: Baseline names, agent paths (a folder or an SB3 zip), ``baselines`` (the four baselines) or
+            ``agents`` (every agent folder in ``agents_dir``). Default :data:`DEFAULT_ENTRIES`.
+        agents_dir: The shipped-agents folder (default: ``trained_agents`` in the working directory if it exists,
+            else the repository's; a missing folder contributes no agents, with a warning).
+        trust: Allow full SB3 zips from outside the repository's ``trained_agents/`` folder.
+
+    Returns:
+        The entries, in the given order, without duplicates.
+
+    Raises:
+        UntrustedFileError: A pickle-bearing agent outside ``trained_agents/`` without ``trust``.
+        ValueError: A token that is neither a baseline name, a keyword nor an existing path.
+    """
+    if agents_dir is None:
+        from agents.policy import TRUSTED_DIR
+
+        agents_dir = Path("trained_agents") if Path("trained_agents").is_dir() else TRUSTED_DIR
+    entries: list[Entry] = []
+    seen_specs: set[str] = set()
+    for token in tokens or DEFAULT_ENTRIES:
+        if token == "baselines":
+            candidates: list[str] = list(BASELINES)
+        elif token == "agents":
+            candidates = [str(p) for p in find_agent_folders(agents_dir)]
+        else:
+            candidates = [token]
+        for spec in candidates:
+            if spec in BASELINES:
+                key = spec
+                entry = Entry(name=spec, kind="baseline", spec=spec, track=BASELINES[spec])
+            else:
+                path = Path(spec)
+                if not path.exists():
+                    raise ValueError(
+                        f"entry {spec!r} is neither a baseline ({', '.join(BASELINES)}), 'baselines', 'agents', "
+                        "nor an existing agent folder or checkpoint"
+                    )
+                key = str(path.resolve())
+                entry = agent_entry(path, trust=trust)
+            if key in seen_specs:
+                continue
+            seen_specs.add(key)
+            entries.append(entry)
+    return _unique_names(entries)
+
+
+def _unique_names(entries: list[Entry]) -> list[Entry]:
+    counts: dict[str, int] = {}
+    out = []
+    for entry in entries:
+        n = counts.get(entry.name, 0)
+        counts[entry.name] = n + 1
+        if n:
+            entry = replace(entry, name=f"{entry.name}-{n + 1}")
+        out.append(entry)
+    return out
+
+
+def find_agent_folders(agents_dir: str | Path) -> list[Path]:
+    """Sub-folders of ``agents_dir`` holding an agent (a weights-only ``agent.json`` or an SB3 ``.zip``)."""
+    root = Path(agents_dir)
+    if not root.is_dir():
+        log.warning("agents folder %s does not exist: no shipped agents are evaluated", root)
+        return []
+    return [p for p in sorted(root.iterdir()) if p.is_dir() and (is_weights_only(p) or any(p.glob("*.zip")))]
+
+
+def is_weights_only(path: str | Path) -> bool:
+    """Whether ``path`` is a weights-only export folder (``agent.json`` of :mod:`agents.policy`)."""
+    return Path(path).is_dir() and (Path(path) / "agent.json").is_file()
+
+
+def agent_entry(path: str | Path, *, trust: bool = False) -> Entry:
+    """An :class:`Entry` for an agent folder or checkpoint, read from its plain-text files (no unpickling).
+
+    Raises:
+        UntrustedFileError: The agent is a full SB3 zip outside ``trained_agents/`` and ``trust`` is false.
+        ValueError: A folder without an agent, or a model archive that is not a valid zip file.
+    """
+    from agents.policy import UntrustedFileError, is_trusted_path
+
+    path = Path(path)
+    weights_only = is_weights_only(path)
+    archives = sorted(path.glob("*.zip")) if path.is_dir() else [path]
+    if path.is_dir() and not weights_only and not archives:
+        raise ValueError(f"{path} is not an agent folder: it holds neither agent.json (weights-only export) nor a .zip")
+    if not weights_only and not (trust or is_trusted_path(path)):
+        raise UntrustedFileError(
+            f"refusing to load {path}: it is a full Stable-Baselines3 model, whose pickled objects can run "
+            "arbitrary code when loaded, and it lies outside the repository's trained_agents/ folder. Pass "
+            "--trust if you trust its origin, or submit a weights-only export instead (uvdms export-agent)."
+        )
+    if not weights_only:
+        bad = [str(a) for a in archives if not zipfile.is_zipfile(a)]
+        if bad:
+            raise ValueError(f"{', '.join(bad)}: not a valid zip archive (corrupt or truncated)")
+    env_id, env_kwargs = agent_env(path)
+    track = str(env_kwargs.get("action_mode", "velocity"))
+    if track not in TRACKS:
+        raise ValueError(f"{path}: unknown action_mode {track!r} in its configuration")
+    name = path.name if path.is_dir() else f"{path.parent.name}/{path.stem}"
+    return Entry(
+        name=name,
+        kind="agent",
+        spec=str(path),
+        track=track,
+        env_id=env_id,
+        checksum=agent_checksum(path),
+        training_seeds=frozenset(training_seeds(path)),
+        weights_only=weights_only,
+    )
+
+
+def _agent_folders(path: Path) -> list[Path]:
+    """Where an agent's plain-text run files may be: the folder (or a zip's folder) and its parent."""
+    folder = path if path.is_dir() else path.parent
+    return [folder, folder.parent]
+
+
+def _read_structured(path: Path) -> Any:
+    text = path.read_text(encoding="utf-8")
+    return json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+
+
+def agent_env(path: str | Path) -> tuple[str | None, dict[str, Any]]:
+    """The training environment id and keyword arguments of an agent, from ``agent.json`` or ``config.yml``.
+
+    Returns:
+        ``(env_id, env_kwargs)``; ``(None, {})`` if no configuration file is found.
+    """
+    for folder in _agent_folders(Path(path)):
+        for name in _AGENT_CONFIG_NAMES:
+            file = folder / name
+            if not file.is_file():
+                continue
+            try:
+                doc = _read_structured(file)
+            except (OSError, ValueError, yaml.YAMLError) as exc:
+                log.warning("cannot read %s: %s", file, exc)
+                continue
+            if not isinstance(doc, dict):
+                continue
+            config = doc.get("config") if isinstance(doc.get("config"), dict) else {}
+            env_kwargs = doc.get("env_kwargs") or config.get("env_kwargs") or {}
+            env_id = doc.get("env_id") or config.get("env_id")
+            if env_id is not None:
+                return str(env_id).split(":")[-1], dict(env_kwargs)
+    return None, {}
+
+
+def _collect_seeds(node: Any, under_seed_key: bool = False) -> set[int]:
+    found: set[int] = set()
+    if isinstance(node, Mapping):
+        for key, value in node.items():
+            found |= _collect_seeds(value, under_seed_key or "seed" in str(key).lower())
+    elif isinstance(node, list | tuple):
+        for value in node:
+            found |= _collect_seeds(value, under_seed_key)
+    elif under_seed_key and isinstance(node, int) and not isinstance(node, bool):
+        found.add(int(node))
+    return found
+
+
+def training_seeds(path: str | Path) -> set[int]:
+    """Every integer stored under a key containing ``seed`` in the agent's run files (see module docstring)."""
+    seeds: set[int] = set()
+    for folder in _agent_folders(Path(path)):
+        for name in _SEED_FILES:
+            file = folder / name
+            if file.is_file():
+                try:
+                    seeds |= _collect_seeds(_read_structured(file))
+                except (OSError, ValueError, yaml.YAMLError) as exc:
+                    log.warning("cannot read %s for training seeds: %s", file, exc)
+    return seeds
+
+
+def agent_checksum(path: str | Path) -> str:
+    """SHA-256 over the agent's model files.
+
+    Name and content of each ``.zip``/``.pkl``/``.pt``/``.npz`` and configuration file of the folder, or of a
+    checkpoint and its sibling ``.pkl`` statistics.
+    """
+    path = Path(path)
+    if path.is_dir():
+        files = [
+            p
+            for p in sorted(path.iterdir())
+            if p.is_file() and (p.suffix in _AGENT_MODEL_SUFFIXES or p.name in _AGENT_CONFIG_NAMES)
+        ]
+    else:
+        files = [path, *sorted(p for p in path.parent.glob("*.pkl") if p.is_file())]
+    digest = hashlib.sha256()
+    for file in files:
+        digest.update(file.name.encode() + b"\0")
+        digest.update(hashlib.sha256(file.read_bytes()).digest())
+    return digest.hexdigest()
+
+
+def check_seed_disjointness(eval_seeds: Iterable[int], entries: Iterable[Entry]) -> None:
+    """Raise ``ValueError`` if an evaluation seed is a seed recorded in any agent's training files."""
+    eval_set = set(eval_seeds)
+    for entry in entries:
+        clash = sorted(eval_set & entry.training_seeds)
+        if clash:
+            raise ValueError(
+                f"evaluation seeds {clash[:5]} of the leaderboard are training seeds of {entry.name}; "
+                "the held-out evaluation must use seeds disjoint from training"
+            )

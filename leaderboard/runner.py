@@ -1,0 +1,308 @@
+"""Running the leaderboard: the episodes to compute (cached), in this process or a process pool, then ranking.
+
+:func:`run_leaderboard` is the entry point; the :class:`Backend` says how environments, controllers
+(:func:`leaderboard.registry.make_controller`) and episodes (:func:`uvdms_gym.evaluation.run_episode`) are made,
+so that tests can substitute fakes.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from leaderboard.cache import CorruptCacheError, cache_key, cache_material, cache_path, compact_result, read_cached
+from leaderboard.entries import Entry, check_seed_disjointness
+from leaderboard.report import write_outputs
+from leaderboard.stats import RankedRow, aggregate, rank_rows
+from leaderboard.tasks import DEFAULT_EPISODES, TASKS, TRACKS, Task, evaluation_seeds
+from uvdms_gym.io import write_json_atomic
+from uvdms_gym.provenance import timing_record
+
+log = logging.getLogger("uvdms.leaderboard")
+
+
+@dataclass(frozen=True)
+class Backend:
+    """How episodes are run (module-level callables, so that worker processes can receive them).
+
+    Attributes:
+        make_env: ``(task spec) -> env``.
+        make_controller: ``(spec, env, trust) -> controller``.
+        run_episode: ``(env, controller, seed, save_trajectory) -> dict`` (per-episode metrics).
+    """
+
+    make_env: Callable[[Mapping[str, Any]], Any]
+    make_controller: Callable[[str, Any, bool], Any]
+    run_episode: Callable[[Any, Any, int, bool], dict[str, Any]]
+
+
+def make_env(spec: Mapping[str, Any]) -> Any:
+    """``gymnasium.make`` of a task spec (:meth:`Task.spec`)."""
+    import gymnasium as gym
+
+    kwargs = dict(spec["env_kwargs"])
+    if spec.get("max_episode_steps") is not None:
+        kwargs["max_episode_steps"] = spec["max_episode_steps"]
+    return gym.make(spec["env_id"], **kwargs)
+
+
+def _real_make_controller(spec: str, env: Any, trust: bool) -> Any:
+    from leaderboard.registry import make_controller
+
+    return make_controller(spec, env, trust=trust)
+
+
+def _real_run_episode(env: Any, controller: Any, seed: int, save_trajectory: bool) -> dict[str, Any]:
+    from uvdms_gym.evaluation import run_episode
+
+    return run_episode(env, controller, seed, save_trajectory=save_trajectory)
+
+
+DEFAULT_BACKEND = Backend(make_env=make_env, make_controller=_real_make_controller, run_episode=_real_run_episode)
+
+
+@dataclass(frozen=True)
+class Job:
+    """One episode to compute."""
+
+    entry: Entry
+    task: Task
+    seed: int
+    save_trajectory: bool
+    key: str
+    material: dict[str, Any]
+    path: Path
+
+
+_WORKER: dict[str, Any] = {}
+"""Per-process reuse of the environment (and of stateless agent controllers) across consecutive jobs."""
+
+
+def _worker_init() -> None:
+    import atexit
+
+    atexit.register(_close_worker_env)  # disconnect the worker's last simulator before interpreter teardown
+    try:
+        import torch
+
+        torch.set_num_threads(1)
+    except ImportError:  # pragma: no cover - torch is a dependency
+        pass
+
+
+def _close_worker_env() -> None:
+    env = _WORKER.pop("env", None)
+    _WORKER.pop("controller", None)
+    _WORKER.pop("key", None)
+    if env is not None:
+        env.close()
+
+
+def compute_job(job: Job, backend: Backend, trust: bool) -> dict[str, Any]:
+    """Run one episode, store it atomically in the cache, and return the compact result."""
+    group = (job.entry.name, job.entry.checksum, json.dumps(job.task.spec(job.entry.track), sort_keys=True))
+    if _WORKER.get("key") != group:
+        _close_worker_env()
+        _WORKER["env"] = backend.make_env(job.task.spec(job.entry.track))
+        _WORKER["key"] = group
+    env = _WORKER["env"]
+    controller = _WORKER.get("controller") if job.entry.kind == "agent" else None
+    if controller is None:  # baselines are stateful (adaptive networks, warm starts): a fresh one per episode
+        controller = backend.make_controller(job.entry.spec, env, trust)
+        if job.entry.kind == "agent":
+            _WORKER["controller"] = controller
+    with timing_record() as timing:
+        raw = backend.run_episode(env, controller, job.seed, job.save_trajectory)
+    result = compact_result(raw)
+    result["seed"] = int(job.seed)
+    result["timing"] = timing
+    write_json_atomic(job.path, {"key": job.key, "material": job.material, "result": result}, indent=None)
+    return result
+
+
+@dataclass
+class LeaderboardResult:
+    """What :func:`run_leaderboard` computed."""
+
+    rows: list[RankedRow]
+    entries: list[Entry]
+    tasks: tuple[Task, ...]
+    seeds: list[int]
+    computed: int
+    cached: int
+    corrupt: list[Path]
+    out_dir: Path
+    markdown: str = ""
+    timing: dict[str, Any] = field(default_factory=dict)
+
+
+def plan_jobs(
+    entries: Sequence[Entry], tasks: Sequence[Task], seeds: Sequence[int], cache_dir: str | Path
+) -> list[Job]:
+    """Every (entry, task, seed) episode of the run, grouped by entry and task."""
+    jobs = []
+    for entry in entries:
+        for task in tasks:
+            if not entry.runs_on(task):
+                continue
+            for i, seed in enumerate(seeds):
+                save = task.trajectory and i == 0
+                material = cache_material(entry, task, seed, save)
+                key = cache_key(material)
+                jobs.append(Job(entry, task, seed, save, key, material, cache_path(cache_dir, entry, task, seed, key)))
+    return jobs
+
+
+def run_leaderboard(
+    entries: Sequence[Entry],
+    *,
+    out_dir: str | Path = "leaderboard_out",
+    cache_dir: str | Path | None = None,
+    tasks: Sequence[Task] = TASKS,
+    episodes: int = DEFAULT_EPISODES,
+    force: bool = False,
+    trust: bool = False,
+    jobs: int = 1,
+    progress: bool = True,
+    plots: bool = True,
+    backend: Backend | None = None,
+    command: str | None = None,
+) -> LeaderboardResult:
+    """Evaluate ``entries`` on ``tasks`` (cached), rank them per track and task, and write the outputs.
+
+    Args:
+        entries: From :func:`resolve_entries`.
+        out_dir: Output folder (``leaderboard.md``, ``leaderboard.csv``, ``entries/*.json``, ``plots/*.png``).
+        cache_dir: Per-episode cache (default ``<out_dir>/cache``; a ``.gitignore`` inside keeps it out of git).
+        tasks: The task suite.
+        episodes: Episodes per (entry, task).
+        force: Recompute every episode (overwriting the cache).
+        trust: Passed to ``make_controller`` (unpickling agents outside ``trained_agents/``).
+        jobs: Worker processes (1: in this process).
+        progress: Show a tqdm progress bar (stderr).
+        plots: Write the PNG plots.
+        backend: How environments, controllers and episodes are made (default :data:`DEFAULT_BACKEND`; tests
+            substitute a fake one).
+        command: The command line, recorded in ``leaderboard.md``.
+
+    Returns:
+        The ranked rows and run statistics.
+
+    Raises:
+        ValueError: No entries, ``episodes < 1``, or evaluation seeds that clash with training seeds.
+    """
+    from tqdm.auto import tqdm
+
+    backend = backend if backend is not None else DEFAULT_BACKEND
+    if not entries:
+        raise ValueError("no entries to evaluate")
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    out = Path(out_dir)
+    cache = Path(cache_dir) if cache_dir is not None else out / "cache"
+    seeds = evaluation_seeds(episodes)
+    check_seed_disjointness(seeds, entries)
+    cache.mkdir(parents=True, exist_ok=True)
+    if not (cache / ".gitignore").exists():
+        (cache / ".gitignore").write_text("*\n", encoding="utf-8")
+
+    all_jobs = plan_jobs(entries, tasks, seeds, cache)
+    results: dict[Path, dict[str, Any]] = {}
+    corrupt: list[Path] = []
+    todo: list[Job] = []
+    for job in all_jobs:
+        if force:
+            todo.append(job)
+            continue
+        try:
+            results[job.path] = read_cached(job.path, job.key)
+        except FileNotFoundError:
+            todo.append(job)
+        except (CorruptCacheError, OSError, UnicodeDecodeError) as exc:
+            log.warning("corrupt cached result %s (%s): recomputing", job.path, exc)
+            corrupt.append(job.path)
+            todo.append(job)
+    n_cached = len(all_jobs) - len(todo)
+    log.info(
+        "leaderboard: %d entries, %d tasks, %d episodes each: %d cached, %d to compute",
+        len(entries),
+        len(tasks),
+        episodes,
+        n_cached,
+        len(todo),
+    )
+    with timing_record() as run_record:  # the run's machine and load (each episode has its own record)
+        bar = tqdm(
+            total=len(all_jobs),
+            initial=n_cached,
+            desc="leaderboard",
+            unit="ep",
+            disable=not progress,
+            mininterval=0.1 if sys.stderr.isatty() else 30.0,  # a log file gets a line every 30 s, not every episode
+        )
+        try:
+            if jobs <= 1 or len(todo) <= 1:
+                try:
+                    for job in todo:
+                        bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
+                        try:
+                            results[job.path] = compute_job(job, backend, trust)
+                        except Exception:
+                            log.error("episode failed: %s on %s, seed %d", job.entry.name, job.task.name, job.seed)
+                            raise
+                        bar.update()
+                finally:
+                    _close_worker_env()
+            else:
+                import multiprocessing
+
+                context = multiprocessing.get_context("spawn")
+                pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init)
+                try:
+                    futures = {pool.submit(compute_job, job, backend, trust): job for job in todo}
+                    for future in as_completed(futures):
+                        job = futures[future]
+                        try:
+                            results[job.path] = future.result()
+                        except Exception:
+                            log.error("episode failed: %s on %s, seed %d", job.entry.name, job.task.name, job.seed)
+                            raise
+                        bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
+                        bar.update()
+                finally:
+                    pool.shutdown(wait=True, cancel_futures=True)
+        finally:
+            bar.close()
+
+    rows = []
+    for entry in entries:
+        for task in tasks:
+            if not entry.runs_on(task):
+                continue
+            episodes_ = [results[j.path] for j in all_jobs if j.entry is entry and j.task is task]
+            rows.append(RankedRow(entry, task, aggregate(episodes_), episodes_))
+    ranked: list[RankedRow] = []
+    for track in TRACKS:
+        for task in tasks:
+            group = [r for r in rows if r.entry.track == track and r.task is task]
+            if group:
+                ranked.extend(rank_rows(group))
+    result = LeaderboardResult(
+        rows=ranked,
+        entries=list(entries),
+        tasks=tuple(tasks),
+        seeds=seeds,
+        computed=len(todo),
+        cached=n_cached,
+        corrupt=corrupt,
+        out_dir=out,
+        timing=run_record,
+    )
+    write_outputs(result, command=command, plots=plots)
+    return result

@@ -1,0 +1,60 @@
+"""``uvdms evaluate``: a baseline name or an agent path over seeded episodes (:func:`leaderboard.registry.evaluate`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``evaluate`` to the ``uvdms`` command."""
+    ev = subparsers.add_parser(
+        "evaluate",
+        help="evaluate a baseline or a trained agent over seeded episodes (JSON metrics)",
+        description="Run a controller (baseline name or agent path) on an environment for N seeded episodes and "
+        "write per-episode metrics and their means as JSON (see uvdms_gym.evaluation).",
+    )
+    ev.add_argument(
+        "--controller",
+        required=True,
+        help="mpc | campc | campc-di | campc-nndi, or a path to an agent (weights-only export, run dir or SB3 zip)",
+    )
+    ev.add_argument("--env", required=True, help="environment id, e.g. uvdms/CircleTrack-v0")
+    ev.add_argument(
+        "--env-kwargs",
+        nargs="*",
+        default=[],
+        metavar="K=V",
+        help="gymnasium.make keyword arguments as YAML literals (case=1 radius=0.15 hydro_randomization=0.3)",
+    )
+    ev.add_argument("--episodes", type=int, default=5, help="number of episodes (seeds S, S+1, ...)")
+    ev.add_argument("--seed", type=int, default=0, help="seed of the first episode")
+    ev.add_argument("--out", default=None, help="JSON file to write (atomically)")
+    ev.add_argument("--save-trajectory", action="store_true", help="include each episode's time series")
+    ev.add_argument("--trust", action="store_true", help="allow unpickling the agent's SB3/VecNormalize files")
+    ev.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ev.set_defaults(func=_cmd_evaluate)
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from leaderboard.registry import evaluate
+    from uvdms_gym.kwargs import check_make_kwargs, parse_kv
+
+    env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
+    check_make_kwargs(args.env, env_kwargs)  # errors are reported by uvdms_cli.main.main as one line
+    result = evaluate(
+        args.controller,
+        args.env,
+        env_kwargs,
+        episodes=args.episodes,
+        seed=args.seed,
+        out=args.out,
+        save_trajectory=args.save_trajectory,
+        progress=not args.no_progress,
+        trust=args.trust,
+    )
+    sys.stdout.write(json.dumps(result["summary"], indent=2, sort_keys=True) + "\n")
+    if args.out:
+        sys.stderr.write(f"wrote {args.out}\n")
+    return 0

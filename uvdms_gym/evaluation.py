@@ -1,0 +1,407 @@
+"""The benchmark's definition of a result: the controller protocol, one episode's metrics and the success rule.
+
+Every competitor (a named baseline, a trained agent, a user's own controller) is evaluated through the same
+:class:`Controller` protocol and :func:`run_episode`; :func:`summarize` averages episodes and
+:func:`evaluate_controller` runs several seeded episodes of a controller factory and writes the JSON result.
+Resolving a controller *name* (``campc``) or *path* (an agent folder) to a controller belongs to the command
+layer (:mod:`uvdms_cli.registry`, ``uvdms evaluate``), not here: this module imports no other package of the
+project.
+:func:`evaluate` runs several seeded episodes of a controller named by a string (a baseline name or an agent
+path), averages them and writes the result to a JSON file atomically. ``uvdms evaluate`` is its command line.
+
+Definitions (per episode):
+
+* samples: the state after :meth:`reset` (``t = 0``) and after every step (``t = k control_dt``);
+* ``return``: sum of the rewards; ``cost``: sum of ``info["cost"]``; ``contacts``: steps with a reported
+  contact (``info["contacts"] > 0``); ``zone_steps``: steps with ``info["cost_zone"]`` (a distance below d1);
+* ``min_distance`` / ``min_distance_by_pair``: minimum over all samples of the 18 distances (m, rows as in
+  ``docs/ARCHITECTURE.md``) — the collision metrics cover the whole run;
+* ``rmse_pos`` (m): over the samples with ``t >= env.unwrapped.tracking_transient`` (5 s for the circle tasks,
+  0 for transport); circle tracking: ``sqrt(mean_k (|e_left|^2 + |e_right|^2) / 2)`` with ``e = y - y_ref`` of each
+  end effector, i.e. the RMS of the two end effectors' position errors; transport: ``sqrt(mean_k |p - p_ref|^2)``
+  of the object position;
+* ``rmse_ori`` (rad, transport only, else ``None``): RMS over the same samples of the rotation angle between the
+  object's orientation and the reference (``info["orientation_error"]``);
+* ``final_pos_error`` (m): ``info["tracking_error"]`` at the last sample (circle: mean of the two end effectors'
+  error norms; transport: object position error); ``final_ori_error`` (rad): transport only;
+* ``success``: the episode was not cut short by a termination (contact, tracking error, physics) and had no
+  contact; circle tracking also needs ``rmse_pos <= 0.03`` m (:data:`CIRCLE_SUCCESS_RMSE`); transport needs
+  ``info["is_success"]`` at the last sample (object within 2 cm and 2 degrees of the goal after the move);
+* ``controller_ms_median``: median wall time of ``controller.predict`` (ms);
+* ``qp_slack_max``: largest collision slack of the MPC over the run (m/s; ``None`` for controllers without a QP,
+  e.g. agents); ``qp_unsolved``: steps whose QP did not reach ``"solved"`` (``None`` likewise);
+* ``steps``, ``terminated``, ``truncated``, ``physics_error`` (the message, or ``None``).
+
+With ``save_trajectory`` an episode also holds ``trajectory``: lists over the samples of ``t``, ``y``, ``y_ref``,
+``distances``, ``eta``, ``nu``, ``q``, ``qdot``, ``action``, ``tau`` (the generalized force applied during the step
+that ended at the sample; zeros at ``t = 0``), ``zeta_cmd`` (the MPC command, ``None`` without an MPC) and
+``nn_output`` (the network's compensation ``Deltahat`` of the dynamic inversion; ``None`` unless the controller
+has one).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from uvdms_gym.io import to_jsonable, write_json_atomic
+from uvdms_gym.provenance import git_info, package_versions, timing_record
+
+EPISODE_KEYS: tuple[str, ...] = (
+    "seed",
+    "return",
+    "cost",
+    "contacts",
+    "zone_steps",
+    "min_distance",
+    "min_distance_by_pair",
+    "rmse_pos",
+    "rmse_ori",
+    "final_pos_error",
+    "final_ori_error",
+    "success",
+    "controller_ms_median",
+    "qp_slack_max",
+    "qp_unsolved",
+    "steps",
+    "terminated",
+    "truncated",
+    "physics_error",
+)
+"""Keys of every episode dict returned by :func:`run_episode` (plus ``trajectory`` with ``save_trajectory``)."""
+
+CIRCLE_SUCCESS_RMSE = 0.03
+"""Circle tracking succeeds with no contact and ``rmse_pos`` at most this (m)."""
+
+TRAJECTORY_KEYS: tuple[str, ...] = (
+    "t",
+    "y",
+    "y_ref",
+    "distances",
+    "eta",
+    "nu",
+    "q",
+    "qdot",
+    "action",
+    "tau",
+    "zeta_cmd",
+    "nn_output",
+)
+"""Keys of an episode's ``trajectory``."""
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """What :func:`run_episode` drives: baselines and trained agents alike.
+
+    The action is in the environment's normalised space ``[-1, 1]^18``. A controller may expose
+    ``last_record`` (a dict with ``max_slack`` and ``status`` of its QP, and more) and ``last_di`` (its network
+    output ``delta_hat``) after each ``predict``; :func:`run_episode` reads them when present.
+    """
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start an episode (called right after ``env.reset(seed=seed)``)."""
+        ...
+
+    def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        """The action (18, in ``[-1, 1]``) for the current observation and ``info``."""
+        ...
+
+
+def is_transport(env: Any) -> bool:
+    """Whether the environment tracks an object pose (transport) rather than end-effector positions."""
+    return bool(getattr(env.unwrapped, "with_object", False))
+
+
+def tracking_rmse(
+    t: np.ndarray, y: np.ndarray, y_ref: np.ndarray, transport: bool, transient: float
+) -> tuple[float, float | None]:
+    """Position and orientation RMSE of a trajectory (definitions in the module docstring).
+
+    Args:
+        t: sample times (N).
+        y: tracked outputs (N, 6): ``[p_left; p_right]`` or the object pose ``[x y z phi theta psi]``.
+        y_ref: references (N, 6), same layout.
+        transport: object pose (``True``) or two end-effector positions.
+        transient: samples with ``t < transient`` are left out.
+
+    Returns:
+        ``(rmse_pos, rmse_ori)``; ``rmse_ori`` is ``None`` for end-effector tracking. ``nan`` if no sample is left.
+    """
+    t, y, y_ref = np.asarray(t, float), np.asarray(y, float), np.asarray(y_ref, float)
+    keep = t >= transient - 1e-9
+    if not keep.any():
+        return math.nan, (math.nan if transport else None)
+    y, y_ref = y[keep], y_ref[keep]
+    if not transport:
+        e = (y - y_ref).reshape(-1, 2, 3)
+        return float(np.sqrt(np.mean(np.sum(e**2, axis=2)))), None
+    from uvdms_gym.frames import euler_to_rot_batch
+
+    pos = float(np.sqrt(np.mean(np.sum((y[:, :3] - y_ref[:, :3]) ** 2, axis=1))))
+    r_rel = np.einsum("nji,njk->nik", euler_to_rot_batch(y_ref[:, 3:]), euler_to_rot_batch(y[:, 3:]))
+    cos_a = np.clip((np.trace(r_rel, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    return pos, float(np.sqrt(np.mean(np.arccos(cos_a) ** 2)))
+
+
+def run_episode(env: Any, controller: Any, seed: int, *, save_trajectory: bool = False) -> dict:
+    """Run one episode of ``controller`` on ``env`` from ``env.reset(seed=seed)`` to termination or truncation.
+
+    Args:
+        env: a UVDMS environment (``gymnasium.make`` result, with its time limit).
+        controller: anything with ``reset(seed)`` and ``predict(obs, info) -> action`` (optional ``last_record``
+            with ``max_slack``/``status``, optional ``last_di`` with the network output).
+        seed: the episode seed (environment and controller).
+        save_trajectory: also return the time series (``trajectory``).
+
+    Returns:
+        A JSON-serialisable dict with the keys of :data:`EPISODE_KEYS` (definitions in the module docstring).
+    """
+    u = env.unwrapped
+    transport = is_transport(env)
+    obs, info = env.reset(seed=seed)
+    controller.reset(seed)
+    n_dis = len(info["distances"])
+    d_min = np.array(info["distances"], dtype=float)
+    ts, ys, refs, ori_err = [info["t"]], [info["y"]], [info["y_ref"]], [info["orientation_error"]]
+    traj: dict[str, list] = {k: [] for k in TRAJECTORY_KEYS}
+
+    def record(info: dict, action: np.ndarray | None, tau: np.ndarray | None) -> None:
+        if not save_trajectory:
+            return
+        rec = getattr(controller, "last_record", None) or {}
+        di = getattr(controller, "last_di", None)
+        traj["t"].append(info["t"])
+        traj["y"].append(info["y"])
+        traj["y_ref"].append(info["y_ref"])
+        traj["distances"].append(info["distances"])
+        traj["eta"].append(info["eta"])
+        traj["nu"].append(info["nu"])
+        traj["q"].append(info["q"])
+        traj["qdot"].append(info["qdot"])
+        traj["action"].append(np.zeros(env.action_space.shape) if action is None else action)
+        traj["tau"].append(np.zeros(18) if tau is None else tau)
+        traj["zeta_cmd"].append(None if action is None or "zeta_cmd" not in rec else rec["zeta_cmd"])
+        traj["nn_output"].append(None if action is None or di is None else di.delta_hat)
+
+    record(info, None, None)
+    ret = cost = 0.0
+    contacts = zone = steps = 0
+    slack_max: float | None = None
+    unsolved: int | None = None
+    times_ms: list[float] = []
+    terminated = truncated = False
+    physics_error = None
+    has_nn = False
+    while True:
+        t0 = time.perf_counter()
+        action = np.asarray(controller.predict(obs, info))
+        times_ms.append((time.perf_counter() - t0) * 1e3)
+        rec = getattr(controller, "last_record", None)
+        if rec and "max_slack" in rec:
+            slack_max = max(slack_max or 0.0, float(rec["max_slack"]))
+            unsolved = (unsolved or 0) + int(rec.get("status", "solved") != "solved")
+        has_nn = has_nn or getattr(controller, "last_di", None) is not None
+        obs, reward, terminated, truncated, info = env.step(action)
+        steps += 1
+        ret += float(reward)
+        cost += float(info["cost"])
+        contacts += int(info["contacts"] > 0)
+        zone += int(info["cost_zone"] > 0)
+        np.minimum(d_min, info["distances"], out=d_min)
+        ts.append(info["t"])
+        ys.append(info["y"])
+        refs.append(info["y_ref"])
+        ori_err.append(info["orientation_error"])
+        record(info, action, info.get("tau"))
+        if info.get("physics_error"):
+            physics_error = str(info["physics_error"])
+        if terminated or truncated:
+            break
+    rmse_pos, rmse_ori = tracking_rmse(np.array(ts), np.array(ys), np.array(refs), transport, u.tracking_transient)
+    if transport:
+        success = bool(info["is_success"])
+    else:
+        success = math.isfinite(rmse_pos) and rmse_pos <= CIRCLE_SUCCESS_RMSE
+    success = success and contacts == 0 and not terminated and physics_error is None
+    out: dict[str, Any] = {
+        "seed": seed,
+        "return": ret,
+        "cost": cost,
+        "contacts": contacts,
+        "zone_steps": zone,
+        "min_distance": float(d_min.min()),
+        "min_distance_by_pair": d_min[:n_dis],
+        "rmse_pos": rmse_pos,
+        "rmse_ori": rmse_ori,
+        "final_pos_error": float(info["tracking_error"]),
+        "final_ori_error": float(info["orientation_error"]) if transport else None,
+        "success": success,
+        "controller_ms_median": float(np.median(times_ms)),
+        "qp_slack_max": slack_max,
+        "qp_unsolved": unsolved,
+        "steps": steps,
+        "terminated": bool(terminated),
+        "truncated": bool(truncated),
+        "physics_error": physics_error,
+    }
+    if save_trajectory:
+        if not has_nn:
+            traj["nn_output"] = None  # type: ignore[assignment]
+        out["trajectory"] = traj
+    return to_jsonable(out)
+
+
+def summarize(episodes: list[dict]) -> dict:
+    """Means over episodes of every numeric (or boolean: the fraction) key, elementwise for lists.
+
+    ``None`` values are left out of a mean; a key that is ``None`` in every episode is ``None``. Also
+    ``episodes`` (count) and ``success_rate`` (= mean of ``success``).
+    """
+    out: dict[str, Any] = {"episodes": len(episodes)}
+    for key in EPISODE_KEYS:
+        if key in ("seed", "physics_error"):
+            continue
+        vals = [ep[key] for ep in episodes if ep.get(key) is not None]
+        if not vals:
+            out[key] = None
+        elif isinstance(vals[0], list):
+            out[key] = np.mean(np.array(vals, dtype=float), axis=0)
+        else:
+            out[key] = float(np.mean(np.array(vals, dtype=float)))
+    out["success_rate"] = out.get("success")
+    out["physics_errors"] = sum(ep.get("physics_error") is not None for ep in episodes)
+    return to_jsonable(out)
+
+
+def controller_settings(controller: Any) -> dict:
+    """The configuration of a baseline (MPC and DI dataclasses as dicts) or an agent's description."""
+    from dataclasses import asdict, is_dataclass
+
+    out: dict[str, Any] = {"class": type(controller).__name__}
+    mpc = getattr(controller, "mpc", None)
+    if mpc is not None and is_dataclass(getattr(mpc, "config", None)):
+        out["mpc"] = asdict(mpc.config)
+    di = getattr(controller, "di", None)
+    if di is not None and is_dataclass(getattr(di, "config", None)):
+        out["di"] = asdict(di.config)
+    for attr in ("algo", "env_id", "num_timesteps", "source"):
+        if hasattr(controller, attr):
+            out[attr] = getattr(controller, attr)
+    return to_jsonable(out)
+
+
+def evaluate_controller(
+    make_controller: Callable[[Any], Any],
+    env_id: str,
+    env_kwargs: dict | None = None,
+    episodes: int = 5,
+    seed: int = 0,
+    *,
+    label: str = "controller",
+    out: str | None = None,
+    save_trajectory: bool = False,
+    progress: bool = True,
+    check: Callable[[Any, Any], None] | None = None,
+) -> dict:
+    """Evaluate the controller ``make_controller(env)`` over ``episodes`` seeded episodes (``seed, seed + 1, ...``).
+
+    Args:
+        make_controller: Builds the controller for the environment (called once, inside the timed block).
+        env_id: Gymnasium id, e.g. ``"uvdms/CircleTrack-v0"``.
+        env_kwargs: ``gymnasium.make`` keyword arguments (the effective ones are recorded in ``meta``).
+        episodes: Number of episodes (>= 1).
+        seed: Seed of the first episode.
+        label: What ``meta["controller"]`` records (a baseline name, an agent path) and the progress bar shows.
+        out: JSON file to write (:func:`uvdms_gym.io.write_json_atomic`); ``None`` writes nothing.
+        save_trajectory: Keep each episode's time series.
+        progress: Show a tqdm progress bar.
+        check: Called as ``check(controller, env)`` before the first episode (raises on a mismatch).
+
+    Returns:
+        ``{"episodes": [...], "summary": {...}, "meta": {...}}``; ``meta`` holds the controller label, env id,
+        effective env kwargs, seeds, package versions, git revision, wall time, the machine and the load
+        around the timed episodes (``timing``: :func:`uvdms_gym.provenance.timing_record`; the per-episode
+        ``controller_ms_median`` is only comparable between runs with ``overloaded`` false on the same
+        machine) and the controller's settings (:func:`controller_settings`).
+
+    Raises:
+        ValueError: ``episodes < 1``, or what ``make_controller`` and ``check`` raise.
+    """
+    import gymnasium as gym
+
+    import uvdms_gym  # noqa: F401  (registers the environments)
+
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    kwargs = dict(env_kwargs or {})
+    seeds = [int(seed) + i for i in range(episodes)]
+    env = gym.make(env_id, **kwargs)
+    try:
+        with timing_record() as timing:
+            t_start = time.perf_counter()
+            controller = make_controller(env)
+            if check is not None:
+                check(controller, env)
+            bar = None
+            if progress:
+                from tqdm.auto import tqdm
+
+                bar = tqdm(seeds, desc=f"{label} on {env_id}", unit="ep", leave=False)
+            results = []
+            for s in bar if bar is not None else seeds:
+                ep = run_episode(env, controller, s, save_trajectory=save_trajectory)
+                results.append(ep)
+                if bar is not None:
+                    rmse = f"{ep['rmse_pos']:.4f}" if ep["rmse_pos"] is not None else "nan"
+                    bar.set_postfix(rmse=rmse, c=ep["contacts"])
+            if bar is not None:
+                bar.close()
+            wall_s = time.perf_counter() - t_start
+        settings = controller_settings(controller)
+    finally:
+        env.close()
+    result = {
+        "episodes": results,
+        "summary": summarize(results),
+        "meta": to_jsonable(
+            {
+                "controller": label,
+                "env_id": env_id,
+                "env_kwargs": kwargs,
+                "episodes": episodes,
+                "seeds": seeds,
+                "versions": package_versions(),
+                "git": git_info(),
+                "wall_s": wall_s,
+                "timing": timing,
+                "controller_settings": settings,
+            }
+        ),
+    }
+    if out is not None:
+        write_json_atomic(out, result)
+    return result
+
+
+def check_action_mode(name: str, env: Any, required: str) -> None:
+    """Check that ``env`` has the action mode a controller needs.
+
+    Args:
+        name: The controller, for the message (``"campc-nndi"``, ``"agent runs/sac_0"``).
+        env: The environment (wrapped or not).
+        required: ``"velocity"`` or ``"torque"``.
+
+    Raises:
+        ValueError: The modes differ (the message says how to create the right environment).
+    """
+    mode = getattr(env.unwrapped, "action_mode", None)
+    if mode != required:
+        raise ValueError(
+            f"controller {name!r} needs action_mode={required!r} but the environment has action_mode={mode!r}; "
+            f"create it with env_kwargs action_mode={required}"
+        )
