@@ -145,7 +145,10 @@ class LinearSchedule:
 class TrainConfig:
     """One validated training configuration (an entry of ``train_configs/<algo>.yml``).
 
-    Frequencies are in environment steps summed over all training environments.
+    Frequencies are in environment steps summed over all training environments. In ``train_configs/`` the
+    fields RL Zoo has no entry key for are written its way (:mod:`agents.zoo`): ``alive_bonus`` and
+    ``action_scale`` as ``env_wrapper`` entries, ``action_init_scale`` as a ``callback`` entry, the evaluation,
+    checkpoint and replay-buffer options under ``train_options``; a run's ``config.yml`` holds the flat fields.
 
     Attributes:
         algo: Algorithm name (key of :data:`agents.algos.ALGOS`); not a YAML key (comes from the file).
@@ -167,7 +170,7 @@ class TrainConfig:
         save_replay_buffer: Save the replay buffer with the final model and the latest checkpoint, so that
             ``--resume`` continues with a filled buffer. The file holds the whole allocated buffer, so the
             training script caps ``buffer_size`` at the transitions the run can store (and grows it on resume;
-            :func:`agents.train.replay_buffer_size`): about 0.7 kB per step for the uvdms envs.
+            :func:`agents.models.replay_buffer_size`): about 0.7 kB per step for the uvdms envs.
         max_episode_steps: Episode length limit passed to ``gymnasium.make`` for training and evaluation
             environments (``None``: the registered limit). Useful for short test runs.
         alive_bonus: Constant added to every training/evaluation-callback reward (a training-side shaping

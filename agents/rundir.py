@@ -16,10 +16,15 @@ import os
 import re
 import shutil
 import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
+
+from agents.envs import EVAL_SEED_OFFSET, SEGMENT_SEED_STRIDE
+from uvdms_gym.provenance import git_info, package_versions
 
 log = logging.getLogger("agents.train")
 
@@ -125,6 +130,66 @@ def save_final(run_dir: Path, model: BaseAlgorithm, save_replay_buffer: bool) ->
         vec_normalize.save(str(run_dir / "vecnormalize.pkl"))
     if save_replay_buffer and getattr(model, "replay_buffer", None) is not None:
         model.save_replay_buffer(str(run_dir / "replay_buffer.pkl"))
+
+
+def create_run_dir(
+    run_dir: Path,
+    algo: str,
+    env_id: str,
+    seed: int,
+    gym_packages: Sequence[str],
+    config_source: str | Path,
+    cfg: Any,
+) -> Path:
+    """Create a fresh run directory with its ``config.yml`` and a ``meta.json`` without segments.
+
+    Args:
+        run_dir: The directory (:func:`run_dir_for`).
+        algo: Algorithm name.
+        env_id: Environment id.
+        seed: Base seed.
+        gym_packages: Packages that register the env id.
+        config_source: The config file the entry came from.
+        cfg: The resolved ``agents.config.TrainConfig`` (written flat, ``cfg.to_entry()``).
+
+    Returns:
+        ``run_dir``.
+
+    Raises:
+        RunDirError: The directory exists and is not empty.
+    """
+    if run_dir.exists() and any(run_dir.iterdir()):
+        if latest_checkpoint(run_dir) is None:
+            raise RunDirError(
+                f"run directory {run_dir} exists but holds no model (a run still starting, or one killed before "
+                "its first checkpoint: see its meta.json); delete it or use another --seed/--out"
+            )
+        raise RunDirError(f"run directory {run_dir} exists; use --resume {run_dir} or another --seed/--out")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    resolved = {
+        "algo": algo,
+        "env_id": env_id,
+        "seed": seed,
+        "gym_packages": list(gym_packages),
+        "config_source": str(config_source),
+        "config": cfg.to_entry(),
+    }
+    (run_dir / "config.yml").write_text(yaml.safe_dump(resolved, sort_keys=False), encoding="utf-8")
+    meta = {
+        "algo": algo,
+        "env_id": env_id,
+        "seed": seed,
+        "seed_scheme": {
+            "train_env": f"seed + {SEGMENT_SEED_STRIDE} * segment + rank",
+            "model": f"seed + {SEGMENT_SEED_STRIDE} * segment",
+            "eval_env": f"seed + {EVAL_SEED_OFFSET} + rank (reset before every evaluation)",
+        },
+        "versions": package_versions(),
+        "git": git_info(),
+        "segments": [],
+    }
+    _write_json(run_dir / "meta.json", meta)
+    return run_dir
 
 
 def _existing(path: Path) -> Path | None:

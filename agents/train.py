@@ -86,6 +86,7 @@ from agents.rundir import (
     Checkpoint,
     RunDirError,
     _write_json,
+    create_run_dir,
     latest_checkpoint,
     remove_if_no_model,
     run_dir_for,
@@ -205,38 +206,9 @@ def train(
         entry["n_timesteps"] = total_timesteps
     cfg = parse_entry(entry, algo, source=f"{config_path} + command line", entry_name=env_id)
 
-    run_dir = run_dir_for(out_dir, env_id, algo, seed)
-    if run_dir.exists() and any(run_dir.iterdir()):
-        if latest_checkpoint(run_dir) is None:
-            raise RunDirError(
-                f"run directory {run_dir} exists but holds no model (a run still starting, or one killed before "
-                "its first checkpoint: see its meta.json); delete it or use another --seed/--out"
-            )
-        raise RunDirError(f"run directory {run_dir} exists; use --resume {run_dir} or another --seed/--out")
-    run_dir.mkdir(parents=True, exist_ok=True)
-    resolved = {
-        "algo": algo,
-        "env_id": env_id,
-        "seed": seed,
-        "gym_packages": list(gym_packages),
-        "config_source": str(config_path),
-        "config": cfg.to_entry(),
-    }
-    (run_dir / "config.yml").write_text(yaml.safe_dump(resolved, sort_keys=False), encoding="utf-8")
-    meta = {
-        "algo": algo,
-        "env_id": env_id,
-        "seed": seed,
-        "seed_scheme": {
-            "train_env": f"seed + {SEGMENT_SEED_STRIDE} * segment + rank",
-            "model": f"seed + {SEGMENT_SEED_STRIDE} * segment",
-            "eval_env": f"seed + {EVAL_SEED_OFFSET} + rank (reset before every evaluation)",
-        },
-        "versions": package_versions(),
-        "git": git_info(),
-        "segments": [],
-    }
-    _write_json(run_dir / "meta.json", meta)
+    run_dir = create_run_dir(
+        run_dir_for(out_dir, env_id, algo, seed), algo, env_id, seed, gym_packages, config_path, cfg
+    )
     command = [
         "python",
         "-m",

@@ -215,3 +215,47 @@ def test_rl_zoo_trains_from_the_shipped_sac_config(tmp_path):
         {"agents.wrappers.AliveBonus": {"bonus": 2.0}},
     ]
     assert hyperparams["callback"] == [{"agents.callbacks.ScaleInitialActions": {"scale": 0.01}}]
+
+
+@pytest.mark.parametrize("algo", sorted(ALGOS))
+def test_scale_initial_actions_callback_scales_like_the_trainer(algo):
+    """RL Zoo applies ``action_init_scale`` through the callback; agents.train calls scale_action_layer directly."""
+    import gymnasium as gym
+    import torch
+
+    from agents.callbacks import ScaleInitialActions
+    from agents.models import scale_action_layer
+
+    def fresh():
+        return ALGOS[algo]("MlpPolicy", gym.make("Pendulum-v1"), policy_kwargs={"net_arch": [8]}, seed=3)
+
+    direct, through_callback, untouched = fresh(), fresh(), fresh()
+    scale_action_layer(direct, 0.1)
+    ScaleInitialActions(scale=0.1).init_callback(through_callback)
+    a, b, c = (m.policy.state_dict() for m in (direct, through_callback, untouched))
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert any(not torch.equal(a[k], c[k]) for k in a)  # the layer did change
+    trained = fresh()
+    trained.num_timesteps = 10  # a model that has trained (RL Zoo's --trained-agent) is left alone
+    ScaleInitialActions(scale=0.1).init_callback(trained)
+    assert all(torch.equal(v, c[k]) for k, v in trained.policy.state_dict().items())
+    with pytest.raises(ValueError, match="scale"):
+        ScaleInitialActions(scale=0.0)
+
+
+def test_kv_parser_names_option_and_key():
+    from agents.train import parse_key_values as agents_parser
+    from uvdms_gym.kv import parse_key_values
+
+    items = ["case=1", "radius=0.15", "goal=paper", "left_center=[1, 0, 2]", "name=", "flag=true"]
+    expected = {"case": 1, "radius": 0.15, "goal": "paper", "left_center": [1, 0, 2], "name": "", "flag": True}
+    assert parse_key_values(items, "--env-kwargs") == expected == agents_parser(items)
+    assert parse_key_values(None, "--x") == {}
+    with pytest.raises(ValueError, match=r"--hyperparams: expected key=value .*'novalue'"):
+        parse_key_values(["novalue"], "--hyperparams")
+    with pytest.raises(ValueError, match="--env-kwargs: expected key=value"):
+        parse_key_values(["2x=1"], "--env-kwargs")
+    with pytest.raises(ValueError, match=r"--env-kwargs: the value of 'radius' \('\{'\) is not a YAML literal"):
+        parse_key_values(["radius={"], "--env-kwargs")
+    with pytest.raises(ConfigError, match="--hyperparams: the value of 'lr'"):
+        agents_parser(["lr=[1"], "--hyperparams")
