@@ -1,6 +1,10 @@
 """Train a Stable-Baselines3 agent on a Gymnasium environment from a YAML configuration.
 
-Library entry point: :func:`train`; command line: ``python -m agents.train`` (:func:`main`).
+Library entry point: :func:`train`; command line: ``python -m agents.train`` (:func:`main`). The parts live in
+:mod:`agents.envs` (env construction, seeds), :mod:`agents.callbacks`, :mod:`agents.models` (replay buffer,
+action-layer scaling) and :mod:`agents.rundir` (run directories, checkpoints); their public names are
+re-exported here. The same ``train_configs/<algo>.yml`` also train with ``python -m rl_zoo3.train``
+(:mod:`agents.zoo`).
 
 Run directory ``<out>/<env id, '/' and ':' replaced by '_'>/<algo>_<seed>/``::
 
