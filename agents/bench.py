@@ -14,7 +14,7 @@ medians (``speedup_2_dummy_vs_1`` likewise). The load average before and after i
 timings taken beside other jobs are only indicative.
 
 Threads: the trainer runs ``torch.set_num_threads(1)`` (as :func:`agents.train.train` does), and each env
-worker sets it too (:class:`agents.train.EnvFactory`). With 2 envs on 2 cores the two workers step the
+worker sets it too (:class:`agents.envs.EnvFactory`). With 2 envs on 2 cores the two workers step the
 physics while the trainer waits for them, then the trainer runs inference or an update while the workers
 wait: at most two busy processes at a time, so one torch thread per process does not oversubscribe the cores.
 """
@@ -39,13 +39,14 @@ CONFIGURATIONS: tuple[tuple[str, int, str], ...] = (("1", 1, "dummy"), ("2", 2, 
 def _build(algo: str, n_envs: int, vec_env: str, total_steps: int, seed: int = 0) -> Any:
     """A model of ``train_configs/<algo>.yml`` on ``n_envs`` training envs of type ``vec_env``.
 
-    ``total_steps`` caps the replay buffer (:func:`agents.train.replay_buffer_size`).
+    ``total_steps`` caps the replay buffer (:func:`agents.models.replay_buffer_size`).
     """
     from stable_baselines3.common.vec_env import VecNormalize
 
     from agents.algos import ALGOS, is_off_policy
     from agents.config import default_config_path, load_config
-    from agents.train import EnvFactory, _configured_buffer_size, _make_vec_env, replay_buffer_size
+    from agents.envs import EnvFactory, make_vec_env
+    from agents.models import configured_buffer_size, replay_buffer_size
 
     overrides: dict[str, Any] = {"n_envs": n_envs, "env_kwargs": {"action_mode": "velocity", **BENCH_ENV_KWARGS}}
     if is_off_policy(algo):
@@ -55,13 +56,13 @@ def _build(algo: str, n_envs: int, vec_env: str, total_steps: int, seed: int = 0
         EnvFactory(BENCH_ENV, cfg.env_kwargs, alive_bonus=cfg.alive_bonus, action_scale=cfg.action_scale)
         for _ in range(n_envs)
     ]
-    venv = _make_vec_env(factories, vec_env)
+    venv = make_vec_env(factories, vec_env)
     normalize_kwargs = cfg.normalize_kwargs()
     if normalize_kwargs is not None:
         venv = VecNormalize(venv, **normalize_kwargs)
     kwargs = cfg.sb3_hyperparams()
     if is_off_policy(algo):
-        kwargs["buffer_size"] = replay_buffer_size(_configured_buffer_size(cfg), n_envs, total_steps)
+        kwargs["buffer_size"] = replay_buffer_size(configured_buffer_size(cfg), n_envs, total_steps)
     return ALGOS[algo](cfg.policy, venv, policy_kwargs=cfg.sb3_policy_kwargs(), seed=seed, verbose=0, **kwargs)
 
 

@@ -1,41 +1,47 @@
-"""Training configurations: RL-Zoo-shaped YAML files validated into typed dataclasses.
+"""Training configurations: RL-Zoo hyperparameter files validated into typed :class:`TrainConfig` dataclasses.
 
-A file ``train_configs/<algo>.yml`` is a mapping from Gymnasium environment ids to *entries*, plus an
-optional ``default`` entry. The entry used for an environment is the ``default`` entry shallow-merged with
-the environment's own entry (the environment's keys win; ``policy_kwargs`` etc. are replaced, not merged).
-YAML anchors and merge keys (``<<: *anchor``) work as usual. Example::
+A file ``train_configs/<algo>.yml`` is an RL Baselines3 Zoo hyperparameter file: a mapping from Gymnasium
+environment ids to *entries*, plus an optional ``default`` entry and an optional ``train_options`` mapping
+(:mod:`agents.zoo`). The entry used for an environment is the ``default`` entry shallow-merged with the
+environment's own entry (the environment's keys win; ``policy_kwargs`` etc. are replaced, not merged). RL Zoo
+itself only reads the env's entry, so the shipped files write each env entry as ``<<: *default`` (a YAML merge
+key: the same shallow merge) and both trainers see the same keys. Example::
 
-    default:
+    default: &default
       n_timesteps: 1000000
       n_envs: 2
       normalize: {norm_obs: true, norm_reward: false}
       learning_rate: 3.0e-4           # algorithm hyperparameters sit beside the fields below
-      policy_kwargs: {net_arch: [256, 256], activation_fn: relu}
+      policy_kwargs: {net_arch: [256, 256]}
     uvdms/CircleTrack-v0:
+      <<: *default
       n_timesteps: 2000000
+      env_wrapper: [{agents.wrappers.AliveBonus: {bonus: 2.0}}]
+    train_options:                    # what RL Zoo takes from its command line (--eval-freq, --env-kwargs ...)
+      uvdms/CircleTrack-v0: {eval_freq: 20000, env_kwargs: {case: random}}
 
-Keys of an entry are the fields of :class:`TrainConfig` (except ``algo`` and ``hyperparams``) or keyword
-arguments of the algorithm class (``SAC.__init__`` etc.), which are collected into
-``TrainConfig.hyperparams``. Every value is type-checked against the dataclass field or the SB3
-annotation; unknown keys and wrong types raise :class:`ConfigError` naming the key and the file.
-Classes are written as whitelisted names (``activation_fn: tanh``), schedules as ``lin_<initial value>``
-(RL-Zoo convention: linear decay to zero), action noise as ``noise_type``/``noise_std``. Nothing is ever
-evaluated. YAML 1.1 reads ``3e-4`` (no dot) as a string; numeric strings are accepted for numeric keys.
+Keys of an entry are the fields of :class:`TrainConfig` (except ``algo`` and ``hyperparams``), RL Zoo's
+``env_wrapper``/``callback`` lists naming the project's wrappers and callbacks (:mod:`agents.zoo` turns them
+into ``action_scale``, ``alive_bonus``, ``action_init_scale``), or keyword arguments of the algorithm class
+(``SAC.__init__`` etc.), which are collected into ``TrainConfig.hyperparams``. Every value is type-checked
+against the dataclass field or the SB3 annotation (:mod:`agents.typecheck`); unknown keys and wrong types raise
+:class:`ConfigError` naming the key and the file. Classes are written as whitelisted names
+(``activation_fn: tanh``), schedules as ``lin_<initial value>`` (RL-Zoo convention: linear decay to zero),
+action noise as ``noise_type``/``noise_std`` (RL Zoo's keys). Nothing is ever evaluated or imported. YAML 1.1
+reads ``3e-4`` (no dot) as a string; numeric strings are accepted for numeric keys.
 """
 
 from __future__ import annotations
 
-import collections.abc
 import dataclasses
 import inspect
 import math
 import re
-import types
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, Union
+from typing import Any
 
 import numpy as np
 import torch
@@ -47,6 +53,17 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from agents.algos import ALGOS, is_off_policy
 from agents.paths import train_configs_dir
+from agents.typecheck import (
+    ConfigError,
+    TypeChecker,
+    accepts_tuple,
+    close_matches,
+    copy_plain,
+    plain,
+    tname,
+)
+from agents.wrappers import is_unit_scale
+from agents.zoo import TRAIN_OPTIONS, flatten_entry, train_options
 
 DEFAULT_ENTRY = "default"
 
@@ -105,12 +122,8 @@ _MANAGED_POLICY_KWARGS = {
 }
 _VECNORMALIZE_MANAGED = {"venv", "training"}
 
-_NUMBER_RE = re.compile(r"^[-+]?(\d[\d_]*(\.\d*)?|\.\d+)([eE][-+]?\d+)?$")
 _SCHEDULE_RE = re.compile(r"^lin_(.+)$")
-
-
-class ConfigError(ValueError):
-    """Invalid training configuration (unknown key, wrong type, missing entry, bad file)."""
+_CHECKER = TypeChecker(_CLASS_WHITELISTS, _SCHEDULE_RE, "a schedule string 'lin_<initial value>'")
 
 
 @dataclass(frozen=True)
@@ -132,7 +145,10 @@ class LinearSchedule:
 class TrainConfig:
     """One validated training configuration (an entry of ``train_configs/<algo>.yml``).
 
-    Frequencies are in environment steps summed over all training environments.
+    Frequencies are in environment steps summed over all training environments. In ``train_configs/`` the
+    fields RL Zoo has no entry key for are written its way (:mod:`agents.zoo`): ``alive_bonus`` and
+    ``action_scale`` as ``env_wrapper`` entries, ``action_init_scale`` as a ``callback`` entry, the evaluation,
+    checkpoint and replay-buffer options under ``train_options``; a run's ``config.yml`` holds the flat fields.
 
     Attributes:
         algo: Algorithm name (key of :data:`agents.algos.ALGOS`); not a YAML key (comes from the file).
@@ -154,7 +170,7 @@ class TrainConfig:
         save_replay_buffer: Save the replay buffer with the final model and the latest checkpoint, so that
             ``--resume`` continues with a filled buffer. The file holds the whole allocated buffer, so the
             training script caps ``buffer_size`` at the transitions the run can store (and grows it on resume;
-            :func:`agents.train.replay_buffer_size`): about 0.7 kB per step for the uvdms envs.
+            :func:`agents.models.replay_buffer_size`): about 0.7 kB per step for the uvdms envs.
         max_episode_steps: Episode length limit passed to ``gymnasium.make`` for training and evaluation
             environments (``None``: the registered limit). Useful for short test runs.
         alive_bonus: Constant added to every training/evaluation-callback reward (a training-side shaping
@@ -199,8 +215,8 @@ class TrainConfig:
         for f in dataclasses.fields(self):
             if f.name in ("algo", "hyperparams"):
                 continue
-            entry[f.name] = _copy_plain(getattr(self, f.name))
-        entry.update(_copy_plain(self.hyperparams))
+            entry[f.name] = copy_plain(getattr(self, f.name))
+        entry.update(copy_plain(self.hyperparams))
         return entry
 
     def normalize_kwargs(self) -> dict[str, Any] | None:
@@ -230,11 +246,11 @@ class TrainConfig:
         params = inspect.signature(ALGOS[self.algo].__init__).parameters
         out: dict[str, Any] = {}
         for key, value in self.hyperparams.items():
-            if isinstance(value, str) and _accepts_callable(params[key].annotation):
+            if isinstance(value, str) and _CHECKER.accepts_callable(params[key].annotation):
                 match = _SCHEDULE_RE.match(value)
                 if match:
                     value = LinearSchedule(float(match.group(1)))
-            if isinstance(value, list) and _accepts_tuple(params[key].annotation):
+            if isinstance(value, list) and accepts_tuple(params[key].annotation):
                 value = tuple(value)
             out[key] = value
         return out
@@ -284,14 +300,14 @@ def read_config_file(path: str | Path) -> dict[str, dict[str, Any]]:
     if data is None:
         data = {}
     if not isinstance(data, dict):
-        raise ConfigError(f"{path}: top level must be a mapping of env id -> entry, got {_tname(data)}")
+        raise ConfigError(f"{path}: top level must be a mapping of env id -> entry, got {tname(data)}")
     for key, entry in data.items():
         if not isinstance(key, str):
             raise ConfigError(f"{path}: top-level key {key!r} must be an env id string")
         if entry is None:
             data[key] = {}
         elif not isinstance(entry, dict):
-            raise ConfigError(f"{path}: entry {key!r} must be a mapping, got {_tname(entry)}")
+            raise ConfigError(f"{path}: entry {key!r} must be a mapping, got {tname(entry)}")
     return data
 
 
@@ -319,14 +335,14 @@ def load_config(
     """
     _check_algo(algo, str(path))
     entries = read_config_file(path)
-    for name in entries:
-        parse_entry(_merged(entries, name), algo, source=str(path), entry_name=name)
+    for name in _entry_names(entries):
+        parse_entry(_merged(entries, name, str(path)), algo, source=str(path), entry_name=name)
     if env_id not in entries and DEFAULT_ENTRY not in entries:
         raise ConfigError(f"{path}: no entry for env {env_id!r} and no {DEFAULT_ENTRY!r} entry")
-    entry = _merged(entries, env_id)
+    entry = _merged(entries, env_id, str(path))
     name = env_id if env_id in entries else DEFAULT_ENTRY
     if overrides:
-        entry.update(overrides)
+        entry.update(flatten_entry(overrides, f"{path}: overrides"))
         name = f"{name} + overrides"
     return parse_entry(entry, algo, source=str(path), entry_name=name)
 
@@ -344,7 +360,10 @@ def validate_config_file(path: str | Path, algo: str | None = None) -> dict[str,
     algo = algo if algo is not None else Path(path).stem
     _check_algo(algo, str(path))
     entries = read_config_file(path)
-    return {name: parse_entry(_merged(entries, name), algo, source=str(path), entry_name=name) for name in entries}
+    return {
+        name: parse_entry(_merged(entries, name, str(path)), algo, source=str(path), entry_name=name)
+        for name in _entry_names(entries)
+    }
 
 
 def parse_entry(
@@ -369,6 +388,7 @@ def parse_entry(
     """
     where = f"{source}: entry {entry_name!r}"
     _check_algo(algo, source)
+    entry = flatten_entry(entry, where)
     algo_cls = ALGOS[algo]
     hints = typing.get_type_hints(TrainConfig)
     yaml_fields = [f.name for f in dataclasses.fields(TrainConfig) if f.name not in ("algo", "hyperparams")]
@@ -380,13 +400,13 @@ def parse_entry(
         if not isinstance(key, str):
             raise ConfigError(f"{where}: key {key!r} must be a string")
         if key in yaml_fields:
-            values[key] = _validate(value, hints[key], where, key)
+            values[key] = _CHECKER.validate(value, hints[key], where, key)
         elif key in _MANAGED_HYPERPARAMS:
             raise ConfigError(f"{where}: key {key!r} cannot be set here ({_MANAGED_HYPERPARAMS[key]})")
         elif key in algo_params and key != "self":
-            hyperparams[key] = _validate(value, algo_params[key].annotation, where, key)
+            hyperparams[key] = _CHECKER.validate(value, algo_params[key].annotation, where, key)
         else:
-            close = _close_matches(key, [*yaml_fields, *algo_params])
+            close = close_matches(key, [*yaml_fields, *algo_params])
             raise ConfigError(
                 f"{where}: unknown key {key!r} (neither a TrainConfig field nor a {algo_cls.__name__} argument){close}"
             )
@@ -447,167 +467,8 @@ def plain_policy_kwargs(policy_kwargs: Mapping[str, Any]) -> dict[str, Any]:
             else:
                 raise ConfigError(f"policy_kwargs {key!r}: class {value.__qualname__} is not whitelisted")
         else:
-            out[key] = _plain(value, f"policy_kwargs {key!r}")
+            out[key] = plain(value, f"policy_kwargs {key!r}")
     return out
-
-
-# ------------------------------------------------------------------------------------------------------
-# Validation helpers
-# ------------------------------------------------------------------------------------------------------
-class _Mismatch(Exception):
-    """A value does not match an annotation (message: what was expected)."""
-
-
-def _validate(value: Any, annotation: Any, where: str, key: str) -> Any:
-    try:
-        return _check(value, annotation, coerce=False)
-    except _Mismatch:
-        pass
-    try:
-        return _check(value, annotation, coerce=True)
-    except _Mismatch as exc:
-        raise ConfigError(f"{where}: key {key!r}: expected {exc}, got {_tname(value)} {_short(value)}") from None
-
-
-def _check(value: Any, ann: Any, coerce: bool) -> Any:
-    if ann is Any or ann is inspect.Parameter.empty:
-        try:
-            return _plain(value, "value")
-        except ConfigError as exc:
-            raise _Mismatch("plain YAML data") from exc
-    if ann is type(None) or ann is None:
-        if value is None:
-            return None
-        raise _Mismatch("null")
-    origin = typing.get_origin(ann)
-    if origin in (Union, types.UnionType):
-        members = typing.get_args(ann)
-        for member in members:
-            try:
-                return _check(value, member, coerce=False)
-            except _Mismatch:
-                pass
-        if coerce:
-            for member in members:
-                try:
-                    return _check(value, member, coerce=True)
-                except _Mismatch:
-                    pass
-        raise _Mismatch(" or ".join(d for d in (_describe(m) for m in members) if d))
-    if ann is bool:
-        if isinstance(value, bool):
-            return value
-        raise _Mismatch("bool")
-    if ann is int:
-        if isinstance(value, int) and not isinstance(value, bool):
-            return value
-        if coerce:
-            number = _as_number(value)
-            if number is not None and math.isfinite(number) and float(number).is_integer():
-                return int(number)
-        raise _Mismatch("int")
-    if ann is float:
-        if isinstance(value, int | float) and not isinstance(value, bool):
-            return float(value)
-        if coerce:
-            number = _as_number(value)
-            if number is not None:
-                return float(number)
-        raise _Mismatch("float")
-    if ann is str:
-        if isinstance(value, str):
-            return value
-        raise _Mismatch("str")
-    if origin is Literal:
-        if value in typing.get_args(ann):
-            return value
-        raise _Mismatch(_describe(ann))
-    if origin in (list, collections.abc.Sequence):
-        (item,) = typing.get_args(ann) or (Any,)
-        if isinstance(value, list):
-            return [_check(v, item, coerce) for v in value]
-        raise _Mismatch(_describe(ann))
-    if origin is tuple:
-        args = typing.get_args(ann)
-        if isinstance(value, list | tuple):
-            if len(args) == 2 and args[1] is Ellipsis:
-                return [_check(v, args[0], coerce) for v in value]
-            if len(value) == len(args):
-                return [_check(v, a, coerce) for v, a in zip(value, args)]
-        raise _Mismatch(_describe(ann))
-    if origin in (dict, collections.abc.Mapping):
-        key_t, val_t = typing.get_args(ann) or (str, Any)
-        if isinstance(value, dict):
-            return {_check(k, key_t, False): _check(v, val_t, coerce) for k, v in value.items()}
-        raise _Mismatch(_describe(ann))
-    if ann is collections.abc.Callable or origin is collections.abc.Callable:
-        if isinstance(value, str):
-            match = _SCHEDULE_RE.match(value)
-            if match and _as_number(match.group(1)) is not None:
-                return value
-        raise _Mismatch(_describe(ann))
-    if origin is type:
-        table = _class_whitelist(ann)
-        if table is not None and value in table:
-            return value
-        raise _Mismatch(_describe(ann))
-    raise _Mismatch(_describe(ann))
-
-
-def _describe(ann: Any) -> str:
-    if ann is type(None) or ann is None:
-        return "null"
-    origin = typing.get_origin(ann)
-    if origin in (Union, types.UnionType):
-        return " or ".join(d for d in (_describe(m) for m in typing.get_args(ann)) if d)
-    if ann in (bool, int, float, str):
-        return ann.__name__
-    if origin is Literal:
-        return "one of " + ", ".join(repr(a) for a in typing.get_args(ann))
-    if origin in (list, collections.abc.Sequence):
-        (item,) = typing.get_args(ann) or (Any,)
-        return f"a list of {_describe(item)}"
-    if origin is tuple:
-        return "a list [" + ", ".join(_describe(a) for a in typing.get_args(ann) if a is not Ellipsis) + "]"
-    if origin in (dict, collections.abc.Mapping):
-        return "a mapping"
-    if ann is collections.abc.Callable or origin is collections.abc.Callable:
-        return "a schedule string 'lin_<initial value>'"
-    if origin is type:
-        table = _class_whitelist(ann)
-        if table is not None:
-            return "one of " + ", ".join(repr(k) for k in table)
-        return ""  # a class that cannot be written in YAML
-    if ann is Any:
-        return "plain data"
-    return ""  # objects (action noise, torch.device, ...) cannot be written in YAML
-
-
-def _class_whitelist(ann: Any) -> dict[str, type] | None:
-    (base,) = typing.get_args(ann) or (None,)
-    if not isinstance(base, type):
-        return None
-    for root, table in _CLASS_WHITELISTS:
-        if issubclass(base, root) or issubclass(root, base):
-            if all(issubclass(cls, base) for cls in table.values()):
-                return table
-    return None
-
-
-def _accepts_callable(ann: Any) -> bool:
-    if ann is collections.abc.Callable or typing.get_origin(ann) is collections.abc.Callable:
-        return True
-    if typing.get_origin(ann) in (Union, types.UnionType):
-        return any(_accepts_callable(a) for a in typing.get_args(ann))
-    return False
-
-
-def _accepts_tuple(ann: Any) -> bool:
-    if typing.get_origin(ann) is tuple:
-        return True
-    if typing.get_origin(ann) in (Union, types.UnionType):
-        return any(_accepts_tuple(a) for a in typing.get_args(ann))
-    return False
 
 
 def _validate_policy_kwargs(kwargs: dict[str, Any], algo: str, policy: str, where: str) -> dict[str, Any]:
@@ -619,9 +480,9 @@ def _validate_policy_kwargs(kwargs: dict[str, Any], algo: str, policy: str, wher
         if key in _MANAGED_POLICY_KWARGS:
             raise ConfigError(f"{where}: key {full_key!r} cannot be set here ({_MANAGED_POLICY_KWARGS[key]})")
         if key not in params or key == "self":
-            close = _close_matches(key, [p for p in params if p != "self"])
+            close = close_matches(key, [p for p in params if p != "self"])
             raise ConfigError(f"{where}: unknown key {full_key!r} for {policy_cls.__name__}{close}")
-        out[key] = _validate(value, params[key].annotation, where, full_key)
+        out[key] = _CHECKER.validate(value, params[key].annotation, where, full_key)
     net_arch = out.get("net_arch")
     if isinstance(net_arch, dict):
         allowed = {"pi", "vf"} if algo == "ppo" else {"pi", "qf"}
@@ -640,13 +501,8 @@ def _validate_normalize(kwargs: dict[str, Any], where: str) -> dict[str, Any]:
     for key, value in kwargs.items():
         if key not in allowed:
             raise ConfigError(f"{where}: unknown key 'normalize.{key}' (VecNormalize arguments: {', '.join(allowed)})")
-        out[key] = _validate(value, params[key].annotation, where, f"normalize.{key}")
+        out[key] = _CHECKER.validate(value, params[key].annotation, where, f"normalize.{key}")
     return out
-
-
-def is_unit_scale(value: Any) -> bool:
-    """Whether ``value`` is a real number in (0, 1] (``action_scale``, ``action_init_scale``)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and 0 < value <= 1
 
 
 def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
@@ -689,58 +545,20 @@ def _check_algo(algo: str, source: str) -> None:
         raise ConfigError(f"{source}: unknown algorithm {algo!r}; choose one of {sorted(ALGOS)}")
 
 
-def _merged(entries: dict[str, dict[str, Any]], name: str) -> dict[str, Any]:
+def _entry_names(data: Mapping[str, Any]) -> list[str]:
+    """The entries of a file: every top-level key except ``train_options``."""
+    return [name for name in data if name != TRAIN_OPTIONS]
+
+
+def _merged(entries: dict[str, dict[str, Any]], name: str, source: str) -> dict[str, Any]:
+    """Flat entry ``name``: ``default`` merged with its entry, RL Zoo keys translated, train options added."""
     merged = dict(entries.get(DEFAULT_ENTRY, {}))
     if name != DEFAULT_ENTRY:
         merged.update(entries.get(name, {}))
-    return merged
-
-
-def _as_number(value: Any) -> float | None:
-    if isinstance(value, str) and _NUMBER_RE.match(value.strip()):
-        return float(value.strip().replace("_", ""))
-    if isinstance(value, float) and not isinstance(value, bool):
-        return value
-    return None
-
-
-def _plain(value: Any, where: str) -> Any:
-    """Check that ``value`` is JSON-like plain data (tuples become lists)."""
-    if value is None or isinstance(value, bool | int | str):
-        return value
-    if isinstance(value, float):
-        return value
-    if isinstance(value, list | tuple):
-        return [_plain(v, where) for v in value]
-    if isinstance(value, dict):
-        out = {}
-        for k, v in value.items():
-            if not isinstance(k, str):
-                raise ConfigError(f"{where}: mapping key {k!r} must be a string")
-            out[k] = _plain(v, where)
-        return out
-    raise ConfigError(f"{where}: {_tname(value)} is not plain data (null, bool, number, string, list, mapping)")
-
-
-def _copy_plain(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {k: _copy_plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_copy_plain(v) for v in value]
-    return value
-
-
-def _close_matches(key: str, candidates: list[str]) -> str:
-    import difflib
-
-    close = difflib.get_close_matches(key, candidates, n=3)
-    return f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
-
-
-def _tname(value: Any) -> str:
-    return {dict: "mapping", list: "list", type(None): "null"}.get(type(value), type(value).__name__)
-
-
-def _short(value: Any) -> str:
-    text = repr(value)
-    return f"({text[:60]}...)" if len(text) > 60 else f"({text})"
+    where = f"{source}: entry {name!r}"
+    flat = flatten_entry(merged, where)
+    for key, value in train_options(entries, name, DEFAULT_ENTRY, source).items():
+        if key in flat:
+            raise ConfigError(f"{where}: key {key!r} is given both in the entry and in {TRAIN_OPTIONS!r}")
+        flat[key] = value
+    return flat

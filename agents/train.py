@@ -1,6 +1,10 @@
 """Train a Stable-Baselines3 agent on a Gymnasium environment from a YAML configuration.
 
-Library entry point: :func:`train`; command line: ``python -m agents.train`` (:func:`main`).
+Library entry point: :func:`train`; command line: ``python -m agents.train`` (:func:`main`). The parts live in
+:mod:`agents.envs` (env construction, seeds), :mod:`agents.callbacks`, :mod:`agents.models` (replay buffer,
+action-layer scaling) and :mod:`agents.rundir` (run directories, checkpoints); their public names are
+re-exported here. The same ``train_configs/<algo>.yml`` also train with ``python -m rl_zoo3.train``
+(:mod:`agents.zoo`).
 
 Run directory ``<out>/<env id, '/' and ':' replaced by '_'>/<algo>_<seed>/``::
 
@@ -43,253 +47,90 @@ the files of DIR (SB3 zips and VecNormalize pickles): only resume runs you trust
 
 from __future__ import annotations
 
-import dataclasses
-import datetime
-import difflib
-import importlib
-import inspect
 import json
-import logging
-import math
-import os
-import re
 import shlex
-import shutil
 import sys
 import time
 import warnings
-import zipfile
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
-import numpy as np
 import torch
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback, EvalCallback
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.logger import configure
-from stable_baselines3.common.monitor import Monitor
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
+from uvdms_gym.kv import parse_key_values as _parse_key_values
 
 from agents.algos import ALGOS, is_off_policy
 from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
-from agents.config import ConfigError, TrainConfig, default_config_path, is_unit_scale, load_config, parse_entry
+from agents.callbacks import LatestBufferCheckpointCallback, SaveBestExtras, SeededEvalCallback
+from agents.config import ConfigError, TrainConfig, default_config_path, load_config, parse_entry
+from agents.envs import (
+    EVAL_SEED_OFFSET,
+    SEGMENT_SEED_STRIDE,
+    EnvFactory,
+    EnvironmentNotFoundError,
+    check_env_id,
+    eval_env_seed,
+    import_gym_packages,
+    make_vec_env,
+    train_env_seed,
+)
+from agents.models import (
+    configured_buffer_size,
+    grow_replay_buffer,
+    planned_timesteps,
+    replay_buffer_size,
+    scale_action_layer,
+)
+from agents.rundir import (
+    CHECKPOINT_PREFIX,
+    Checkpoint,
+    RunDirError,
+    _write_json,
+    create_run_dir,
+    latest_checkpoint,
+    remove_if_no_model,
+    run_dir_for,
+    save_final,
+    utc_now,
+    zip_num_timesteps,
+)
+from agents.wrappers import AliveBonus, ScaledAction
 from uvdms_gym.provenance import git_info, package_versions
 
-log = logging.getLogger(__name__)
+__all__ = [  # the names other modules and the tests import from here (the implementations live in the modules above)
+    "CHECKPOINT_PREFIX",
+    "EVAL_SEED_OFFSET",
+    "SEGMENT_SEED_STRIDE",
+    "AliveBonus",
+    "Checkpoint",
+    "EnvFactory",
+    "EnvironmentNotFoundError",
+    "RunDirError",
+    "ScaledAction",
+    "check_env_id",
+    "eval_env_seed",
+    "git_info",
+    "grow_replay_buffer",
+    "import_gym_packages",
+    "latest_checkpoint",
+    "main",
+    "package_versions",
+    "parse_key_values",
+    "replay_buffer_size",
+    "run_dir_for",
+    "scale_action_layer",
+    "train",
+    "train_env_seed",
+    "zip_num_timesteps",
+]
 
-SEGMENT_SEED_STRIDE = 1000
-EVAL_SEED_OFFSET = 1_000_000
-CHECKPOINT_PREFIX = "rl_model"
-
-
-class EnvironmentNotFoundError(LookupError):
-    """The environment id is not registered (possibly because a gym package failed to import)."""
-
-
-class RunDirError(ValueError):
-    """The run directory exists (fresh run) or is not a valid run to resume."""
-
-
-# ------------------------------------------------------------------------------------------------------
-# Environments
-# ------------------------------------------------------------------------------------------------------
-def import_gym_packages(packages: Sequence[str]) -> dict[str, str]:
-    """Import the packages that register Gymnasium environments.
-
-    Args:
-        packages: Module names (e.g. ``["uvdms_gym"]``).
-
-    Returns:
-        Import errors as ``{package: "ExceptionType: message"}`` (empty if all imported).
-    """
-    errors = {}
-    for name in packages:
-        try:
-            importlib.import_module(name)
-        except Exception as exc:  # any error while importing an env package is reported, not fatal
-            errors[name] = f"{type(exc).__name__}: {exc}"
-    return errors
-
-
-def check_env_id(env_id: str, packages: Sequence[str]) -> None:
-    """Import ``packages`` and check that ``env_id`` is registered.
-
-    Args:
-        env_id: Gymnasium environment id (``module:Id`` ids are left to ``gymnasium.make``).
-        packages: Packages to import first.
-
-    Raises:
-        EnvironmentNotFoundError: If the id is not registered; the message lists failed imports and
-            close matches.
-    """
-    errors = import_gym_packages(packages)
-    if ":" in env_id or env_id in gym.registry:
-        return
-    msg = f"environment id {env_id!r} is not registered."
-    if errors:
-        failed = "; ".join(f"{name} -> {err}" for name, err in errors.items())
-        msg += f" These gym packages failed to import: {failed}."
-    imported = [p for p in packages if p not in errors]
-    if imported:
-        msg += f" Imported gym packages: {', '.join(imported)}."
-    else:
-        msg += " No gym package was imported (use --gym-packages to name the package that registers it)."
-    close = difflib.get_close_matches(env_id, list(gym.registry), n=3)
-    if close:
-        msg += f" Close matches: {', '.join(close)}."
-    raise EnvironmentNotFoundError(msg)
-
-
-@dataclasses.dataclass(frozen=True)
-class EnvFactory:
-    """Picklable environment constructor (works with ``SubprocVecEnv``).
-
-    Attributes:
-        env_id: Gymnasium id.
-        env_kwargs: Keyword arguments of ``gymnasium.make``.
-        gym_packages: Packages imported first (in the worker process) to register the id.
-        monitor_file: ``Monitor`` log file (``None``: no file).
-        max_episode_steps: ``gymnasium.make``'s episode length limit (``None``: the registered one).
-        alive_bonus: Constant added to every reward inside the ``Monitor`` (0: no wrapper).
-        action_scale: The policy's action is multiplied by this before the env sees it (1: no wrapper).
-    """
-
-    env_id: str
-    env_kwargs: Mapping[str, Any]
-    gym_packages: tuple[str, ...] = DEFAULT_GYM_PACKAGES
-    monitor_file: str | None = None
-    max_episode_steps: int | None = None
-    alive_bonus: float = 0.0
-    action_scale: float = 1.0
-
-    def __call__(self) -> gym.Env:
-        """Create the environment wrapped in a ``Monitor`` (action scaling and alive bonus inside it).
-
-        Also sets ``torch.set_num_threads(1)`` in the calling process: in a ``SubprocVecEnv`` worker (which
-        imports torch with this module but never uses it) as in the trainer (see :func:`train`).
-        """
-        torch.set_num_threads(1)
-        check_env_id(self.env_id, self.gym_packages)
-        make_kwargs = dict(self.env_kwargs)
-        if self.max_episode_steps is not None:
-            make_kwargs["max_episode_steps"] = self.max_episode_steps
-        env = gym.make(self.env_id, **make_kwargs)
-        if self.action_scale != 1.0:
-            env = ScaledAction(env, self.action_scale)
-        if self.alive_bonus:
-            env = AliveBonus(env, self.alive_bonus)
-        return Monitor(env, filename=self.monitor_file)
-
-
-class AliveBonus(gym.RewardWrapper):
-    """Adds a constant to every reward (training-side shaping; see ``TrainConfig.alive_bonus``).
-
-    Args:
-        env: The environment.
-        bonus: Constant added to each step's reward.
-    """
-
-    def __init__(self, env: gym.Env, bonus: float) -> None:
-        super().__init__(env)
-        self.bonus = float(bonus)
-
-    def reward(self, reward: float) -> float:
-        """Shaped reward."""
-        return float(reward) + self.bonus
-
-
-class ScaledAction(gym.ActionWrapper):
-    """Sends ``scale * action`` to the environment (see ``TrainConfig.action_scale``).
-
-    The action space stays the wrapped env's ``Box(-1, 1)``; the scaled action lies in ``[-scale, scale]``.
-
-    Args:
-        env: The environment (a ``Box`` action space symmetric about 0).
-        scale: Factor in (0, 1].
-    """
-
-    def __init__(self, env: gym.Env, scale: float) -> None:
-        super().__init__(env)
-        if not is_unit_scale(scale):
-            raise ValueError(f"action scale must be in (0, 1], got {scale}")
-        self.scale = float(scale)
-
-    def action(self, action: np.ndarray) -> np.ndarray:
-        """Scaled action."""
-        return self.scale * np.asarray(action)
-
-
-def train_env_seed(seed: int, segment: int, rank: int) -> int:
-    """Seed of training env ``rank`` in training segment ``segment`` (see the module docstring)."""
-    return seed + SEGMENT_SEED_STRIDE * segment + rank
-
-
-def eval_env_seed(seed: int, rank: int) -> int:
-    """Seed of evaluation env ``rank`` (the same for every evaluation and segment)."""
-    return seed + EVAL_SEED_OFFSET + rank
-
-
-def run_dir_for(out_dir: str | Path, env_id: str, algo: str, seed: int) -> Path:
-    """Run directory ``<out_dir>/<env id with '/' and ':' replaced by '_'>/<algo>_<seed>``."""
-    return Path(out_dir) / re.sub(r"[/:\\]", "_", env_id) / f"{algo}_{seed}"
-
-
-def _make_vec_env(factories: list[Callable[[], gym.Env]], vec_env: str) -> VecEnv:
-    if vec_env == "subproc":
-        return SubprocVecEnv(factories)
-    return DummyVecEnv(factories)
-
-
-# ------------------------------------------------------------------------------------------------------
-# Callbacks
-# ------------------------------------------------------------------------------------------------------
-class _CheckpointCallback(CheckpointCallback):
-    """CheckpointCallback that keeps only the newest replay-buffer checkpoint."""
-
-    def _on_step(self) -> bool:
-        result = super()._on_step()
-        if self.save_replay_buffer and self.n_calls % self.save_freq == 0:
-            newest = Path(self._checkpoint_path("replay_buffer_", extension="pkl"))
-            for old in Path(self.save_path).glob(f"{self.name_prefix}_replay_buffer_*_steps.pkl"):
-                if old != newest:
-                    old.unlink()
-        return result
-
-
-class _SeededEvalCallback(EvalCallback):
-    """EvalCallback that reseeds the evaluation envs before every evaluation (same episodes each time)."""
-
-    def __init__(self, *args: Any, eval_seed: int, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self.eval_seed = eval_seed
-
-    def _on_step(self) -> bool:
-        if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
-            self.eval_env.seed(self.eval_seed)
-        return super()._on_step()
-
-
-class _SaveBestExtras(BaseCallback):
-    """Called by EvalCallback on a new best model: saves its VecNormalize stats and ``best_model.json``."""
-
-    def __init__(self, run_dir: Path, segment: int) -> None:
-        super().__init__()
-        self.run_dir = run_dir
-        self.segment = segment
-
-    def _on_step(self) -> bool:
-        vec_normalize = self.model.get_vec_normalize_env()
-        if vec_normalize is not None:
-            vec_normalize.save(str(self.run_dir / "best_vecnormalize.pkl"))
-        best = float(self.parent.best_mean_reward) if self.parent is not None else None
-        _write_json(
-            self.run_dir / "best_model.json",
-            {"num_timesteps": int(self.num_timesteps), "mean_reward": best, "segment": self.segment},
-        )
-        return True
+_make_vec_env = make_vec_env  # former private names, kept for agents.bench and old callers
+_configured_buffer_size = configured_buffer_size
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -369,38 +210,9 @@ def train(
         entry["n_timesteps"] = total_timesteps
     cfg = parse_entry(entry, algo, source=f"{config_path} + command line", entry_name=env_id)
 
-    run_dir = run_dir_for(out_dir, env_id, algo, seed)
-    if run_dir.exists() and any(run_dir.iterdir()):
-        if latest_checkpoint(run_dir) is None:
-            raise RunDirError(
-                f"run directory {run_dir} exists but holds no model (a run still starting, or one killed before "
-                "its first checkpoint: see its meta.json); delete it or use another --seed/--out"
-            )
-        raise RunDirError(f"run directory {run_dir} exists; use --resume {run_dir} or another --seed/--out")
-    run_dir.mkdir(parents=True, exist_ok=True)
-    resolved = {
-        "algo": algo,
-        "env_id": env_id,
-        "seed": seed,
-        "gym_packages": list(gym_packages),
-        "config_source": str(config_path),
-        "config": cfg.to_entry(),
-    }
-    (run_dir / "config.yml").write_text(yaml.safe_dump(resolved, sort_keys=False), encoding="utf-8")
-    meta = {
-        "algo": algo,
-        "env_id": env_id,
-        "seed": seed,
-        "seed_scheme": {
-            "train_env": f"seed + {SEGMENT_SEED_STRIDE} * segment + rank",
-            "model": f"seed + {SEGMENT_SEED_STRIDE} * segment",
-            "eval_env": f"seed + {EVAL_SEED_OFFSET} + rank (reset before every evaluation)",
-        },
-        "versions": package_versions(),
-        "git": git_info(),
-        "segments": [],
-    }
-    _write_json(run_dir / "meta.json", meta)
+    run_dir = create_run_dir(
+        run_dir_for(out_dir, env_id, algo, seed), algo, env_id, seed, gym_packages, config_path, cfg
+    )
     command = [
         "python",
         "-m",
@@ -434,24 +246,9 @@ def train(
         )
     except BaseException as exc:
         # a user error (bad config or kwargs: a ValueError) is reported by the caller in one line; say nothing more
-        _remove_if_no_model(run_dir, quiet=isinstance(exc, ValueError))
+        remove_if_no_model(run_dir, quiet=isinstance(exc, ValueError))
         raise
     return run_dir
-
-
-def _remove_if_no_model(run_dir: Path, quiet: bool = False) -> None:
-    """Delete a fresh run's directory that holds no model, so that rerunning the same command works.
-
-    A fresh run that fails (or is interrupted) before its first checkpoint or final model leaves only its
-    config, meta record and partial logs, which would otherwise block the seed ("exists but holds no model").
-    ``quiet`` logs the removal at debug level instead of as a warning.
-    """
-    if latest_checkpoint(run_dir) is not None:
-        return
-    shutil.rmtree(run_dir, ignore_errors=True)
-    (log.debug if quiet else log.warning)(
-        "removed %s: the run failed before saving a model; the same command can be rerun", run_dir
-    )
 
 
 def _resume(
@@ -568,7 +365,7 @@ def _run_segment(
         "torch_num_threads": torch.get_num_threads(),
         "versions": package_versions(),
         "git": git_info(),
-        "started_utc": _utc_now(),
+        "started_utc": utc_now(),
         "status": "running",
     }
     meta["segments"].append(record)
@@ -581,7 +378,7 @@ def _run_segment(
     start_timesteps = checkpoint.num_timesteps if checkpoint else 0
     try:
         try:
-            venv = _make_vec_env(train_factories, vec_env)
+            venv = make_vec_env(train_factories, vec_env)
             eval_venv = DummyVecEnv(eval_factories)
         except Exception as exc:  # a bad --env-kwargs value surfaces here: report it as a config error
             raise ConfigError(
@@ -594,7 +391,7 @@ def _run_segment(
                 venv = VecNormalize(venv, **normalize_kwargs)
             kwargs = cfg.sb3_hyperparams()
             if is_off_policy(cfg.algo):
-                kwargs["buffer_size"] = replay_buffer_size(_configured_buffer_size(cfg), cfg.n_envs, timesteps)
+                kwargs["buffer_size"] = replay_buffer_size(configured_buffer_size(cfg), cfg.n_envs, timesteps)
             if cfg.noise_type is not None:
                 kwargs["action_noise"] = cfg.action_noise(venv.action_space)
             model = ALGOS[cfg.algo](
@@ -626,11 +423,11 @@ def _run_segment(
                 record["replay_buffer_loaded"] = checkpoint.replay_buffer is not None
                 grow_replay_buffer(
                     model,
-                    replay_buffer_size(_configured_buffer_size(cfg), cfg.n_envs, start_timesteps + timesteps),
+                    replay_buffer_size(configured_buffer_size(cfg), cfg.n_envs, start_timesteps + timesteps),
                 )
         if is_off_policy(cfg.algo):
             record["replay_buffer_size"] = int(model.replay_buffer.buffer_size * model.replay_buffer.n_envs)
-        record["planned_timesteps"] = _planned_timesteps(model, cfg, timesteps)
+        record["planned_timesteps"] = planned_timesteps(model, cfg, timesteps)
         if normalize_kwargs is not None:
             eval_venv = VecNormalize(
                 eval_venv,
@@ -645,7 +442,7 @@ def _run_segment(
         callbacks: list[BaseCallback] = []
         if cfg.checkpoint_freq > 0:
             callbacks.append(
-                _CheckpointCallback(
+                LatestBufferCheckpointCallback(
                     save_freq=max(cfg.checkpoint_freq // cfg.n_envs, 1),
                     save_path=str(run_dir / "checkpoints"),
                     name_prefix=CHECKPOINT_PREFIX,
@@ -654,10 +451,10 @@ def _run_segment(
                 )
             )
         if cfg.eval_freq > 0:
-            eval_callback = _SeededEvalCallback(
+            eval_callback = SeededEvalCallback(
                 eval_venv,
                 eval_seed=eval_env_seed(seed, 0),
-                callback_on_new_best=_SaveBestExtras(run_dir, segment),
+                callback_on_new_best=SaveBestExtras(run_dir, segment),
                 n_eval_episodes=cfg.n_eval_episodes,
                 eval_freq=max(cfg.eval_freq // cfg.n_envs, 1),
                 log_path=str(log_dir),
@@ -678,11 +475,11 @@ def _run_segment(
             reset_num_timesteps=checkpoint is None,
             progress_bar=progress,
         )
-        _save_final(run_dir, model, cfg)
+        save_final(run_dir, model, cfg.save_replay_buffer and is_off_policy(cfg.algo))
         record["status"] = "completed"
     except KeyboardInterrupt:
         if model is not None:
-            _save_final(run_dir, model, cfg)
+            save_final(run_dir, model, cfg.save_replay_buffer and is_off_policy(cfg.algo))
         record["status"] = "interrupted"
         raise
     except BaseException as exc:
@@ -691,7 +488,7 @@ def _run_segment(
         raise
     finally:
         record["end_num_timesteps"] = int(model.num_timesteps) if model is not None else None
-        record["finished_utc"] = _utc_now()
+        record["finished_utc"] = utc_now()
         record["wall_time_s"] = round(time.perf_counter() - start, 3)
         _write_json(run_dir / "meta.json", meta)
         for env in (venv, eval_venv):
@@ -701,210 +498,11 @@ def _run_segment(
             model.logger.close()  # progress.csv and TensorBoard files
 
 
-def _configured_buffer_size(cfg: TrainConfig) -> int:
-    """``buffer_size`` of the configuration, or the algorithm's default."""
-    if "buffer_size" in cfg.hyperparams:
-        return int(cfg.hyperparams["buffer_size"])
-    return int(inspect.signature(ALGOS[cfg.algo].__init__).parameters["buffer_size"].default)
-
-
-def replay_buffer_size(configured: int, n_envs: int, total_timesteps: int) -> int:
-    """Replay-buffer capacity (transitions) for a run that ends at ``total_timesteps``.
-
-    SB3 preallocates the whole buffer (and ``save_replay_buffer`` pickles all of it), so a 300-step run with
-    ``buffer_size: 300000`` would hold and write ~200 MB. The capacity is capped at the transitions the run
-    can store, ``n_envs * (ceil(total_timesteps / n_envs) + 1)``: the buffer never fills, so sampling and
-    training are exactly those of the configured size. A resumed run grows it (:func:`grow_replay_buffer`).
-
-    Args:
-        configured: ``buffer_size`` of the configuration.
-        n_envs: Number of training environments.
-        total_timesteps: ``num_timesteps`` at the end of the segment.
-
-    Returns:
-        ``min(configured, cap)``.
-    """
-    return min(int(configured), n_envs * (math.ceil(total_timesteps / n_envs) + 1))
-
-
-def grow_replay_buffer(model: BaseAlgorithm, size: int) -> bool:
-    """Enlarge an off-policy model's replay buffer to ``size`` transitions, keeping its content.
-
-    A buffer that has wrapped around (``full``) or is already large enough is left alone (a full buffer was
-    allocated at the configured size, see :func:`replay_buffer_size`).
-
-    Args:
-        model: An off-policy SB3 model.
-        size: The capacity wanted, in transitions over all envs.
-
-    Returns:
-        Whether the buffer was enlarged.
-    """
-    buffer = model.replay_buffer
-    old = buffer.buffer_size
-    new = max(size // buffer.n_envs, 1)
-    if buffer.full or new <= old:
-        return False
-    for name, value in list(vars(buffer).items()):
-        if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == old:
-            setattr(buffer, name, _grown(value, new, buffer.pos))
-        elif isinstance(value, dict) and all(isinstance(v, np.ndarray) for v in value.values()):
-            setattr(buffer, name, {k: _grown(v, new, buffer.pos) if v.shape[0] == old else v for k, v in value.items()})
-    buffer.buffer_size = new
-    model.buffer_size = new * buffer.n_envs
-    return True
-
-
-def _grown(array: np.ndarray, length: int, filled: int) -> np.ndarray:
-    out = np.zeros((length, *array.shape[1:]), dtype=array.dtype)
-    out[:filled] = array[:filled]
-    return out
-
-
-def _planned_timesteps(model: BaseAlgorithm, cfg: TrainConfig, timesteps: int) -> int:
-    """Steps the segment will run: on-policy algorithms collect whole rollouts of ``n_steps x n_envs``.
-
-    Warns when that exceeds the requested steps (PPO with ``--total-timesteps 300`` and ``n_steps: 1024`` on
-    2 envs runs 2048 steps).
-    """
-    if is_off_policy(cfg.algo):
-        return timesteps
-    rollout = int(model.n_steps) * cfg.n_envs
-    planned = math.ceil(timesteps / rollout) * rollout
-    if planned != timesteps:
-        warnings.warn(
-            f"{cfg.algo.upper()} trains in whole rollouts of n_steps x n_envs = {model.n_steps} x {cfg.n_envs} = "
-            f"{rollout} steps: the {timesteps} requested steps run as {planned} (pass --hyperparams n_steps=N "
-            "for shorter rollouts)",
-            stacklevel=3,
-        )
-    return planned
-
-
-def scale_action_layer(model: BaseAlgorithm, scale: float) -> torch.nn.Linear:
-    """Multiply the last action layer of a fresh model's policy by ``scale`` (``TrainConfig.action_init_scale``).
-
-    Args:
-        model: A freshly built SB3 model (PPO: ``policy.action_net``; SAC/TQC: ``actor.mu``; TD3: the last
-            ``Linear`` of ``actor.mu``, copied to ``actor_target``).
-        scale: The factor.
-
-    Returns:
-        The scaled layer.
-
-    Raises:
-        ConfigError: If the policy has no recognised action layer.
-    """
-    policy = model.policy
-    actor = getattr(policy, "actor", None)
-    if hasattr(policy, "action_net"):
-        layer = policy.action_net
-    elif actor is not None and isinstance(getattr(actor, "mu", None), torch.nn.Linear):
-        layer = actor.mu
-    elif actor is not None and isinstance(getattr(actor, "mu", None), torch.nn.Sequential):
-        layer = [m for m in actor.mu if isinstance(m, torch.nn.Linear)][-1]
-    else:
-        raise ConfigError(f"action_init_scale: no action layer found in {type(policy).__name__}")
-    with torch.no_grad():
-        layer.weight.mul_(scale)
-        if layer.bias is not None:
-            layer.bias.mul_(scale)
-    if getattr(policy, "actor_target", None) is not None:
-        policy.actor_target.load_state_dict(actor.state_dict())
-    return layer
-
-
-def _save_final(run_dir: Path, model: BaseAlgorithm, cfg: TrainConfig) -> None:
-    model.save(str(run_dir / "final_model.zip"))
-    vec_normalize = model.get_vec_normalize_env()
-    if vec_normalize is not None:
-        vec_normalize.save(str(run_dir / "vecnormalize.pkl"))
-    if cfg.save_replay_buffer and is_off_policy(cfg.algo):
-        model.save_replay_buffer(str(run_dir / "replay_buffer.pkl"))
-
-
-# ------------------------------------------------------------------------------------------------------
-# Run directory helpers
-# ------------------------------------------------------------------------------------------------------
-@dataclasses.dataclass(frozen=True)
-class Checkpoint:
-    """A saved model of a run with its companion files.
-
-    Attributes:
-        model: The SB3 zip.
-        num_timesteps: Its step count (read from the zip's JSON data, nothing unpickled).
-        vecnormalize: Its VecNormalize statistics, if any.
-        replay_buffer: Its replay buffer, if saved.
-    """
-
-    model: Path
-    num_timesteps: int
-    vecnormalize: Path | None
-    replay_buffer: Path | None
-
-
-def zip_num_timesteps(path: str | Path) -> int:
-    """``num_timesteps`` stored in an SB3 zip (read from its JSON ``data`` member, no unpickling)."""
-    with zipfile.ZipFile(path) as archive:
-        data = json.loads(archive.read("data").decode("utf-8"))
-    return int(data["num_timesteps"])
-
-
-def latest_checkpoint(run_dir: str | Path) -> Checkpoint | None:
-    """The newest model of a run: ``final_model.zip`` or the checkpoint with the most steps.
-
-    Ties go to ``final_model.zip``.
-    """
-    run_dir = Path(run_dir)
-    candidates: list[Checkpoint] = []
-    final = run_dir / "final_model.zip"
-    if final.is_file():
-        candidates.append(
-            Checkpoint(
-                final,
-                zip_num_timesteps(final),
-                _existing(run_dir / "vecnormalize.pkl"),
-                _existing(run_dir / "replay_buffer.pkl"),
-            )
-        )
-    pattern = re.compile(rf"^{CHECKPOINT_PREFIX}_(\d+)_steps\.zip$")
-    for path in sorted((run_dir / "checkpoints").glob(f"{CHECKPOINT_PREFIX}_*_steps.zip")):
-        match = pattern.match(path.name)
-        if match:
-            n = int(match.group(1))
-            candidates.append(
-                Checkpoint(
-                    path,
-                    n,
-                    _existing(path.with_name(f"{CHECKPOINT_PREFIX}_vecnormalize_{n}_steps.pkl")),
-                    _existing(path.with_name(f"{CHECKPOINT_PREFIX}_replay_buffer_{n}_steps.pkl")),
-                )
-            )
-    if not candidates:
-        return None
-    # max() keeps the first of equal keys: final_model.zip comes first.
-    return max(candidates, key=lambda c: c.num_timesteps)
-
-
-def _existing(path: Path) -> Path | None:
-    return path if path.is_file() else None
-
-
-def _utc_now() -> str:
-    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-
-
-def _write_json(path: Path, data: Any) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, allow_nan=True) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
-
-
 # ------------------------------------------------------------------------------------------------------
 # Command line
 # ------------------------------------------------------------------------------------------------------
 def parse_key_values(items: Sequence[str] | None, option: str = "--env-kwargs") -> dict[str, Any]:
-    """Parse ``key=value`` strings; values are YAML literals (``yaml.safe_load``).
+    """Parse ``key=value`` strings (:func:`uvdms_gym.kv.parse_key_values`), raising :class:`ConfigError`.
 
     Args:
         items: Strings such as ``["case=1", "goal=paper", "hydro_randomization=0.3"]``.
@@ -914,18 +512,12 @@ def parse_key_values(items: Sequence[str] | None, option: str = "--env-kwargs") 
         The mapping (``{"case": 1, "goal": "paper", "hydro_randomization": 0.3}``).
 
     Raises:
-        ConfigError: On a malformed item.
+        ConfigError: On a malformed item or a value that is not a YAML literal.
     """
-    out: dict[str, Any] = {}
-    for item in items or []:
-        key, sep, text = item.partition("=")
-        if not sep or not key.isidentifier():
-            raise ConfigError(f"{option}: expected key=value with an identifier key, got {item!r}")
-        try:
-            out[key] = yaml.safe_load(text) if text else ""
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"{option}: cannot parse the value of {key!r} as YAML: {exc}") from exc
-    return out
+    try:
+        return _parse_key_values(items, option)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:

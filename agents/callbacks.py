@@ -1,0 +1,103 @@
+"""Stable-Baselines3 callbacks of :mod:`agents.train`: checkpoints, seeded evaluation, best-model extras.
+
+They extend SB3's ``CheckpointCallback`` and ``EvalCallback`` (the ones RL Zoo uses too) with what the
+project's run directories need: one replay-buffer checkpoint kept instead of all of them, evaluation envs
+reseeded before every evaluation, and the best model's VecNormalize statistics and step count saved with it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
+
+from agents.rundir import _write_json
+
+
+class LatestBufferCheckpointCallback(CheckpointCallback):
+    """``CheckpointCallback`` that keeps only the newest replay-buffer checkpoint (each holds the whole buffer)."""
+
+    def _on_step(self) -> bool:
+        result = super()._on_step()
+        if self.save_replay_buffer and self.n_calls % self.save_freq == 0:
+            newest = Path(self._checkpoint_path("replay_buffer_", extension="pkl"))
+            for old in Path(self.save_path).glob(f"{self.name_prefix}_replay_buffer_*_steps.pkl"):
+                if old != newest:
+                    old.unlink()
+        return result
+
+
+class SeededEvalCallback(EvalCallback):
+    """``EvalCallback`` that reseeds the evaluation envs before every evaluation (same episodes each time).
+
+    Args:
+        *args: ``EvalCallback`` arguments.
+        eval_seed: Seed passed to ``eval_env.seed`` before each evaluation.
+        **kwargs: ``EvalCallback`` keyword arguments.
+    """
+
+    def __init__(self, *args: Any, eval_seed: int, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.eval_seed = eval_seed
+
+    def _on_step(self) -> bool:
+        if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+            self.eval_env.seed(self.eval_seed)
+        return super()._on_step()
+
+
+class SaveBestExtras(BaseCallback):
+    """Called by ``EvalCallback`` on a new best model: saves its VecNormalize stats and ``best_model.json``.
+
+    Args:
+        run_dir: The run directory.
+        segment: Index of the training segment (recorded in ``best_model.json``).
+    """
+
+    def __init__(self, run_dir: Path, segment: int) -> None:
+        super().__init__()
+        self.run_dir = run_dir
+        self.segment = segment
+
+    def _on_step(self) -> bool:
+        vec_normalize = self.model.get_vec_normalize_env()
+        if vec_normalize is not None:
+            vec_normalize.save(str(self.run_dir / "best_vecnormalize.pkl"))
+        best = float(self.parent.best_mean_reward) if self.parent is not None else None
+        _write_json(
+            self.run_dir / "best_model.json",
+            {"num_timesteps": int(self.num_timesteps), "mean_reward": best, "segment": self.segment},
+        )
+        return True
+
+
+class ScaleInitialActions(BaseCallback):
+    """Multiplies a fresh model's last action layer by ``scale`` when training starts (``action_init_scale``).
+
+    Named in a config as RL Zoo names callbacks (``callback: [{agents.callbacks.ScaleInitialActions:
+    {scale: 0.01}}]``), so that ``python -m rl_zoo3.train`` starts from the same near-zero policy as
+    :mod:`agents.train` (which reads the entry into ``TrainConfig.action_init_scale`` and scales the layer right
+    after building the model, :func:`agents.models.scale_action_layer`). A model that has already trained
+    (``num_timesteps > 0``, a resumed run) is left alone.
+
+    Args:
+        scale: Factor in (0, 1].
+    """
+
+    def __init__(self, scale: float) -> None:
+        super().__init__()
+        from agents.wrappers import is_unit_scale
+
+        if not is_unit_scale(scale):
+            raise ValueError(f"ScaleInitialActions: scale must be in (0, 1], got {scale}")
+        self.scale = float(scale)
+
+    def _init_callback(self) -> None:
+        from agents.models import scale_action_layer
+
+        if self.model.num_timesteps == 0:
+            scale_action_layer(self.model, self.scale)
+
+    def _on_step(self) -> bool:
+        return True

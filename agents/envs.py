@@ -1,0 +1,136 @@
+"""Environment construction for training: env-id lookup, the picklable env factory, vector envs, env seeds.
+
+Seed scheme (``seed`` = ``--seed``; segment k = 0 for a fresh run, k = 1, 2, ... for each ``--resume``):
+training env ``i`` of segment ``k`` is reset with seed ``seed + 1000 * k + i`` (:func:`train_env_seed`); the
+evaluation envs with ``seed + 1_000_000 + i`` before every evaluation (:func:`eval_env_seed`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import importlib
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import gymnasium as gym
+import torch
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
+
+from agents.args import DEFAULT_GYM_PACKAGES
+from agents.wrappers import AliveBonus, ScaledAction
+
+SEGMENT_SEED_STRIDE = 1000
+"""Seed distance between training segments (so at most 1000 training envs)."""
+EVAL_SEED_OFFSET = 1_000_000
+"""Seed offset of the evaluation envs (so fewer than 1000 segments)."""
+
+
+class EnvironmentNotFoundError(LookupError):
+    """The environment id is not registered (possibly because a gym package failed to import)."""
+
+
+def import_gym_packages(packages: Sequence[str]) -> dict[str, str]:
+    """Import the packages that register Gymnasium environments.
+
+    Args:
+        packages: Module names (e.g. ``["uvdms_gym"]``).
+
+    Returns:
+        Import errors as ``{package: "ExceptionType: message"}`` (empty if all imported).
+    """
+    errors = {}
+    for name in packages:
+        try:
+            importlib.import_module(name)
+        except Exception as exc:  # any error while importing an env package is reported, not fatal
+            errors[name] = f"{type(exc).__name__}: {exc}"
+    return errors
+
+
+def check_env_id(env_id: str, packages: Sequence[str]) -> None:
+    """Import ``packages`` and check that ``env_id`` is registered.
+
+    Args:
+        env_id: Gymnasium environment id (``module:Id`` ids are left to ``gymnasium.make``).
+        packages: Packages to import first.
+
+    Raises:
+        EnvironmentNotFoundError: If the id is not registered; the message lists failed imports and
+            close matches.
+    """
+    errors = import_gym_packages(packages)
+    if ":" in env_id or env_id in gym.registry:
+        return
+    msg = f"environment id {env_id!r} is not registered."
+    if errors:
+        failed = "; ".join(f"{name} -> {err}" for name, err in errors.items())
+        msg += f" These gym packages failed to import: {failed}."
+    imported = [p for p in packages if p not in errors]
+    if imported:
+        msg += f" Imported gym packages: {', '.join(imported)}."
+    else:
+        msg += " No gym package was imported (use --gym-packages to name the package that registers it)."
+    close = difflib.get_close_matches(env_id, list(gym.registry), n=3)
+    if close:
+        msg += f" Close matches: {', '.join(close)}."
+    raise EnvironmentNotFoundError(msg)
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvFactory:
+    """Picklable environment constructor (works with ``SubprocVecEnv``).
+
+    Attributes:
+        env_id: Gymnasium id.
+        env_kwargs: Keyword arguments of ``gymnasium.make``.
+        gym_packages: Packages imported first (in the worker process) to register the id.
+        monitor_file: ``Monitor`` log file (``None``: no file).
+        max_episode_steps: ``gymnasium.make``'s episode length limit (``None``: the registered one).
+        alive_bonus: Constant added to every reward inside the ``Monitor`` (0: no wrapper).
+        action_scale: The policy's action is multiplied by this before the env sees it (1: no wrapper).
+    """
+
+    env_id: str
+    env_kwargs: Mapping[str, Any]
+    gym_packages: tuple[str, ...] = DEFAULT_GYM_PACKAGES
+    monitor_file: str | None = None
+    max_episode_steps: int | None = None
+    alive_bonus: float = 0.0
+    action_scale: float = 1.0
+
+    def __call__(self) -> gym.Env:
+        """Create the environment wrapped in a ``Monitor`` (action scaling and alive bonus inside it).
+
+        Also sets ``torch.set_num_threads(1)`` in the calling process: in a ``SubprocVecEnv`` worker (which
+        imports torch with this module but never uses it) as in the trainer (see :func:`agents.train.train`).
+        """
+        torch.set_num_threads(1)
+        check_env_id(self.env_id, self.gym_packages)
+        make_kwargs = dict(self.env_kwargs)
+        if self.max_episode_steps is not None:
+            make_kwargs["max_episode_steps"] = self.max_episode_steps
+        env = gym.make(self.env_id, **make_kwargs)
+        if self.action_scale != 1.0:
+            env = ScaledAction(env, self.action_scale)
+        if self.alive_bonus:
+            env = AliveBonus(env, self.alive_bonus)
+        return Monitor(env, filename=self.monitor_file)
+
+
+def make_vec_env(factories: list[Callable[[], gym.Env]], vec_env: str) -> VecEnv:
+    """``SubprocVecEnv`` (``vec_env == "subproc"``) or ``DummyVecEnv`` over ``factories``."""
+    if vec_env == "subproc":
+        return SubprocVecEnv(factories)
+    return DummyVecEnv(factories)
+
+
+def train_env_seed(seed: int, segment: int, rank: int) -> int:
+    """Seed of training env ``rank`` in training segment ``segment`` (see the module docstring)."""
+    return seed + SEGMENT_SEED_STRIDE * segment + rank
+
+
+def eval_env_seed(seed: int, rank: int) -> int:
+    """Seed of evaluation env ``rank`` (the same for every evaluation and segment)."""
+    return seed + EVAL_SEED_OFFSET + rank

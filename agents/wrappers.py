@@ -1,0 +1,64 @@
+"""Training-side Gymnasium wrappers, named in ``train_configs/<algo>.yml`` the way RL Zoo names wrappers.
+
+An entry's ``env_wrapper`` list (RL Baselines3 Zoo's key) names them with their keyword arguments::
+
+    env_wrapper:
+      - agents.wrappers.ScaledAction: {scale: 0.3}
+      - agents.wrappers.AliveBonus: {bonus: 2.0}
+
+``python -m rl_zoo3.train`` imports and applies them itself; :mod:`agents.config` reads the same list into
+``TrainConfig.action_scale`` / ``TrainConfig.alive_bonus`` (only these two classes are accepted there: nothing
+named in a config is imported by the project's loader) and :class:`agents.envs.EnvFactory` applies them. This
+module imports only Gymnasium and NumPy, so RL Zoo's wrapper lookup stays cheap.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+
+def is_unit_scale(value: Any) -> bool:
+    """Whether ``value`` is a real number in (0, 1] (``action_scale``, ``action_init_scale``)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and 0 < value <= 1
+
+
+class AliveBonus(gym.RewardWrapper):
+    """Adds a constant to every reward (training-side shaping; see ``TrainConfig.alive_bonus``).
+
+    Args:
+        env: The environment.
+        bonus: Constant added to each step's reward.
+    """
+
+    def __init__(self, env: gym.Env, bonus: float) -> None:
+        super().__init__(env)
+        self.bonus = float(bonus)
+
+    def reward(self, reward: float) -> float:
+        """Shaped reward."""
+        return float(reward) + self.bonus
+
+
+class ScaledAction(gym.ActionWrapper):
+    """Sends ``scale * action`` to the environment (see ``TrainConfig.action_scale``).
+
+    The action space stays the wrapped env's ``Box(-1, 1)``; the scaled action lies in ``[-scale, scale]``.
+
+    Args:
+        env: The environment (a ``Box`` action space symmetric about 0).
+        scale: Factor in (0, 1].
+    """
+
+    def __init__(self, env: gym.Env, scale: float) -> None:
+        super().__init__(env)
+        if not is_unit_scale(scale):
+            raise ValueError(f"action scale must be in (0, 1], got {scale}")
+        self.scale = float(scale)
+
+    def action(self, action: np.ndarray) -> np.ndarray:
+        """Scaled action."""
+        return self.scale * np.asarray(action)
