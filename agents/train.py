@@ -62,7 +62,6 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
-from uvdms_gym.kv import parse_key_values as _parse_key_values
 
 from agents.algos import ALGOS, is_off_policy
 from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
@@ -100,6 +99,7 @@ from agents.rundir import (
     zip_num_timesteps,
 )
 from agents.wrappers import AliveBonus, ScaledAction
+from uvdms_gym.kwargs import parse_kv as _parse_key_values
 from uvdms_gym.provenance import git_info, package_versions
 
 __all__ = [  # the names other modules and the tests import from here (the implementations live in the modules above)
@@ -502,7 +502,7 @@ def _run_segment(
 # Command line
 # ------------------------------------------------------------------------------------------------------
 def parse_key_values(items: Sequence[str] | None, option: str = "--env-kwargs") -> dict[str, Any]:
-    """Parse ``key=value`` strings (:func:`uvdms_gym.kv.parse_key_values`), raising :class:`ConfigError`.
+    """Parse ``key=value`` strings (:func:`uvdms_gym.kwargs.parse_kv`), raising :class:`ConfigError`.
 
     Args:
         items: Strings such as ``["case=1", "goal=paper", "hydro_randomization=0.3"]``.
