@@ -24,6 +24,7 @@ from pybullet_utils import bullet_client
 from scipy.optimize import minimize_scalar
 
 from uvdms_gym import distances as D
+from uvdms_gym import distances_pybullet as DP
 from uvdms_gym import frames, model
 from uvdms_gym.kinematics import KinematicModel
 from uvdms_gym.params import JOINT_NAMES, UVDMSParams
@@ -499,7 +500,7 @@ def test_kernels_work_without_a_writable_numba_cache(tmp_path):
 def bullet():
     client = bullet_client.BulletClient(connection_mode=pb.DIRECT)
     body = client.loadURDF(str(model.write_urdf(model.build_urdf(PARAMS))), flags=pb.URDF_USE_INERTIA_FROM_FILE)
-    links = D.pybullet_link_indices(client, body)
+    links = DP.pybullet_link_indices(client, body)
     joint_of = {client.getJointInfo(body, i)[1].decode(): i for i in range(client.getNumJoints(body))}
     yield client, body, links, [joint_of[n] for n in JOINT_NAMES]
     client.disconnect()
@@ -527,7 +528,7 @@ def test_exact_matches_pybullet_on_random_collision_free_configurations(kin, bul
             continue  # some monitored pair in contact
         n_ok += 1
         _set_bullet_state(client, body, joints, eta, q)
-        res = D.pybullet_distances(client, body, links, PARAMS, max_distance=10.0)
+        res = DP.pybullet_distances(client, body, links, PARAMS, max_distance=10.0)
         errs.append(res.d - ex.d)
         errs_ref.append(res.d - D.compute_distances_reference(kin).d)
         np.testing.assert_allclose(np.linalg.norm(res.e - res.p, axis=1), res.d, atol=1e-6)

@@ -47,8 +47,8 @@ def bench_sim(quick: bool = False) -> dict:
         compute_distances_reference,
         distance_jacobian,
         distance_jacobian_reference,
-        pybullet_distances,
     )
+    from uvdms_gym.distances_pybullet import pybullet_distances
     from uvdms_gym.kinematics import KinematicModel
     from uvdms_gym.sim import UVDMSSim
 

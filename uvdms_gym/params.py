@@ -205,7 +205,8 @@ def _default_plates() -> tuple[FramePlate, ...]:
     # [D] Placement is a design parameter (docs/MODEL.md section 2). The arms live in a bay at the front bottom
     # of the vehicle; the side plates cover the rear of the bay beside the shoulders and elbows, the bottom
     # plate closes the bay below, and the front plate is a bumper bar across the lower front edge.
-    # Plates are separated by gaps (touching plates slow PyBullet down, see PITFALLS).
+    # Plates are separated by gaps (touching plates make every PyBullet step with self-collision on about 15x
+    # slower, measured).
     x, y, z = 1.0, 1.0, 1.0
     return (
         FramePlate("front", (0.62, 0.0, 0.30), (0.0, y, 0.0), (0.0, 0.0, z), (0.30, 0.04)),

@@ -8,7 +8,7 @@ It is part of the environment, not of any baseline: an agent or controller in ve
 * ``g_n`` + ``D_n``: model-based feedforward from the nominal model (:mod:`uvdms_gym.nominal`: Pinocchio
   rigid body + nominal hydrostatics and vehicle damping), evaluated once per control step;
 * PI on the velocity error with per-DOF gains from the effective inertia ``m_i = 1 / (M_n^-1)_ii`` (the
-  mass-matrix diagonal overestimates the inertia of small distal links, PITFALLS):
+  mass-matrix diagonal overestimates the inertia of small distal links and made the loop blow up there):
   ``K_p = m_i omega_i``, ``K_i = K_p omega_i / 4`` (a critically damped PI for a first-order plant), with
   bandwidths ``omega`` documented below; the integral is clamped so that its term never exceeds the actuator
   limit (anti-windup).
