@@ -44,22 +44,23 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 import yaml
 from gymnasium import spaces
 from stable_baselines3.common.noise import ActionNoise, NormalActionNoise, OrnsteinUhlenbeckActionNoise
-from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, FlattenExtractor
 from stable_baselines3.common.vec_env import VecNormalize
 
 from agents.algos import ALGOS, is_off_policy
 from agents.paths import train_configs_dir
+from agents.policy_kwargs import (  # re-exported: part of this module's public names
+    CLASS_WHITELISTS,
+    resolve_policy_kwargs,
+)
 from agents.typecheck import (
     ConfigError,
     TypeChecker,
     accepts_tuple,
     close_matches,
     copy_plain,
-    plain,
     tname,
 )
 from agents.wrappers import is_unit_scale
@@ -67,40 +68,8 @@ from agents.zoo import TRAIN_OPTIONS, flatten_entry, train_options
 
 DEFAULT_ENTRY = "default"
 
-ACTIVATIONS: dict[str, type[torch.nn.Module]] = {
-    "tanh": torch.nn.Tanh,
-    "relu": torch.nn.ReLU,
-    "elu": torch.nn.ELU,
-    "leaky_relu": torch.nn.LeakyReLU,
-    "gelu": torch.nn.GELU,
-    "silu": torch.nn.SiLU,
-    "softplus": torch.nn.Softplus,
-}
-"""Whitelist of ``activation_fn`` names."""
-
-OPTIMIZERS: dict[str, type[torch.optim.Optimizer]] = {
-    "adam": torch.optim.Adam,
-    "adamw": torch.optim.AdamW,
-    "rmsprop": torch.optim.RMSprop,
-}
-"""Whitelist of ``optimizer_class`` names."""
-
-FEATURES_EXTRACTORS: dict[str, type[BaseFeaturesExtractor]] = {"flatten": FlattenExtractor}
-"""Whitelist of ``features_extractor_class`` names."""
-
 NOISE_TYPES = ("normal", "ornstein-uhlenbeck")
 """Values of ``noise_type`` (Gaussian or OU exploration noise for off-policy algorithms)."""
-
-_CLASS_WHITELISTS: tuple[tuple[type, dict[str, type]], ...] = (
-    (torch.nn.Module, ACTIVATIONS),
-    (torch.optim.Optimizer, OPTIMIZERS),
-    (BaseFeaturesExtractor, FEATURES_EXTRACTORS),
-)
-_CLASS_KEYS = {
-    "activation_fn": ACTIVATIONS,
-    "optimizer_class": OPTIMIZERS,
-    "features_extractor_class": FEATURES_EXTRACTORS,
-}
 
 # Algorithm keyword arguments that the training script sets itself (or that have their own field).
 _MANAGED_HYPERPARAMS = {
@@ -123,7 +92,7 @@ _MANAGED_POLICY_KWARGS = {
 _VECNORMALIZE_MANAGED = {"venv", "training"}
 
 _SCHEDULE_RE = re.compile(r"^lin_(.+)$")
-_CHECKER = TypeChecker(_CLASS_WHITELISTS, _SCHEDULE_RE, "a schedule string 'lin_<initial value>'")
+_CHECKER = TypeChecker(CLASS_WHITELISTS, _SCHEDULE_RE, "a schedule string 'lin_<initial value>'")
 
 
 @dataclass(frozen=True)
@@ -425,50 +394,6 @@ def parse_entry(
         values["normalize"] = _validate_normalize(values["normalize"], where)
     _check_ranges(values, algo, where)
     return TrainConfig(algo=algo, hyperparams=hyperparams, **values)
-
-
-def resolve_policy_kwargs(policy_kwargs: Mapping[str, Any]) -> dict[str, Any]:
-    """Replace whitelisted class names (``activation_fn: tanh``) by the classes.
-
-    Args:
-        policy_kwargs: Plain-data policy keyword arguments.
-
-    Returns:
-        Keyword arguments ready for the SB3 policy constructor.
-
-    Raises:
-        ConfigError: If a class name is not whitelisted.
-    """
-    out = dict(policy_kwargs)
-    for key, table in _CLASS_KEYS.items():
-        if key in out and isinstance(out[key], str):
-            if out[key] not in table:
-                raise ConfigError(f"policy_kwargs {key!r}: {out[key]!r} is not one of {sorted(table)}")
-            out[key] = table[out[key]]
-    if isinstance(out.get("net_arch"), dict):
-        out["net_arch"] = {k: list(v) for k, v in out["net_arch"].items()}
-    return out
-
-
-def plain_policy_kwargs(policy_kwargs: Mapping[str, Any]) -> dict[str, Any]:
-    """Inverse of :func:`resolve_policy_kwargs`: classes -> whitelisted names (for JSON export).
-
-    Raises:
-        ConfigError: If a class is not in a whitelist or a value is not plain data.
-    """
-    out: dict[str, Any] = {}
-    for key, value in policy_kwargs.items():
-        if isinstance(value, type):
-            for table in _CLASS_KEYS.values():
-                names = [name for name, cls in table.items() if cls is value]
-                if names:
-                    out[key] = names[0]
-                    break
-            else:
-                raise ConfigError(f"policy_kwargs {key!r}: class {value.__qualname__} is not whitelisted")
-        else:
-            out[key] = plain(value, f"policy_kwargs {key!r}")
-    return out
 
 
 def _validate_policy_kwargs(kwargs: dict[str, Any], algo: str, policy: str, where: str) -> dict[str, Any]:
