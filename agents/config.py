@@ -51,8 +51,15 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from agents.algos import ALGOS, is_off_policy
 from agents.paths import train_configs_dir
-from agents.policy_kwargs import (  # re-exported: part of this module's public names
+
+# ACTIVATIONS, CLASS_KEYS, FEATURES_EXTRACTORS, OPTIMIZERS and plain_policy_kwargs are re-exported for old imports
+from agents.policy_kwargs import (  # noqa: F401
+    ACTIVATIONS,
+    CLASS_KEYS,
     CLASS_WHITELISTS,
+    FEATURES_EXTRACTORS,
+    OPTIMIZERS,
+    plain_policy_kwargs,
     resolve_policy_kwargs,
 )
 from agents.typecheck import (

@@ -21,8 +21,9 @@ import torch
 from gymnasium import spaces
 
 from agents.algos import ALGOS
-from agents.config import ConfigError, is_unit_scale, plain_policy_kwargs, resolve_policy_kwargs
+from agents.config import ConfigError, is_unit_scale
 from agents.policy import AgentController, ExportFormatError, ObsNormalizer, Which, load_agent
+from agents.policy_kwargs import plain_policy_kwargs, resolve_policy_kwargs
 from uvdms_gym.io import write_json_atomic
 from uvdms_gym.provenance import package_versions
 
