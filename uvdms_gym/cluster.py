@@ -1,0 +1,58 @@
+"""The one place the project connects to Ray (the ``ray`` extra).
+
+``uvdms leaderboard --backend ray``, ``uvdms sweep`` and ``uvdms tune`` all go through :func:`ray_session`.
+
+Without an address a local Ray instance is started, sized to this machine (``num_cpus`` defaults to
+``os.cpu_count()``), and shut down when the session ends, so no Ray process outlives the command. With an
+address (``"auto"`` for the cluster this machine belongs to, ``"ray://host:10001"`` for Ray Client, or a
+``host:port`` GCS address) the driver joins an existing cluster and only disconnects at the end.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterator
+from typing import Any
+
+RAY_EXTRA_HINT = 'Ray is not installed: pip install -c constraints.txt -e ".[ray]"'
+
+
+def require_ray() -> Any:
+    """Import and return the ``ray`` module, or raise a :class:`RuntimeError` that says how to install it."""
+    try:
+        import ray
+    except ImportError as err:  # pragma: no cover - the test extra installs ray
+        raise RuntimeError(RAY_EXTRA_HINT) from err
+    return ray
+
+
+@contextlib.contextmanager
+def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iterator[Any]:
+    """Connect to Ray for the duration of a ``with`` block and yield the ``ray`` module.
+
+    Args:
+        address: ``None`` starts a local instance; otherwise the address of a running cluster (``"auto"``,
+            ``"ray://host:port"``, ``"host:port"``).
+        num_cpus: CPUs of the local instance (default: every core of this machine). Ignored with ``address``:
+            a cluster's CPUs are those its nodes were started with.
+
+    A session that is already connected (a caller's own ``ray.init``) is reused and left connected.
+    """
+    ray = require_ray()
+    if ray.is_initialized():
+        yield ray
+        return
+    if num_cpus is not None and num_cpus < 1:
+        raise ValueError(f"num_cpus must be >= 1, got {num_cpus}")
+    if address is None:
+        ray.init(num_cpus=num_cpus or os.cpu_count() or 1, include_dashboard=False, logging_level="WARNING")
+    else:
+        try:
+            ray.init(address=address, logging_level="WARNING")
+        except ConnectionError as err:
+            raise RuntimeError(f"cannot connect to the Ray cluster at {address!r}: {err}") from err
+    try:
+        yield ray
+    finally:
+        ray.shutdown()
