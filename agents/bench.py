@@ -2,21 +2,24 @@
 
 Environment steps per second of the training loop (``model.learn``: environment steps, policy inference and
 gradient updates; no evaluation or checkpoint callbacks) for PPO and SAC, each with 1 training env
-(``DummyVecEnv``), 2 envs in worker processes (``SubprocVecEnv``, key ``"2"``) and 2 envs stepped in the
-trainer's process (``DummyVecEnv``, key ``"2_dummy"``, the ``--vec-env`` default), on ``uvdms/CircleTrack-v0``
+(``DummyVecEnv``), 2 envs in worker processes (``SubprocVecEnv``, key ``"2"``), 2 envs stepped in the
+trainer's process (``DummyVecEnv``, key ``"2_dummy"``, the ``--vec-env`` default) and 2 envs of which one
+steps in the trainer's process while the other steps in a worker (:class:`agents.vecenv.HybridVecEnv`, key
+``"2_hybrid"``, ``--vec-env hybrid``), on ``uvdms/CircleTrack-v0``
 (``case=1``) with the configurations of ``train_configs/<algo>.yml``. SAC's ``learning_starts`` is lowered
 to 100 steps so that its blocks include the gradient steps of steady-state training.
 
 The three models are built first, then timed in alternating blocks (PPO: one rollout of
 ``n_steps x n_envs`` steps and its update; SAC: a fixed number of environment steps), so a change in machine
 load affects all alike; the figures are medians over blocks and ``speedup_2_vs_1`` is the ratio of the
-medians (``speedup_2_dummy_vs_1`` likewise). The load average before and after is part of the result:
-timings taken beside other jobs are only indicative.
+medians (``speedup_2_dummy_vs_1`` and ``speedup_2_hybrid_vs_1`` likewise). The load average before and
+after is part of the result: timings taken beside other jobs are only indicative.
 
 Threads: the trainer runs ``torch.set_num_threads(1)`` (as :func:`agents.train.train` does), and each env
-worker sets it too (:class:`agents.envs.EnvFactory`). With 2 envs on 2 cores the two workers step the
+worker sets it too (:class:`agents.envs.EnvFactory`). With ``SubprocVecEnv`` the two workers step the
 physics while the trainer waits for them, then the trainer runs inference or an update while the workers
-wait: at most two busy processes at a time, so one torch thread per process does not oversubscribe the cores.
+wait; with ``HybridVecEnv`` the trainer and its one worker step at the same time. Either way at most two busy
+processes at a time, so one torch thread per process does not oversubscribe the 2 cores.
 """
 
 from __future__ import annotations
@@ -32,7 +35,12 @@ BENCH_ENV_KWARGS: dict[str, Any] = {"case": 1}
 SAC_LEARNING_STARTS = 100
 
 
-CONFIGURATIONS: tuple[tuple[str, int, str], ...] = (("1", 1, "dummy"), ("2", 2, "subproc"), ("2_dummy", 2, "dummy"))
+CONFIGURATIONS: tuple[tuple[str, int, str], ...] = (
+    ("1", 1, "dummy"),
+    ("2", 2, "subproc"),
+    ("2_dummy", 2, "dummy"),
+    ("2_hybrid", 2, "hybrid"),
+)
 """(result key, n_envs, vec_env) of the timed models."""
 
 
@@ -83,7 +91,8 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
         sac_block_steps: Environment steps per SAC block (default 1000, quick 200).
 
     Returns:
-        ``{"ppo": {"1": {...}, "2": {...}, "2_dummy": {...}, "speedup_2_vs_1": r, ...}, "sac": {...},
+        ``{"ppo": {"1": {...}, "2": {...}, "2_dummy": {...}, "2_hybrid": {...}, "speedup_2_vs_1": r, ...},
+        "sac": {...},
         "load_avg_before": [...], ...}``; each entry has ``n_envs``, ``vec_env``, ``block_steps``, ``steps_per_s``
         (median over blocks) and ``blocks_steps_per_s``.
     """
@@ -127,6 +136,7 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
             }
         entry["speedup_2_vs_1"] = entry["2"]["steps_per_s"] / entry["1"]["steps_per_s"]
         entry["speedup_2_dummy_vs_1"] = entry["2_dummy"]["steps_per_s"] / entry["1"]["steps_per_s"]
+        entry["speedup_2_hybrid_vs_1"] = entry["2_hybrid"]["steps_per_s"] / entry["1"]["steps_per_s"]
         result[algo] = entry
     result["load_avg_after"] = list(os.getloadavg())
     return result

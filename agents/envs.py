@@ -18,7 +18,8 @@ import torch
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
-from agents.args import DEFAULT_GYM_PACKAGES
+from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
+from agents.vecenv import HybridVecEnv
 from agents.wrappers import AliveBonus, ScaledAction
 
 SEGMENT_SEED_STRIDE = 1000
@@ -120,9 +121,18 @@ class EnvFactory:
 
 
 def make_vec_env(factories: list[Callable[[], gym.Env]], vec_env: str) -> VecEnv:
-    """``SubprocVecEnv`` (``vec_env == "subproc"``) or ``DummyVecEnv`` over ``factories``."""
+    """The vector env ``vec_env`` over ``factories``.
+
+    ``"dummy"``: every env in this process (``DummyVecEnv``); ``"subproc"``: every env in a worker process
+    (``SubprocVecEnv``); ``"hybrid"``: env 0 in this process, the others in workers, stepped at the same time
+    (:class:`agents.vecenv.HybridVecEnv`; with a single factory, ``DummyVecEnv``).
+    """
+    if vec_env not in VEC_ENV_TYPES:
+        raise ValueError(f"unknown vec_env {vec_env!r}: expected one of {', '.join(VEC_ENV_TYPES)}")
     if vec_env == "subproc":
         return SubprocVecEnv(factories)
+    if vec_env == "hybrid" and len(factories) > 1:
+        return HybridVecEnv(factories)
     return DummyVecEnv(factories)
 
 
