@@ -15,6 +15,7 @@ the two bit for bit).
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import time
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
@@ -31,18 +32,26 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 )
 from stable_baselines3.common.vec_env.subproc_vec_env import _worker
 
+_yield_core: Callable[[], None] = getattr(os, "sched_yield", lambda: time.sleep(0))  # no sched_yield on Windows
+
 DEFAULT_SPIN_S = 0.002
 """How long each side polls its pipe before falling back to a blocking read (seconds; see the module)."""
 
 
 def _spin_until_readable(conn: Connection, spin_s: float) -> None:
-    """Poll ``conn`` for up to ``spin_s`` seconds (returns early as soon as a message is there)."""
+    """Poll ``conn`` for up to ``spin_s`` seconds (returns early as soon as a message is there).
+
+    Each unsuccessful poll yields the core (``os.sched_yield``): on an idle core that returns at once, so the
+    wait stays a spin, while on a busy machine the other runnable processes go first instead of competing with
+    a spinning one.
+    """
     if spin_s <= 0.0 or conn.poll():
         return
     deadline = time.perf_counter() + spin_s
     while time.perf_counter() < deadline:
         if conn.poll():
             return
+        _yield_core()
 
 
 class _SpinningConnection:
