@@ -122,6 +122,7 @@ __all__ = [  # the names other modules and the tests import from here (the imple
     "package_versions",
     "parse_key_values",
     "replay_buffer_size",
+    "resolve_config",
     "run_dir_for",
     "scale_action_layer",
     "train",
@@ -152,6 +153,8 @@ def train(
     vec_env: str = "dummy",
     gym_packages: Sequence[str] = DEFAULT_GYM_PACKAGES,
     verbose: int = 0,
+    callbacks: Sequence[BaseCallback] = (),
+    after_eval: Sequence[BaseCallback] = (),
 ) -> Path:
     """Train (or resume training of) an agent and return its run directory.
 
@@ -175,6 +178,11 @@ def train(
             time: the fastest with 2 envs on 2 free cores; identical results to ``dummy``).
         gym_packages: Packages to import so that the env id is registered.
         verbose: SB3 verbosity (1: print the training table to stdout).
+        callbacks: Extra SB3 callbacks, called on every step after the checkpoint and evaluation callbacks
+            (so a checkpoint written on a step is on disk when they run; :mod:`agents.sweep_worker` ships it).
+        after_eval: SB3 callbacks called after every evaluation; their ``parent`` is the evaluation callback
+            (``parent.last_mean_reward``; :mod:`agents.tune` reports it to Ray Tune). Returning ``False``
+            stops training. Ignored when ``eval_freq`` is 0.
 
     Returns:
         The run directory.
@@ -193,7 +201,9 @@ def train(
                 "--resume takes its configuration from the run's config.yml; do not pass "
                 "--config, --env-kwargs or --hyperparams"
             )
-        return _resume(Path(resume_dir), algo, env_id, total_timesteps, n_envs, progress, vec_env, verbose)
+        return _resume(
+            Path(resume_dir), algo, env_id, total_timesteps, n_envs, progress, vec_env, verbose, callbacks, after_eval
+        )
 
     if algo is None or env_id is None:
         raise ConfigError("algo and env id are required unless resuming")
@@ -202,15 +212,7 @@ def train(
     gym_packages = tuple(gym_packages)
     check_env_id(env_id, gym_packages)
     config_path = Path(config_path) if config_path is not None else default_config_path(algo)
-    cfg = load_config(config_path, algo, env_id, overrides=hyperparams)
-    entry = cfg.to_entry()
-    if env_kwargs:
-        entry["env_kwargs"] = {**entry["env_kwargs"], **dict(env_kwargs)}
-    if n_envs is not None:
-        entry["n_envs"] = n_envs
-    if total_timesteps is not None:
-        entry["n_timesteps"] = total_timesteps
-    cfg = parse_entry(entry, algo, source=f"{config_path} + command line", entry_name=env_id)
+    cfg = resolve_config(config_path, algo, env_id, hyperparams, env_kwargs, n_envs, total_timesteps)
 
     run_dir = create_run_dir(
         run_dir_for(out_dir, env_id, algo, seed), algo, env_id, seed, gym_packages, config_path, cfg
@@ -244,13 +246,59 @@ def train(
         command += ["--hyperparams", *(f"{k}={json.dumps(v)}" for k, v in hyperparams.items())]
     try:
         _run_segment(
-            run_dir, cfg, env_id, seed, gym_packages, cfg.n_timesteps, command, None, progress, vec_env, verbose
+            run_dir,
+            cfg,
+            env_id,
+            seed,
+            gym_packages,
+            cfg.n_timesteps,
+            command,
+            None,
+            progress,
+            vec_env,
+            verbose,
+            callbacks,
+            after_eval,
         )
     except BaseException as exc:
         # a user error (bad config or kwargs: a ValueError) is reported by the caller in one line; say nothing more
         remove_if_no_model(run_dir, quiet=isinstance(exc, ValueError))
         raise
     return run_dir
+
+
+def resolve_config(
+    config_path: str | Path,
+    algo: str,
+    env_id: str,
+    hyperparams: Mapping[str, Any] | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    n_envs: int | None = None,
+    total_timesteps: int | None = None,
+) -> TrainConfig:
+    """The configuration a fresh run of :func:`train` uses: the file's entry with the command line's overrides.
+
+    Args:
+        config_path: The configuration file.
+        algo: Algorithm name.
+        env_id: Environment id (its entry, or ``default``).
+        hyperparams: Config keys overriding the entry (``--hyperparams``).
+        env_kwargs: Merged into the entry's ``env_kwargs`` (``--env-kwargs``).
+        n_envs: Overrides ``n_envs`` (``--n-envs``).
+        total_timesteps: Overrides ``n_timesteps`` (``--total-timesteps``).
+
+    Raises:
+        ConfigError: An invalid file, key or value.
+    """
+    cfg = load_config(config_path, algo, env_id, overrides=hyperparams)
+    entry = cfg.to_entry()
+    if env_kwargs:
+        entry["env_kwargs"] = {**entry["env_kwargs"], **dict(env_kwargs)}
+    if n_envs is not None:
+        entry["n_envs"] = n_envs
+    if total_timesteps is not None:
+        entry["n_timesteps"] = total_timesteps
+    return parse_entry(entry, algo, source=f"{config_path} + command line", entry_name=env_id)
 
 
 def _resume(
@@ -262,6 +310,8 @@ def _resume(
     progress: bool,
     vec_env: str,
     verbose: int,
+    callbacks: Sequence[BaseCallback] = (),
+    after_eval: Sequence[BaseCallback] = (),
 ) -> Path:
     config_file = run_dir / "config.yml"
     if not config_file.is_file() or not (run_dir / "meta.json").is_file():
@@ -303,7 +353,19 @@ def _resume(
         vec_env,
     ]
     _run_segment(
-        run_dir, cfg, env_id, seed, gym_packages, total_timesteps, command, checkpoint, progress, vec_env, verbose
+        run_dir,
+        cfg,
+        env_id,
+        seed,
+        gym_packages,
+        total_timesteps,
+        command,
+        checkpoint,
+        progress,
+        vec_env,
+        verbose,
+        callbacks,
+        after_eval,
     )
     return run_dir
 
@@ -320,6 +382,8 @@ def _run_segment(
     progress: bool,
     vec_env: str,
     verbose: int,
+    extra_callbacks: Sequence[BaseCallback] = (),
+    after_eval: Sequence[BaseCallback] = (),
 ) -> None:
     meta = json.loads((run_dir / "meta.json").read_text(encoding="utf-8"))
     segment = len(meta["segments"])
@@ -457,6 +521,7 @@ def _run_segment(
                 eval_venv,
                 eval_seed=eval_env_seed(seed, 0),
                 callback_on_new_best=SaveBestExtras(run_dir, segment),
+                callback_after_eval=CallbackList(list(after_eval)) if after_eval else None,
                 n_eval_episodes=cfg.n_eval_episodes,
                 eval_freq=max(cfg.eval_freq // cfg.n_envs, 1),
                 log_path=str(log_dir),
@@ -470,6 +535,7 @@ def _run_segment(
                 if best is not None:
                     eval_callback.best_mean_reward = float(best)
             callbacks.append(eval_callback)
+        callbacks.extend(extra_callbacks)
 
         model.learn(
             total_timesteps=timesteps,

@@ -135,3 +135,37 @@ def train_options(data: Mapping[str, Any], name: str, default: str, where: str) 
         check_known_keys(options, TRAIN_OPTION_KEYS, f"{where}: {TRAIN_OPTIONS}[{key!r}]", "train options")
         merged.update(options)
     return merged
+
+
+_FIELD_DEFAULTS: dict[str, Any] = {"action_scale": 1.0, "alive_bonus": 0.0, "action_init_scale": None}
+"""Values of the ``env_wrapper``/``callback`` fields that need no list item (no wrapper, no callback)."""
+
+
+def zoo_entry(flat: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """A flat entry (``TrainConfig.to_entry()``) written the way ``train_configs/<algo>.yml`` write entries.
+
+    The inverse of :func:`flatten_entry` and :func:`train_options`.
+
+    Args:
+        flat: The flat entry.
+
+    Returns:
+        ``(entry, options)``: the entry with ``env_wrapper``/``callback`` lists (items only for fields that are
+        not at their no-op value) and without the noise keys when ``noise_type`` is unset (RL Zoo reads
+        ``noise_type`` as a string), and the ``train_options`` of the entry.
+    """
+    entry = dict(flat)
+    options = {key: entry.pop(key) for key in TRAIN_OPTION_KEYS if key in entry}
+    if entry.get("noise_type", "unset") is None:
+        entry.pop("noise_type")
+        entry.pop("noise_std", None)
+    for key, table in (("env_wrapper", WRAPPERS), ("callback", CALLBACKS)):
+        items = []
+        for name, (argument, field_name) in table.items():
+            if field_name in entry:
+                value = entry.pop(field_name)
+                if value != _FIELD_DEFAULTS[field_name]:
+                    items.append({name: {argument: value}})
+        if items:
+            entry[key] = items
+    return entry, options

@@ -104,11 +104,12 @@ def build_parser() -> argparse.ArgumentParser:
 def _register_commands(sub: argparse._SubParsersAction) -> None:
     """Subcommands implemented beside the packages they drive (each module's ``register(subparsers)``)."""
     from agents import cli as agents_cli
+    from agents import sweep_cli
     from baselines import cli as baselines_cli
     from leaderboard import cli as leaderboard_cli
     from uvdms_cli import evaluate
 
-    for module in (evaluate, baselines_cli, agents_cli, leaderboard_cli):
+    for module in (evaluate, baselines_cli, agents_cli, sweep_cli, leaderboard_cli):
         module.register(sub)
 
 
