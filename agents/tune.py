@@ -190,7 +190,7 @@ def _searcher(space: SearchSpace, seed: int, n_startup_trials: int) -> Any:
             super().on_trial_complete(trial_id, result, error)
 
     sampler = optuna.samplers.TPESampler(seed=seed, n_startup_trials=n_startup_trials)
-    return _PruningAwareOptunaSearch(space=space.define_by_run, sampler=sampler)
+    return _PruningAwareOptunaSearch(space=space.define_by_run, metric=METRIC, mode="max", sampler=sampler)
 
 
 def _check_space(space: SearchSpace, check: Any) -> None:
