@@ -20,8 +20,9 @@ checkpoints are shipped to a store on the driver's node as they are written, so 
 retried from its newest checkpoint (:mod:`agents.sweep_worker`; ``max_retries`` retries per run).
 
 CPU accounting: a run declares the CPUs it keeps busy (:func:`run_cpus`): 1 with ``--vec-env dummy`` (the envs
-step in the trainer's process) and ``n_envs`` with ``subproc`` (one worker process per env; the trainer runs
-while they wait). Ray never starts more runs on a node than its CPUs allow, and a run that needs more CPUs
+step in the trainer's process), ``n_envs`` with ``subproc`` (one worker process per env; the trainer runs while
+they wait) and with ``hybrid`` (env 0 in the trainer, the others in spinning workers, all at once). Ray never
+starts more runs on a node than its CPUs allow, and a run that needs more CPUs
 than any node has is an error before the sweep starts. The trainer uses one torch thread
 (:func:`agents.train.train` sets it; Ray also sets ``OMP_NUM_THREADS`` to the task's CPUs), so a run never
 uses more cores than it declared.
@@ -74,6 +75,7 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
     "n_evaluations",
     "wall_time_s",
     "retries",
+    "node",
     "error",
 )
 """Columns of ``sweep.csv`` (and keys of each run in ``sweep.json``)."""
@@ -139,7 +141,7 @@ def grid_points(axes: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
 
 
 def run_cpus(n_envs: int, vec_env: str) -> int:
-    """CPUs a run keeps busy: 1 with ``dummy`` envs (stepped by the trainer), ``n_envs`` with ``subproc``."""
+    """CPUs a run keeps busy: 1 with ``dummy`` envs (stepped by the trainer), ``n_envs`` with ``subproc``/``hybrid``."""
     return 1 if vec_env == "dummy" else max(int(n_envs), 1)
 
 
@@ -362,6 +364,7 @@ def _finish(job: RunJob, outcome: Any, out_dir: Path, first_start: float | None,
     return {
         **row,
         "status": "completed",
+        "node": outcome.node_id,
         "num_timesteps": checkpoint.num_timesteps if checkpoint else None,
         **evaluation_summary(run_dir),
     }
@@ -402,7 +405,8 @@ def check_fits(ray: Any, need: int) -> None:
     largest = max((node.get("Resources", {}).get("CPU", 0) for node in ray.nodes() if node.get("Alive")), default=0)
     if need > largest:
         raise ConfigError(
-            f"a run needs {need} CPUs (n_envs {need} with subproc envs) but the largest Ray node has {largest:g}; "
+            f"a run needs {need} CPUs (n_envs {need} with --vec-env subproc/hybrid) but the largest Ray node has "
+            f"{largest:g}; "
             "lower --n-envs or use --vec-env dummy"
         )
 
