@@ -110,17 +110,23 @@ class CheckpointStore:
         self._runs: dict[str, dict[str, Any]] = {}
         self._checkpoints: dict[str, tuple[int, bytes, str]] = {}
 
-    def begin(self, key: str, pid: int, node_id: str) -> tuple[int, tuple[bytes, str] | None]:
-        """Register a new attempt of run ``key``.
+    def begin(
+        self, key: str, pid: int, node_id: str, worker_root: str
+    ) -> tuple[int, tuple[bytes, str] | None, tuple[str, str] | None]:
+        """Register a new attempt of run ``key`` (its process, node and temporary directory).
 
         Returns:
-            The attempt number (1, 2, ...) and, if the run has one, its newest checkpoint: the archive and the
-            temporary directory of the attempt that wrote it (named in the run's records).
+            The attempt number (1, 2, ...); the run's newest checkpoint, if any: the archive and the temporary
+            directory of the attempt that wrote it (named in the run's records); the node and temporary
+            directory of the previous attempt, if any (left behind by its dead worker).
         """
         record = self._runs.setdefault(key, {"attempts": 0, "first_start": time.time()})
-        record.update(attempts=record["attempts"] + 1, pid=pid, node_id=node_id, started=time.time())
+        previous = (record["node_id"], record["worker_root"]) if record["attempts"] else None
+        record.update(
+            attempts=record["attempts"] + 1, pid=pid, node_id=node_id, worker_root=worker_root, started=time.time()
+        )
         checkpoint = self._checkpoints.get(key)
-        return record["attempts"], (checkpoint[1:] if checkpoint else None)
+        return record["attempts"], (checkpoint[1:] if checkpoint else None), previous
 
     def put(self, key: str, attempt: int, num_timesteps: int, archive: bytes, worker_root: str) -> bool:
         """Keep ``archive`` as the newest checkpoint of ``key``; ``False`` if it is stale (ignored)."""
@@ -136,7 +142,8 @@ class CheckpointStore:
         """The record of every run.
 
         Returns:
-            Per run key: ``attempts``, ``pid``, ``node_id`` and ``started`` of the current attempt, ``first_start``
+            Per run key: ``attempts``, ``pid``, ``node_id``, ``worker_root`` and ``started`` of the current attempt,
+            ``first_start``
             (epoch seconds, on the store's node) and ``checkpoint_timesteps`` of the stored checkpoint (absent
             before the first).
         """
@@ -323,9 +330,11 @@ def run_job(job: RunJob, store: StoreClient) -> RunOutcome:
     from agents.train import train
 
     node_id = _node_id()
-    attempt, checkpoint = store.call("begin", job.key, os.getpid(), node_id)
     root = Path(tempfile.mkdtemp(prefix=WORKER_PREFIX))
     try:
+        attempt, checkpoint, previous = store.call("begin", job.key, os.getpid(), node_id, str(root))
+        if previous is not None and previous[0] == node_id and Path(previous[1]).name.startswith(WORKER_PREFIX):
+            shutil.rmtree(previous[1], ignore_errors=True)  # the dead attempt's directory, on this node
         config_path = root / "configs" / job.config_name
         config_path.parent.mkdir()
         config_path.write_text(job.config_text, encoding="utf-8")

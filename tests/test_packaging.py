@@ -66,6 +66,10 @@ def test_wheel_holds_code_configs_and_shipped_agents(wheel):
             assert source.relative_to(REPO).as_posix() in names, f"{source} missing: list its package in pyproject"
     for config in (REPO / "train_configs").glob("*.yml"):
         assert f"agents/train_configs/{config.name}" in names
+    spaces = list((REPO / "train_configs" / "search_spaces").glob("*.yml"))
+    assert spaces
+    for space in spaces:  # uvdms tune's search spaces
+        assert f"agents/train_configs/search_spaces/{space.name}" in names
     folders = shipped_folders()
     assert folders
     for folder in folders:
@@ -89,8 +93,10 @@ def test_unpacked_wheel_finds_configs_and_agents_from_any_directory(wheel, tmp_p
 import json, agents, uvdms_gym
 from agents.config import default_config_path, load_config
 from agents.policy import TRUSTED_DIR, load_agent
+from agents.search_space import default_search_space_path, load_search_space
 from leaderboard import find_agent_folders, resolve_entries
 cfg = load_config(default_config_path("ppo"), "ppo", "uvdms/CircleTrack-v0")
+space = load_search_space(default_search_space_path("ppo"))
 folders = find_agent_folders(TRUSTED_DIR)
 agent = load_agent(folders[0])
 entries = resolve_entries(["agents"])
@@ -98,6 +104,7 @@ print(json.dumps({
     "agents": agents.__file__, "uvdms_gym": uvdms_gym.__file__, "config": str(default_config_path("ppo")),
     "trusted": str(TRUSTED_DIR), "folders": [f.name for f in folders], "n_timesteps": cfg.n_timesteps,
     "agent_env": agent.env_id, "entries": [e.name for e in entries],
+    "space": str(default_search_space_path("ppo")), "space_params": len(space.params),
 }))
 """
     env = {**os.environ, "PYTHONPATH": str(site)}
@@ -106,8 +113,8 @@ print(json.dumps({
     )
     assert run.returncode == 0, run.stderr[-3000:]
     found = json.loads(run.stdout.strip().splitlines()[-1])
-    for key in ("agents", "uvdms_gym", "config", "trusted"):
+    for key in ("agents", "uvdms_gym", "config", "trusted", "space"):
         assert Path(found[key]).is_relative_to(site), (key, found[key])
-    assert found["n_timesteps"] > 0 and found["agent_env"].startswith("uvdms/")
+    assert found["n_timesteps"] > 0 and found["agent_env"].startswith("uvdms/") and found["space_params"] > 0
     expected = [p.name for p in shipped_folders()]
     assert found["folders"] == expected and found["entries"] == expected

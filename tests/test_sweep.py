@@ -125,7 +125,7 @@ class ProcessWatch:
         deadline = time.monotonic() + timeout
         while True:
             table = _proc_table()
-            alive = [pid for pid, start in self.seen if pid in table and table[pid][2] == start and table[pid][1] != "Z"]
+            alive = [p for p, start in self.seen if p in table and table[p][2] == start and table[p][1] != "Z"]
             if not alive or time.monotonic() > deadline:
                 return alive
             time.sleep(0.2)
@@ -205,7 +205,8 @@ def test_archive_round_trip_keeps_only_the_checkpoint_asked_for(tmp_path):
 
 
 def test_evaluation_summary_reads_every_segment(tmp_path):
-    for seg, results, lengths in ((0, [[-3.0, -1.0], [-2.0, -2.0]], [[10, 20], [30, 30]]), (1, [[-5.0, -4.0]], [[7, 9]])):
+    segments = ((0, [[-3.0, -1.0], [-2.0, -2.0]], [[10, 20], [30, 30]]), (1, [[-5.0, -4.0]], [[7, 9]]))
+    for seg, results, lengths in segments:
         folder = tmp_path / "logs" / f"seg{seg}"
         folder.mkdir(parents=True)
         np.savez(folder / "evaluations.npz", timesteps=np.arange(len(results)), results=results, ep_lengths=lengths)
@@ -303,7 +304,7 @@ def _check_completed(out: Path, seeds: list[int]) -> dict[int, dict]:
     )
     csv_lines = (out / "sweep.csv").read_text(encoding="utf-8").splitlines()
     assert len(csv_lines) == 1 + len(seeds)
-    for seed, row in rows.items():
+    for row in rows.values():
         run_dir = out / row["run"]
         assert row["status"] == "completed", row
         evaluations = _evaluations(run_dir)
@@ -408,13 +409,15 @@ def test_killed_worker_resumes_from_its_checkpoint(tiny_config, tmp_path, ray_pr
     killed = None
     deadline = time.monotonic() + 120
     while killed is None and thread.is_alive() and time.monotonic() < deadline:
-        names = [a["name"] for a in ray.util.list_named_actors(all_namespaces=True) if a["name"].startswith(STORE_PREFIX)]
+        actors = ray.util.list_named_actors(all_namespaces=True)
+        names = [a["name"] for a in actors if a["name"].startswith(STORE_PREFIX)]
         if names:
             status = ray.get(ray.get_actor(names[0], namespace=STORE_NAMESPACE).status.remote())
             record = status.get("uvdms_CircleTrack-v0/ppo_0", {})
             if record.get("checkpoint_timesteps"):
                 os.kill(record["pid"], signal.SIGKILL)
-                killed = record["checkpoint_timesteps"]
+                killed, dead_root = record["checkpoint_timesteps"], Path(record["worker_root"])
+                assert dead_root.is_dir()
         time.sleep(0.02)
     thread.join(timeout=300)
     assert "error" not in outcome, outcome.get("error")
@@ -438,11 +441,12 @@ def test_killed_worker_resumes_from_its_checkpoint(tiny_config, tmp_path, ray_pr
     resumed, clean = _evaluations(out / rows[0]["run"])["timesteps"], _evaluations(out / rows[1]["run"])["timesteps"]
     np.testing.assert_array_equal(resumed, clean)
     assert rows[0]["n_evaluations"] == len(clean) == 10
+    assert not dead_root.exists()  # the retry (on this node) removed the dead worker's temporary directory
     ray.shutdown()
 
 
 def test_config_error_in_one_grid_point_is_reported_before_any_run(tiny_config, tmp_path):
-    with pytest.raises(ConfigError, match="grid point 1 .*n_epochs"):
+    with pytest.raises(ConfigError, match=r"grid point 1 .*n_epochs"):
         sweep("ppo", ENV, [0], config_path=tiny_config, grid={"n_epochs": [2, "many"]}, out_dir=tmp_path / "out")
     assert not (tmp_path / "out").exists()
 
