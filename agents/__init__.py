@@ -16,6 +16,7 @@ Modules (imported on demand, so ``import agents`` stays light):
   trust-gated ``load_sb3_zip``.
 * :mod:`agents.export`: the weights-only ``export_agent`` / ``load_weights_only`` (also importable from
   :mod:`agents.policy`).
-* :mod:`agents.sweep` / :mod:`agents.sweep_worker`: ``uvdms sweep`` (seeds x grid, locally or as Ray tasks).
+* :mod:`agents.sweep` / :mod:`agents.sweep_worker` / :mod:`agents.sweep_report`: ``uvdms sweep`` (seeds x grid,
+  locally or as Ray tasks; its summary).
 * :mod:`agents.tune` / :mod:`agents.search_space`: ``uvdms tune`` (Ray Tune + Optuna TPE over RL-Zoo-style spaces).
 """

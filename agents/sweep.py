@@ -8,8 +8,8 @@ evaluate``, ``uvdms export-agent`` and ``uvdms train --resume`` take it), under 
     <out>/<env id, '/' and ':' replaced by '_'>/<algo>_<seed>/              (no --grid)
     <out>/grid_<k>/<env id ...>/<algo>_<seed>/                             (grid point k)
     <out>/configs/<config file name>       the configuration the runs used (their config.yml names it)
-    <out>/sweep.json, <out>/sweep.csv      the summary (per run: seed, grid point, evaluation returns,
-                                           episode length, steps, wall time, retries, status)
+    <out>/sweep.json, <out>/sweep.csv      the summary (:mod:`agents.sweep_report`; per run: seed, grid point,
+                                           evaluation returns, episode length, steps, wall time, retries, status)
 
 Backends: ``local`` trains the runs one after another in this process; ``ray`` submits each run as a Ray task
 (through :func:`uvdms_gym.cluster.ray_session`: a local instance, or the cluster at ``--address``). Both run
@@ -31,7 +31,6 @@ uses more cores than it declared.
 from __future__ import annotations
 
 import contextlib
-import csv
 import dataclasses
 import itertools
 import json
@@ -42,7 +41,6 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import yaml
 
 from agents.algos import ALGOS
@@ -50,8 +48,8 @@ from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
 from agents.config import ConfigError, default_config_path
 from agents.envs import check_env_id
 from agents.rundir import RunDirError, latest_checkpoint, run_dir_for, utc_now
+from agents.sweep_report import evaluation_summary, write_summary
 from agents.sweep_worker import CheckpointStore, RunJob, StoreClient, relocate_records, run_job, unpack_run_dir
-from uvdms_gym.io import to_jsonable, write_json_atomic
 from uvdms_gym.kwargs import check_make_kwargs, parse_kv
 
 log = logging.getLogger("agents.sweep")
@@ -62,23 +60,6 @@ STORE_PREFIX = "uvdms-sweep-store-"
 """Name prefix of the checkpoint-store actor of a Ray sweep (namespace :data:`STORE_NAMESPACE`)."""
 STORE_NAMESPACE = "uvdms"
 """Ray namespace of the checkpoint-store actors."""
-SUMMARY_COLUMNS: tuple[str, ...] = (
-    "run",
-    "seed",
-    "grid",
-    "grid_point",
-    "status",
-    "num_timesteps",
-    "final_eval_return",
-    "best_eval_return",
-    "final_eval_episode_length",
-    "n_evaluations",
-    "wall_time_s",
-    "retries",
-    "node",
-    "error",
-)
-"""Columns of ``sweep.csv`` (and keys of each run in ``sweep.json``)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -314,31 +295,35 @@ def sweep(
     for job in jobs:
         if (out_dir / job.key).exists():
             raise RunDirError(f"run directory {out_dir / job.key} exists; choose another --out")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    config_copy = out_dir / "configs" / jobs[0].config_name
-    config_copy.parent.mkdir(exist_ok=True)
-    config_copy.write_text(jobs[0].config_text, encoding="utf-8")
-    header = {
-        "algo": algo,
-        "env_id": env_id,
-        "env_kwargs": dict(env_kwargs or {}),
-        "seeds": [int(s) for s in seeds],
-        "config": str(config_copy),
-        "hyperparams": dict(hyperparams or {}),
-        "grid": {k: list(v) for k, v in (grid or {}).items()},
-        "total_timesteps": total_timesteps,
-        "n_envs": n_envs,
-        "vec_env": vec_env,
-        "backend": backend,
-        "address": address,
-        "max_retries": max_retries,
-        "started_utc": utc_now(),
-    }
-    rows: dict[str, dict[str, Any]] = {}
-    run = _run_ray if backend == "ray" else _run_local
-    for job, row in run(jobs, out_dir, address=address, num_cpus=num_cpus, max_retries=max_retries):
-        rows[job.key] = row
-        write_summary(out_dir, header, [rows[j.key] for j in jobs if j.key in rows])
+    with contextlib.ExitStack() as stack:
+        ray = stack.enter_context(connect_ray(address, num_cpus)) if backend == "ray" else None
+        if ray is not None:
+            check_fits(ray, max(job.num_cpus for job in jobs))
+        out_dir.mkdir(parents=True, exist_ok=True)
+        config_copy = out_dir / "configs" / jobs[0].config_name
+        config_copy.parent.mkdir(exist_ok=True)
+        config_copy.write_text(jobs[0].config_text, encoding="utf-8")
+        header = {
+            "algo": algo,
+            "env_id": env_id,
+            "env_kwargs": dict(env_kwargs or {}),
+            "seeds": [int(s) for s in seeds],
+            "config": str(config_copy),
+            "hyperparams": dict(hyperparams or {}),
+            "grid": {k: list(v) for k, v in (grid or {}).items()},
+            "total_timesteps": total_timesteps,
+            "n_envs": n_envs,
+            "vec_env": vec_env,
+            "backend": backend,
+            "address": address,
+            "max_retries": max_retries,
+            "started_utc": utc_now(),
+        }
+        rows: dict[str, dict[str, Any]] = {}
+        runs = _run_ray(ray, jobs, out_dir, max_retries) if ray is not None else _run_local(jobs, out_dir)
+        for job, row in runs:
+            rows[job.key] = row
+            write_summary(out_dir, header, [rows[j.key] for j in jobs if j.key in rows])
     header["finished_utc"] = utc_now()
     ordered = [rows[job.key] for job in jobs]
     write_summary(out_dir, header, ordered)
@@ -370,10 +355,8 @@ def _finish(job: RunJob, outcome: Any, out_dir: Path, first_start: float | None,
     }
 
 
-def _run_local(
-    jobs: Sequence[RunJob], out_dir: Path, *, address: str | None, num_cpus: int | None, max_retries: int
-) -> Iterator[tuple[RunJob, dict[str, Any]]]:
-    del address, num_cpus, max_retries  # the runs share this process: a crash ends the sweep (no retry)
+def _run_local(jobs: Sequence[RunJob], out_dir: Path) -> Iterator[tuple[RunJob, dict[str, Any]]]:
+    """The runs one after another in this process (a crash ends the sweep: no retry)."""
     store = CheckpointStore()
     client = StoreClient(store, remote=False)
     for job in jobs:
@@ -412,111 +395,43 @@ def check_fits(ray: Any, need: int) -> None:
 
 
 def _run_ray(
-    jobs: Sequence[RunJob], out_dir: Path, *, address: str | None, num_cpus: int | None, max_retries: int
+    ray: Any, jobs: Sequence[RunJob], out_dir: Path, max_retries: int
 ) -> Iterator[tuple[RunJob, dict[str, Any]]]:
-    with connect_ray(address, num_cpus) as ray:
-        from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+    """The runs as Ray tasks (``ray``: the connected module), yielded as they finish."""
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
-        check_fits(ray, max(job.num_cpus for job in jobs))
-        here = ray.get_runtime_context().get_node_id()
-        actor = (
-            ray.remote(num_cpus=0, max_restarts=0)(CheckpointStore)
-            .options(
-                name=f"{STORE_PREFIX}{uuid.uuid4().hex[:12]}",
-                namespace=STORE_NAMESPACE,
-                scheduling_strategy=NodeAffinitySchedulingStrategy(node_id=here, soft=False),
-            )
-            .remote()
+    here = ray.get_runtime_context().get_node_id()
+    actor = (
+        ray.remote(num_cpus=0, max_restarts=0)(CheckpointStore)
+        .options(
+            name=f"{STORE_PREFIX}{uuid.uuid4().hex[:12]}",
+            namespace=STORE_NAMESPACE,
+            scheduling_strategy=NodeAffinitySchedulingStrategy(node_id=here, soft=False),
         )
-        try:
-            client = StoreClient(actor, remote=True)
-            task = ray.remote(run_job)
-            refs = {
-                task.options(
-                    num_cpus=job.num_cpus, max_retries=max_retries, retry_exceptions=False, name=f"sweep {job.key}"
-                ).remote(job, client): job
-                for job in jobs
-            }
-            pending = list(refs)
-            while pending:
-                done, pending = ray.wait(pending, num_returns=1)
-                for ref in done:
-                    job = refs[ref]
-                    try:
-                        outcome: Any = ray.get(ref)
-                    except ray.exceptions.RayError as exc:  # a run's error or its last worker's death
-                        cause = getattr(exc, "cause", None)
-                        outcome = cause if isinstance(cause, Exception) else exc
-                        log.error("run %s failed: %s: %s", job.key, type(outcome).__name__, outcome)
-                    record = ray.get(actor.status.remote()).get(job.key, {})
-                    ray.get(actor.forget.remote(job.key))
-                    yield job, _finish(job, outcome, out_dir, record.get("first_start"), record.get("attempts", 1))
-        finally:
-            ray.kill(actor)
-
-
-# ------------------------------------------------------------------------------------------------------
-# Summary
-# ------------------------------------------------------------------------------------------------------
-def evaluation_summary(run_dir: str | Path) -> dict[str, Any]:
-    """Evaluation results of a run from its ``logs/seg<k>/evaluations.npz`` (all segments, in order).
-
-    Returns:
-        ``final_eval_return`` (mean return of the last evaluation), ``best_eval_return`` (best mean return of any
-        evaluation), ``final_eval_episode_length`` (mean episode length of the last evaluation),
-        ``n_evaluations``; ``None`` values when the run never evaluated. Returns are those of the evaluation
-        callback, i.e. with the configuration's ``alive_bonus`` included.
-    """
-    files = sorted(Path(run_dir).glob("logs/seg*/evaluations.npz"), key=lambda p: int(p.parent.name[3:]))
-    returns: list[float] = []
-    lengths: list[float] = []
-    for path in files:
-        with np.load(path) as data:
-            returns += [float(np.mean(r)) for r in data["results"]]
-            lengths += [float(np.mean(n)) for n in data["ep_lengths"]]
-    return {
-        "final_eval_return": returns[-1] if returns else None,
-        "best_eval_return": max(returns) if returns else None,
-        "final_eval_episode_length": lengths[-1] if lengths else None,
-        "n_evaluations": len(returns),
-    }
-
-
-def write_summary(out_dir: Path, header: Mapping[str, Any], rows: Sequence[Mapping[str, Any]]) -> None:
-    """Write ``sweep.json`` (the sweep's arguments and every row) and ``sweep.csv`` (:data:`SUMMARY_COLUMNS`)."""
-    write_json_atomic(out_dir / "sweep.json", to_jsonable({"sweep": dict(header), "runs": list(rows)}))
-    with (out_dir / "sweep.csv").open("w", encoding="utf-8", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=SUMMARY_COLUMNS)
-        writer.writeheader()
-        for row in rows:
-            values = {k: row.get(k) for k in SUMMARY_COLUMNS}
-            values["grid_point"] = json.dumps(row.get("grid_point") or {}, sort_keys=True)
-            writer.writerow({k: "" if v is None else v for k, v in values.items()})
-
-
-def format_table(rows: Sequence[Mapping[str, Any]]) -> str:
-    """The summary as an aligned text table (one line per run)."""
-
-    def fmt(value: Any, digits: int = 2) -> str:
-        if value is None:
-            return "-"
-        return f"{value:.{digits}f}" if isinstance(value, float) else str(value)
-
-    header = ["run", "seed", "grid", "status", "steps", "final_return", "best_return", "ep_len", "wall_s", "retries"]
-    lines = [header] + [
-        [
-            str(r["run"]),
-            str(r["seed"]),
-            fmt(r.get("grid")),
-            str(r["status"]),
-            fmt(r.get("num_timesteps")),
-            fmt(r.get("final_eval_return")),
-            fmt(r.get("best_eval_return")),
-            fmt(r.get("final_eval_episode_length"), 1),
-            fmt(r.get("wall_time_s"), 1),
-            str(r.get("retries", 0)),
-        ]
-        for r in rows
-    ]
-    widths = [max(len(line[i]) for line in lines) for i in range(len(header))]
-    return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(line, widths)).rstrip() for line in lines)
+        .remote()
+    )
+    try:
+        client = StoreClient(actor, remote=True)
+        task = ray.remote(run_job)
+        refs = {
+            task.options(
+                num_cpus=job.num_cpus, max_retries=max_retries, retry_exceptions=False, name=f"sweep {job.key}"
+            ).remote(job, client): job
+            for job in jobs
+        }
+        pending = list(refs)
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            for ref in done:
+                job = refs[ref]
+                try:
+                    outcome: Any = ray.get(ref)
+                except ray.exceptions.RayError as exc:  # a run's error or its last worker's death
+                    cause = getattr(exc, "cause", None)
+                    outcome = cause if isinstance(cause, Exception) else exc
+                    log.error("run %s failed: %s: %s", job.key, type(outcome).__name__, outcome)
+                record = ray.get(actor.status.remote()).get(job.key, {})
+                ray.get(actor.forget.remote(job.key))
+                yield job, _finish(job, outcome, out_dir, record.get("first_start"), record.get("attempts", 1))
+    finally:
+        ray.kill(actor)

@@ -113,7 +113,8 @@ def _check_env(env_id: str, packages: list[str]) -> None:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from agents.sweep import format_table, parse_grid, sweep
+    from agents.sweep import parse_grid, sweep
+    from agents.sweep_report import format_table
     from uvdms_gym.kwargs import parse_kv
 
     env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")

@@ -27,12 +27,12 @@ from agents.sweep import (
     STORE_NAMESPACE,
     STORE_PREFIX,
     check_seeds,
-    evaluation_summary,
     grid_points,
     parse_grid,
     run_cpus,
     sweep,
 )
+from agents.sweep_report import evaluation_summary
 from agents.sweep_worker import pack_run_dir, unpack_run_dir
 from agents.zoo import zoo_entry
 from uvdms_cli.main import main
@@ -393,6 +393,10 @@ def test_killed_worker_resumes_from_its_checkpoint(tiny_config, tmp_path, ray_pr
 
     ray.init(num_cpus=2, include_dashboard=False, logging_level="WARNING")
     out = tmp_path / "out"
+    # a run that needs more CPUs than any node has would wait forever: an error before anything is written
+    with pytest.raises(ConfigError, match=r"a run needs 3 CPUs .* the largest Ray node has 2"):
+        sweep("ppo", ENV, [0], config_path=tiny_config, n_envs=3, vec_env="subproc", backend="ray", out_dir=out)
+    assert not out.exists() and ray.is_initialized()  # the caller's session is reused and left connected
     outcome: dict = {}
 
     def run() -> None:
