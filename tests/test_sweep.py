@@ -3,7 +3,7 @@
 Runs are tiny (PPO, 1 env, rollouts of 64 steps, an evaluation and a checkpoint every 100 steps, 40-step
 episodes of ``uvdms/CircleTrack-v0``). Every Ray test starts its own Ray (a local instance or a
 ``ray.cluster_utils.Cluster`` on this machine), shuts it down, and checks that no process it started outlives
-it (:class:`ProcessWatch`, section "Ray process bookkeeping").
+it (the ``ray_processes`` fixture of ``tests/ray_support.py``).
 """
 
 from __future__ import annotations
@@ -64,86 +64,6 @@ def tiny_config(tmp_path) -> Path:
 def sweep_argv(config: Path, out: Path, *extra: str, seeds=("0", "1")) -> list[str]:
     return ["sweep", "--algo", "ppo", "--env", ENV, "--env-kwargs", "case=1", "--config", str(config),
             "--seeds", *seeds, "--out", str(out), *extra]  # fmt: skip
-
-
-# ------------------------------------------------------------------------------------------------------
-# Ray process bookkeeping (a fixture of this file; tests/test_tune.py imports it)
-# ------------------------------------------------------------------------------------------------------
-def _proc_table() -> dict[int, tuple[int, str, int]]:
-    """pid -> (parent pid, state, start time in clock ticks), from /proc."""
-    table = {}
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry}/stat", encoding="utf-8", errors="replace") as f:
-                fields = f.read().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        table[int(entry)] = (int(fields[1]), fields[0], int(fields[19]))
-    return table
-
-
-class ProcessWatch:
-    """Records every process that descends from this one while it runs (sampled every 0.1 s).
-
-    Ray's local instance (GCS, raylet, workers, ...) and the nodes of a ``Cluster`` are started by the test
-    process, so they are its descendants for as long as they run; a process that later loses its parent is
-    still checked because it was recorded while it had one. :meth:`leftovers` lists the recorded processes
-    still alive (zombies count as ended).
-    """
-
-    def __init__(self) -> None:
-        self.seen: set[tuple[int, int]] = set()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
-
-    def _sample(self) -> None:
-        table = _proc_table()
-        children: dict[int, list[int]] = {}
-        for pid, (ppid, _, _) in table.items():
-            children.setdefault(ppid, []).append(pid)
-        stack = list(children.get(os.getpid(), []))
-        while stack:
-            pid = stack.pop()
-            self.seen.add((pid, table[pid][2]))
-            stack.extend(children.get(pid, []))
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            self._sample()
-            self._stop.wait(0.1)
-
-    def stop(self) -> None:
-        self._sample()
-        self._stop.set()
-        self._thread.join()
-
-    def leftovers(self, timeout: float = 20.0) -> list[int]:
-        """The recorded processes still alive after waiting up to ``timeout`` seconds for them to end."""
-        deadline = time.monotonic() + timeout
-        while True:
-            table = _proc_table()
-            alive = [p for p, start in self.seen if p in table and table[p][2] == start and table[p][1] != "Z"]
-            if not alive or time.monotonic() > deadline:
-                return alive
-            time.sleep(0.2)
-
-
-@pytest.fixture
-def ray_processes():
-    """A :class:`ProcessWatch` for the test; fails the test if a process it started outlives it."""
-    import ray
-
-    assert not ray.is_initialized()
-    watch = ProcessWatch()
-    yield watch
-    if ray.is_initialized():
-        ray.shutdown()
-    watch.stop()
-    assert len(watch.seen) > 0, "the test started no process: the watch saw nothing"
-    assert watch.leftovers() == []
 
 
 # ------------------------------------------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """``uvdms tune``: the search spaces against RL Zoo's samplers, their checks, a 4-trial search on Ray, bad input.
 
-The search uses the tiny PPO configuration of ``tests/test_sweep.py`` (and its Ray process bookkeeping: the
-``ray_processes`` fixture fails the test if a process the search started outlives it).
+The search uses the tiny PPO configuration of ``tests/test_sweep.py``; the ``ray_processes`` fixture
+(``tests/ray_support.py``) fails the test if a process the search started outlives it.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pathlib import Path
 import optuna
 import pytest
 import yaml
-from test_sweep import ENV, TINY_PPO, ray_processes, tiny_config  # noqa: F401  (fixtures)
+from test_sweep import ENV, TINY_PPO, tiny_config  # noqa: F401  (fixture)
 
 from agents.config import ConfigError, default_config_path, load_config
 from agents.policy_kwargs import ACTIVATIONS
