@@ -50,6 +50,7 @@ from agents.envs import check_env_id
 from agents.rundir import RunDirError, latest_checkpoint, run_dir_for, utc_now
 from agents.sweep_report import evaluation_summary, write_summary
 from agents.sweep_worker import CheckpointStore, RunJob, StoreClient, relocate_records, run_job, unpack_run_dir
+from uvdms_gym.cluster import ray_session
 from uvdms_gym.kwargs import check_make_kwargs, parse_kv
 
 log = logging.getLogger("agents.sweep")
@@ -296,7 +297,7 @@ def sweep(
         if (out_dir / job.key).exists():
             raise RunDirError(f"run directory {out_dir / job.key} exists; choose another --out")
     with contextlib.ExitStack() as stack:
-        ray = stack.enter_context(connect_ray(address, num_cpus)) if backend == "ray" else None
+        ray = stack.enter_context(ray_session(address=address, num_cpus=num_cpus)) if backend == "ray" else None
         if ray is not None:
             check_fits(ray, max(job.num_cpus for job in jobs))
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -368,19 +369,6 @@ def _run_local(jobs: Sequence[RunJob], out_dir: Path) -> Iterator[tuple[RunJob, 
         record = store.status().get(job.key, {})
         store.forget(job.key)
         yield job, _finish(job, outcome, out_dir, record.get("first_start"), record.get("attempts", 1))
-
-
-@contextlib.contextmanager
-def connect_ray(address: str | None, num_cpus: int | None) -> Iterator[Any]:
-    """:func:`uvdms_gym.cluster.ray_session`, with a failure to connect raised as :class:`ConnectionError`."""
-    from uvdms_gym.cluster import ray_session
-
-    with contextlib.ExitStack() as stack:
-        try:
-            ray = stack.enter_context(ray_session(address=address, num_cpus=num_cpus))
-        except RuntimeError as exc:
-            raise ConnectionError(str(exc)) from exc
-        yield ray
 
 
 def check_fits(ray: Any, need: int) -> None:

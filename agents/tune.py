@@ -41,8 +41,9 @@ from agents.config import ConfigError, default_config_path
 from agents.envs import check_env_id
 from agents.rundir import RunDirError, latest_checkpoint, utc_now
 from agents.search_space import SearchSpace, default_search_space_path, load_search_space
-from agents.sweep import check_fits, connect_ray, run_cpus
+from agents.sweep import check_fits, run_cpus
 from agents.zoo import TRAIN_OPTIONS, zoo_entry
+from uvdms_gym.cluster import ray_session
 from uvdms_gym.io import to_jsonable, write_json_atomic
 from uvdms_gym.kwargs import check_make_kwargs
 
@@ -317,7 +318,7 @@ def tune(
     started = utc_now()
     cpus = run_cpus(cfg.n_envs, vec_env)
 
-    with connect_ray(address, num_cpus) as ray:
+    with ray_session(address=address, num_cpus=num_cpus) as ray:
         from ray import tune as ray_tune
         from ray.tune.schedulers import ASHAScheduler
 

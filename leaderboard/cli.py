@@ -15,7 +15,9 @@ folder in --agents-dir and any agent given by path on the task suite (paper Case
 held-out randomised variants with hydro_randomization=0.3), on evaluation seeds disjoint from every training
 seed. Rank each track per task by contact-free success rate, then position RMSE (ties when the 95% bootstrap
 intervals overlap), print the tables and write leaderboard.md, leaderboard.csv, entries/*.json and plots/*.png
-to --out. Every episode is cached under --cache-dir and reused on re-runs."""
+to --out. Every episode is cached under --cache-dir and reused on re-runs. Episodes run in this process, in
+--jobs local processes, or with --backend ray as Ray tasks on a local instance or the cluster at --address
+(the driver keeps the cache; agents travel to the workers as weights-only exports)."""
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -61,7 +63,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="allow loading full SB3 zips (pickles) from outside the repository's trained_agents/ folder",
     )
-    p.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    p.add_argument("--jobs", type=int, default=1, help="worker processes of the local backend (default 1)")
+    p.add_argument(
+        "--backend",
+        choices=("local", "ray"),
+        default="local",
+        help="local: this process or --jobs processes; ray: one Ray task per episode (the ray extra)",
+    )
+    p.add_argument(
+        "--address", default=None, help="Ray cluster to join (auto, ray://host:10001, host:port); default: local"
+    )
+    p.add_argument("--num-cpus", type=int, default=None, help="CPUs of the local Ray instance (default: all cores)")
+    p.add_argument(
+        "--max-retries", type=int, default=None, help="re-runs of an episode whose Ray worker dies (default 3)"
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.set_defaults(func=_cmd_leaderboard)
@@ -92,6 +107,10 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         force=args.force,
         trust=args.trust,
         jobs=args.jobs,
+        executor=args.backend,
+        address=args.address,
+        num_cpus=args.num_cpus,
+        max_retries=args.max_retries,
         progress=not args.no_progress,
         plots=not args.no_plots,
         command=_command_line(args),

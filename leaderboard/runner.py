@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import logging
 import sys
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,6 +25,9 @@ from uvdms_gym.io import write_json_atomic
 from uvdms_gym.provenance import timing_record
 
 log = logging.getLogger("uvdms.leaderboard")
+
+EXECUTORS: tuple[str, ...] = ("local", "ray")
+"""Where episodes run: this machine's processes, or Ray tasks (:mod:`leaderboard.distributed`)."""
 
 
 @dataclass(frozen=True)
@@ -84,7 +87,10 @@ _WORKER: dict[str, Any] = {}
 """Per-process reuse of the environment (and of stateless agent controllers) across consecutive jobs."""
 
 
-def _worker_init() -> None:
+def worker_setup() -> None:
+    """Prepare a worker process for episodes, once: one torch thread, and the last simulator closed at exit."""
+    if _WORKER.get("setup"):
+        return
     import atexit
 
     atexit.register(_close_worker_env)  # disconnect the worker's last simulator before interpreter teardown
@@ -94,6 +100,7 @@ def _worker_init() -> None:
         torch.set_num_threads(1)
     except ImportError:  # pragma: no cover - torch is a dependency
         pass
+    _WORKER["setup"] = True
 
 
 def _close_worker_env() -> None:
@@ -105,7 +112,7 @@ def _close_worker_env() -> None:
 
 
 def compute_job(job: Job, backend: Backend, trust: bool) -> dict[str, Any]:
-    """Run one episode, store it atomically in the cache, and return the compact result."""
+    """Run one episode and return its compact result (the driver stores it with :func:`store_result`)."""
     group = (job.entry.name, job.entry.checksum, json.dumps(job.task.spec(job.entry.track), sort_keys=True))
     if _WORKER.get("key") != group:
         _close_worker_env()
@@ -122,8 +129,65 @@ def compute_job(job: Job, backend: Backend, trust: bool) -> dict[str, Any]:
     result = compact_result(raw)
     result["seed"] = int(job.seed)
     result["timing"] = timing
+    return result
+
+
+def store_result(job: Job, result: dict[str, Any]) -> dict[str, Any]:
+    """Write ``result`` to the job's cache file atomically (only the driver writes the cache) and return it."""
     write_json_atomic(job.path, {"key": job.key, "material": job.material, "result": result}, indent=None)
     return result
+
+
+def _execute(
+    todo: Sequence[Job],
+    backend: Backend,
+    trust: bool,
+    jobs: int,
+    executor: str,
+    address: str | None,
+    num_cpus: int | None,
+    max_retries: int | None,
+    on_submit: Callable[[Any], None] | None,
+) -> Iterator[tuple[Job, dict[str, Any]]]:
+    """Compute the episodes of ``todo`` and yield ``(job, result)`` as each finishes (the caller stores them)."""
+    if not todo:  # everything cached: no worker, no Ray instance
+        return
+    if executor == "ray":
+        from leaderboard.distributed import DEFAULT_MAX_RETRIES, run_on_ray
+
+        retries = DEFAULT_MAX_RETRIES if max_retries is None else max_retries
+        yield from run_on_ray(
+            todo, backend, trust, address=address, num_cpus=num_cpus, max_retries=retries, on_submit=on_submit
+        )
+        return
+    if jobs <= 1 or len(todo) <= 1:
+        try:
+            for job in todo:
+                try:
+                    result = compute_job(job, backend, trust)
+                except Exception:
+                    log.error("episode failed: %s on %s, seed %d", job.entry.name, job.task.name, job.seed)
+                    raise
+                yield job, result
+        finally:
+            _close_worker_env()
+        return
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=worker_setup)
+    try:
+        futures = {pool.submit(compute_job, job, backend, trust): job for job in todo}
+        for future in as_completed(futures):
+            job = futures[future]
+            try:
+                result = future.result()
+            except Exception:
+                log.error("episode failed: %s on %s, seed %d", job.entry.name, job.task.name, job.seed)
+                raise
+            yield job, result
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 @dataclass
@@ -173,6 +237,11 @@ def run_leaderboard(
     plots: bool = True,
     backend: Backend | None = None,
     command: str | None = None,
+    executor: str = "local",
+    address: str | None = None,
+    num_cpus: int | None = None,
+    max_retries: int | None = None,
+    on_submit: Callable[[Any], None] | None = None,
 ) -> LeaderboardResult:
     """Evaluate ``entries`` on ``tasks`` (cached), rank them per track and task, and write the outputs.
 
@@ -190,12 +259,21 @@ def run_leaderboard(
         backend: How environments, controllers and episodes are made (default :data:`DEFAULT_BACKEND`; tests
             substitute a fake one).
         command: The command line, recorded in ``leaderboard.md``.
+        executor: ``local`` (this process, or a pool of ``jobs`` processes) or ``ray`` (one Ray task per
+            episode, :mod:`leaderboard.distributed`; ``jobs`` is then unused).
+        address: Ray cluster to join (``ray`` executor; ``None`` starts a local instance).
+        num_cpus: CPUs of the local Ray instance (``ray`` executor without ``address``; default: every core).
+        max_retries: Re-runs of an episode whose Ray worker dies (default
+            :data:`leaderboard.distributed.DEFAULT_MAX_RETRIES`).
+        on_submit: ``ray`` executor: called with the Ray module once the episodes are submitted (fault tests).
 
     Returns:
         The ranked rows and run statistics.
 
     Raises:
-        ValueError: No entries, ``episodes < 1``, or evaluation seeds that clash with training seeds.
+        ValueError: No entries, ``episodes < 1``, evaluation seeds that clash with training seeds, an unknown
+            executor, or Ray options without the ``ray`` executor.
+        ConnectionError: The Ray cluster at ``address`` cannot be reached.
     """
     from tqdm.auto import tqdm
 
@@ -204,6 +282,12 @@ def run_leaderboard(
         raise ValueError("no entries to evaluate")
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
+    if executor not in EXECUTORS:
+        raise ValueError(f"executor must be one of {EXECUTORS}, got {executor!r}")
+    if executor != "ray" and (address is not None or num_cpus is not None or max_retries is not None):
+        raise ValueError("address, num_cpus and max_retries are options of the ray backend")
+    if jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
     out = Path(out_dir)
     cache = Path(cache_dir) if cache_dir is not None else out / "cache"
     seeds = evaluation_seeds(episodes)
@@ -247,36 +331,11 @@ def run_leaderboard(
             mininterval=0.1 if sys.stderr.isatty() else 30.0,  # a log file gets a line every 30 s, not every episode
         )
         try:
-            if jobs <= 1 or len(todo) <= 1:
-                try:
-                    for job in todo:
-                        bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
-                        try:
-                            results[job.path] = compute_job(job, backend, trust)
-                        except Exception:
-                            log.error("episode failed: %s on %s, seed %d", job.entry.name, job.task.name, job.seed)
-                            raise
-                        bar.update()
-                finally:
-                    _close_worker_env()
-            else:
-                import multiprocessing
-
-                context = multiprocessing.get_context("spawn")
-                pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init)
-                try:
-                    futures = {pool.submit(compute_job, job, backend, trust): job for job in todo}
-                    for future in as_completed(futures):
-                        job = futures[future]
-                        try:
-                            results[job.path] = future.result()
-                        except Exception:
-                            log.error("episode failed: %s on %s, seed %d", job.entry.name, job.task.name, job.seed)
-                            raise
-                        bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
-                        bar.update()
-                finally:
-                    pool.shutdown(wait=True, cancel_futures=True)
+            finished = _execute(todo, backend, trust, jobs, executor, address, num_cpus, max_retries, on_submit)
+            for job, result in finished:
+                results[job.path] = store_result(job, result)
+                bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
+                bar.update()
         finally:
             bar.close()
 

@@ -38,6 +38,11 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
             a cluster's CPUs are those its nodes were started with.
 
     A session that is already connected (a caller's own ``ray.init``) is reused and left connected.
+
+    Raises:
+        RuntimeError: Ray is not installed (the message says how to install it).
+        ConnectionError: No cluster answers at ``address``.
+        ValueError: ``num_cpus < 1``.
     """
     ray = require_ray()
     if ray.is_initialized():
@@ -51,7 +56,7 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
         try:
             ray.init(address=address, logging_level="WARNING")
         except ConnectionError as err:
-            raise RuntimeError(f"cannot connect to the Ray cluster at {address!r}: {err}") from err
+            raise ConnectionError(f"cannot connect to the Ray cluster at {address!r}: {err}") from err
     try:
         yield ray
     finally:
