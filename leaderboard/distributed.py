@@ -76,10 +76,11 @@ def materialise(checksum: str, files: Mapping[str, bytes]) -> Path:
     if folder is None or not folder.is_dir():
         if not _MATERIALISED:
             atexit.register(_remove_materialised)
+        bad = [name for name in files if Path(name).name != name or name in ("", ".", "..")]
+        if bad:  # the driver sends a flat folder: anything else would write outside the temporary folder
+            raise ValueError(f"agent export file names {bad} are not plain file names")
         folder = Path(tempfile.mkdtemp(prefix="uvdms-agent-"))
         for name, data in files.items():
-            if Path(name).name != name:  # only plain file names (the driver sends a flat folder)
-                raise ValueError(f"agent export file name {name!r} is not a plain file name")
             (folder / name).write_bytes(data)
         _MATERIALISED[checksum] = folder
     return folder

@@ -121,3 +121,11 @@ def ray_processes():
     assert len(watch.seen) > 0, "the test started no process: the watch saw nothing"
     leftovers = watch.leftovers()
     assert leftovers == [], f"processes the test started outlive it: {describe(leftovers)}"
+
+
+def descendants_matching(fragment: str) -> list[int]:
+    """Live descendants of this process whose command line (Ray's process title, say) contains ``fragment``."""
+    table = _proc_table()
+    return sorted(
+        pid for pid, _ in _descendants(table, os.getpid()) if table[pid][1] != "Z" and fragment in _cmdline(pid)
+    )

@@ -12,9 +12,12 @@ from __future__ import annotations
 
 import contextlib
 import os
+import socket
 from collections.abc import Iterator
 from typing import Any
 
+PROBE_TIMEOUT_S = 5.0
+"""Seconds to wait for a TCP connection to a cluster address before giving up (:func:`probe_address`)."""
 RAY_EXTRA_HINT = 'Ray is not installed: pip install -c constraints.txt -e ".[ray]"'
 
 
@@ -53,6 +56,7 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
     if address is None:
         ray.init(num_cpus=num_cpus or os.cpu_count() or 1, include_dashboard=False, logging_level="WARNING")
     else:
+        probe_address(address)
         try:
             ray.init(address=address, logging_level="WARNING")
         except ConnectionError as err:
@@ -61,3 +65,21 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
         yield ray
     finally:
         ray.shutdown()
+
+
+def probe_address(address: str, timeout: float = PROBE_TIMEOUT_S) -> None:
+    """Raise :class:`ConnectionError` if nothing accepts a TCP connection at a ``host:port`` address.
+
+    ``ray.init`` keeps retrying an address where no cluster listens for minutes; a refused or unanswered TCP
+    connection says so in ``timeout`` seconds. ``"auto"`` (Ray finds the cluster of this machine, and fails
+    at once when there is none) is not probed.
+    """
+    target = address.removeprefix("ray://")
+    if target == "auto" or ":" not in target:
+        return
+    host, _, port = target.rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            return
+    except (OSError, ValueError) as err:
+        raise ConnectionError(f"cannot connect to the Ray cluster at {address!r}: {err}") from None
