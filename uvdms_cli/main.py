@@ -43,6 +43,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     if args.what == "train":
         from agents.bench import bench_train as fn
+    elif args.what == "leaderboard":
+        from leaderboard.bench import bench_leaderboard as fn
     elif args.what == "mpc":
         from baselines.bench import benchmark_all as fn
     else:
@@ -92,7 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=_cmd_demo)
 
     bench = sub.add_parser("bench", help="benchmarks that print medians and ratios")
-    bench.add_argument("what", choices=["sim", "env", "mpc", "train"])
+    bench.add_argument("what", choices=["sim", "env", "mpc", "train", "leaderboard"])
     bench.add_argument("--json", action="store_true", help="print JSON")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
     bench.set_defaults(func=_cmd_bench)
