@@ -223,5 +223,5 @@ def test_ppo_warns_when_rollouts_round_the_steps_up(tmp_path):
         run_dir = _train(tmp_path, "ppo", entry)
     assert zip_num_timesteps(run_dir / "final_model.zip") == 128
     with warnings.catch_warnings():
-        warnings.simplefilter("error")
+        warnings.simplefilter("error", UserWarning)  # (not Gymnasium's DeprecationWarning: v0 is not the newest)
         _train(tmp_path, "ppo", {**entry, "n_timesteps": 256}, out="exact")  # a multiple: no warning

@@ -3,7 +3,9 @@
 Importing the package registers the environments (entry points are strings, so nothing heavy is imported):
 
 * ``uvdms/CircleTrack-v0``: collision-risk circle tracking (paper Cases 1 and 2, or random circles);
-* ``uvdms/Transport-v0``: transport of a gripped cylinder.
+* ``uvdms/Transport-v0``: transport of a gripped cylinder;
+* ``uvdms/CircleTrack-v1``, ``uvdms/Transport-v1``: the same tasks with a bounded, non-negative per-step reward
+  and a contact penalty, under which ending an episode early never pays (:mod:`uvdms_gym.envs.v1`).
 
 ``gymnasium.make("uvdms_gym:uvdms/CircleTrack-v0")`` also works without importing the package first
 (RL Zoo's ``--gym-packages uvdms_gym``).
@@ -16,7 +18,7 @@ from uvdms_gym.params import UVDMSParams
 __version__ = "0.1.0"
 __all__ = ["ENV_IDS", "UVDMSParams", "__version__"]
 
-ENV_IDS: tuple[str, ...] = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0")
+ENV_IDS: tuple[str, ...] = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0", "uvdms/CircleTrack-v1", "uvdms/Transport-v1")
 
 if "uvdms/CircleTrack-v0" not in registry:
     register(
@@ -28,5 +30,17 @@ if "uvdms/Transport-v0" not in registry:
     register(
         id="uvdms/Transport-v0",
         entry_point="uvdms_gym.envs.transport:TransportEnv",
+        max_episode_steps=600,
+    )
+if "uvdms/CircleTrack-v1" not in registry:
+    register(
+        id="uvdms/CircleTrack-v1",
+        entry_point="uvdms_gym.envs.v1:CircleTrackV1Env",
+        max_episode_steps=500,
+    )
+if "uvdms/Transport-v1" not in registry:
+    register(
+        id="uvdms/Transport-v1",
+        entry_point="uvdms_gym.envs.v1:TransportV1Env",
         max_episode_steps=600,
     )

@@ -15,6 +15,9 @@ import numpy as np
 
 from uvdms_gym.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG, UVDMSParams
 
+BENCH_ENV_IDS: tuple[str, ...] = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0")
+"""Environments of ``uvdms bench env`` (the v1 environments step the same physics; only their reward differs)."""
+
 
 def _median_us(fn: Callable[[], object], calls: int, blocks: int) -> float:
     """Median over ``blocks`` of the mean time per call of ``calls`` calls, in µs."""
@@ -152,7 +155,6 @@ def bench_env(quick: bool = False) -> dict:
     """
     import gymnasium as gym
 
-    import uvdms_gym
     from uvdms_gym.sim import UVDMSSim
 
     n_steps, warmup = (300, 10) if quick else (2000, 20)
@@ -160,7 +162,7 @@ def bench_env(quick: bool = False) -> dict:
     with UVDMSSim(UVDMSParams()) as sim:
         sim.reset(np.array([2.0, 0.0, 3.0, 0.0, 0.0, 0.0]))
         bare_us = _median_us(sim.bare_step, 500, 5)
-    for env_id in uvdms_gym.ENV_IDS:
+    for env_id in BENCH_ENV_IDS:
         env = gym.make(env_id, action_mode="velocity", terminate_on_contact=False)
         rng = np.random.default_rng(0)
         env.reset(seed=0)
