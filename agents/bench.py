@@ -61,7 +61,9 @@ def _build(algo: str, n_envs: int, vec_env: str, total_steps: int, seed: int = 0
         overrides["learning_starts"] = SAC_LEARNING_STARTS
     cfg = load_config(default_config_path(algo), algo, BENCH_ENV, overrides=overrides)
     factories = [
-        EnvFactory(BENCH_ENV, cfg.env_kwargs, alive_bonus=cfg.alive_bonus, action_scale=cfg.action_scale)
+        EnvFactory(
+            BENCH_ENV, cfg.env_kwargs, alive_bonus=cfg.alive_bonus, action_scale=cfg.action_scale, scalar_info=True
+        )
         for _ in range(n_envs)
     ]
     venv = make_vec_env(factories, vec_env)

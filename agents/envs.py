@@ -20,7 +20,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
 from agents.vecenv import HybridVecEnv
-from agents.wrappers import AliveBonus, ScaledAction
+from agents.wrappers import AliveBonus, ScalarInfo, ScaledAction
 
 SEGMENT_SEED_STRIDE = 1000
 """Seed distance between training segments (so at most 1000 training envs)."""
@@ -91,6 +91,7 @@ class EnvFactory:
         max_episode_steps: ``gymnasium.make``'s episode length limit (``None``: the registered one).
         alive_bonus: Constant added to every reward inside the ``Monitor`` (0: no wrapper).
         action_scale: The policy's action is multiplied by this before the env sees it (1: no wrapper).
+        scalar_info: Drop the array entries of ``info`` (:class:`agents.wrappers.ScalarInfo`; training envs).
     """
 
     env_id: str
@@ -100,6 +101,7 @@ class EnvFactory:
     max_episode_steps: int | None = None
     alive_bonus: float = 0.0
     action_scale: float = 1.0
+    scalar_info: bool = False
 
     def __call__(self) -> gym.Env:
         """Create the environment wrapped in a ``Monitor`` (action scaling and alive bonus inside it).
@@ -117,6 +119,8 @@ class EnvFactory:
             env = ScaledAction(env, self.action_scale)
         if self.alive_bonus:
             env = AliveBonus(env, self.alive_bonus)
+        if self.scalar_info:
+            env = ScalarInfo(env)
         return Monitor(env, filename=self.monitor_file)
 
 

@@ -402,6 +402,7 @@ def _run_segment(
             cfg.max_episode_steps,
             cfg.alive_bonus,
             cfg.action_scale,
+            scalar_info=True,
         )
         for i in range(cfg.n_envs)
     ]

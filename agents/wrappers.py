@@ -62,3 +62,28 @@ class ScaledAction(gym.ActionWrapper):
     def action(self, action: np.ndarray) -> np.ndarray:
         """Scaled action."""
         return self.scale * np.asarray(action)
+
+
+class ScalarInfo(gym.Wrapper):
+    """Drops the array entries of every step's and reset's ``info`` (training envs; scalars are kept).
+
+    The uvdms environments put the state (``eta``, ``q``, ``distances``, ``tau``, ...) in ``info`` for
+    model-based controllers; a trainer reads none of it (SB3 reads ``episode``, ``is_success`` and the time-limit
+    flags; the costs and reward terms are scalars), yet in ``subproc`` and ``hybrid`` vector envs every step's
+    ``info`` is pickled in a worker and unpickled in the trainer: about 70 µs of a ~1.6 ms step here, and the
+    unpickling is on the trainer's critical path. Evaluation envs are not wrapped.
+    """
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        """Reset, with the array entries of ``info`` removed."""
+        obs, info = self.env.reset(**kwargs)
+        return obs, _scalars(info)
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        """Step, with the array entries of ``info`` removed."""
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return obs, reward, terminated, truncated, _scalars(info)
+
+
+def _scalars(info: dict[str, Any]) -> dict[str, Any]:
+    return {key: value for key, value in info.items() if not isinstance(value, np.ndarray)}

@@ -98,3 +98,22 @@ def test_bad_vec_env_arguments():
     single = make_vec_env(_factories(1), "hybrid")  # one env: nothing to overlap, plain DummyVecEnv
     assert isinstance(single, DummyVecEnv)
     single.close()
+
+
+def test_scalar_info_keeps_every_scalar_and_drops_only_the_arrays():
+    full, scalar = EnvFactory(ENV_ID, {"case": 1})(), EnvFactory(ENV_ID, {"case": 1}, scalar_info=True)()
+    try:
+        rng = np.random.default_rng(0)
+        (_, info_full), (_, info_scalar) = full.reset(seed=4), scalar.reset(seed=4)
+        for _ in range(5):
+            action = rng.uniform(-1.0, 1.0, 18).astype(np.float32)
+            (obs_f, rew_f, *_, info_full), (obs_s, rew_s, *_, info_scalar) = full.step(action), scalar.step(action)
+            np.testing.assert_array_equal(obs_f, obs_s)
+            assert rew_f == rew_s
+            arrays = {k for k, v in info_full.items() if isinstance(v, np.ndarray)}
+            assert {"eta", "q", "distances", "tau"} <= arrays
+            assert info_scalar == {k: v for k, v in info_full.items() if k not in arrays}
+            assert "cost" in info_scalar and "is_success" in info_scalar
+    finally:
+        full.close()
+        scalar.close()
