@@ -11,6 +11,8 @@ Importing the package registers the environments (entry points are strings, so n
 (RL Zoo's ``--gym-packages uvdms_gym``).
 """
 
+import warnings
+
 from gymnasium.envs.registration import register, registry
 
 from uvdms_gym.params import UVDMSParams
@@ -44,3 +46,7 @@ if "uvdms/Transport-v1" not in registry:
         entry_point="uvdms_gym.envs.v1:TransportV1Env",
         max_episode_steps=600,
     )
+
+# v0 is not deprecated: it is the version of the published results and stays supported beside v1. Gymnasium's
+# make() warns that any version but the newest is "out of date"; silence that for the uvdms ids only.
+warnings.filterwarnings("ignore", message=r".*The environment uvdms/\S+ is out of date", category=DeprecationWarning)
