@@ -57,7 +57,7 @@ for ctrl in [make_baseline(name, env) for _ in range(n_ctrl)]:
         return action
     ctrl.predict = recorded
     res = run_episode(env, ctrl, seed)
-    out.append(f"{h.hexdigest()[:12]}:{res['qp_slack_max']!r}")
+    out.append(f"{h.hexdigest()[:12]}:{res['qp_slack_max']!r}:{res['final_pos_error']!r}")
 import proxsuite
 print(proxsuite.proxqp.dense.QP.__module__.split(".")[1], " ".join(out))
 """
