@@ -68,3 +68,28 @@ def test_campc_transport_actions_repeat_bit_for_bit_across_processes():
     heavy_build, heavy = _run("heavy", 6)
     assert plain_build == heavy_build
     assert set(heavy) == set(plain), f"action hashes differ between processes/controllers: {plain} vs {heavy}"
+
+
+def test_portable_proxsuite_build_is_loaded_and_a_prior_simd_import_is_reported():
+    code = (
+        "import warnings, proxsuite\n"
+        "with warnings.catch_warnings(record=True) as caught:\n"
+        "    warnings.simplefilter('always')\n"
+        "    from baselines.mpc import PORTABLE_PROXSUITE_BUILD, PROXSUITE_BUILD\n"
+        "import proxsuite.instructionset as isa\n"
+        "simd = isa.has_AVX2() or isa.has_AVX512F()\n"
+        "warned = any('bit-repeatable' in str(w.message) for w in caught)\n"
+        "print(PROXSUITE_BUILD == PORTABLE_PROXSUITE_BUILD, simd, warned)\n"
+    )
+    fresh = subprocess.run(
+        [sys.executable, "-c", "from baselines.mpc import PROXSUITE_BUILD; print(PROXSUITE_BUILD)"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert fresh.stdout.split()[-1] == "proxsuite_pywrap"
+    prior = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    portable, simd, warned = prior.stdout.split()[-3:]
+    # proxsuite imported first keeps its own choice (the widest build on a SIMD CPU); baselines.mpc warns then
+    assert portable == str(simd == "False")
+    assert warned == str(portable == "False")
