@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 import uvdms_gym
+from baselines.mpc import PROXSUITE_BUILD
 from leaderboard.entries import Entry
 from leaderboard.tasks import Task
 from uvdms_gym.io import to_jsonable
@@ -27,8 +28,12 @@ class CorruptCacheError(ValueError):
 
 
 def cache_material(entry: Entry, task: Task, seed: int, save_trajectory: bool) -> dict[str, Any]:
-    """Everything the cache key hashes (see the module docstring)."""
-    return {
+    """Everything the cache key hashes (see the module docstring).
+
+    Baselines also hash the ProxSuite build their QPs are solved with (:data:`baselines.mpc.PROXSUITE_BUILD`):
+    results of another build differ in the last bits and are not reused.
+    """
+    material = {
         "format": CACHE_FORMAT,
         "package_version": PACKAGE_VERSION,
         "entry": entry.identity(),
@@ -36,6 +41,9 @@ def cache_material(entry: Entry, task: Task, seed: int, save_trajectory: bool) -
         "seed": int(seed),
         "trajectory": bool(save_trajectory),
     }
+    if entry.kind == "baseline":
+        material["qp_solver"] = PROXSUITE_BUILD
+    return material
 
 
 def cache_key(material: Mapping[str, Any]) -> str:

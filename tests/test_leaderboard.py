@@ -201,6 +201,14 @@ def test_cache_key_depends_on_entry_task_seed_and_version(monkeypatch):
     assert base != lb.cache_key(lb.cache_material(entry, task, 1, False))
 
 
+def test_baseline_cache_key_depends_on_the_proxsuite_build(monkeypatch):
+    entry, task = BASELINE_ENTRIES[0], TINY_TASKS[0]
+    assert entry.kind == "baseline"
+    base = lb.cache_key(lb.cache_material(entry, task, 1, False))
+    monkeypatch.setattr(leaderboard.cache, "PROXSUITE_BUILD", "proxsuite_pywrap_avx512")
+    assert base != lb.cache_key(lb.cache_material(entry, task, 1, False))
+
+
 # ------------------------------------------------------------------------------------------------------
 # Statistics and ranking
 # ------------------------------------------------------------------------------------------------------
