@@ -49,6 +49,22 @@ def leaderboard_argv(out: Path, *extra: str) -> list[str]:
     return ["leaderboard", "--out", str(out), "--no-plots", "--no-progress", *extra]
 
 
+def test_ray_backend_writes_the_quick_leaderboard_of_the_local_backend(tmp_path, ray_processes, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the default agents folder is the repository's trained_agents/
+    quick = ["--quick", "--max-episode-steps", "8"]
+    assert main(leaderboard_argv(tmp_path / "local", *quick)) == 0
+    assert main(leaderboard_argv(tmp_path / "ray", *quick, "--backend", "ray", "--num-cpus", "2")) == 0
+    local, distributed = (
+        quality_columns(tmp_path / "local" / "leaderboard.csv"),
+        quality_columns(tmp_path / "ray" / "leaderboard.csv"),
+    )
+    # every baseline and every shipped agent on the three paper tasks, and the same bits in every quality column
+    assert {row["entry"] for row in local} >= {"mpc", "campc", "campc-di", "campc-nndi", "circle_case1_sac"}
+    assert {row["task"] for row in local} == {"case1", "case2", "transport"}
+    assert distributed == local
+    assert len(ray_processes.seen) > 2  # Ray's own processes and its workers were started and watched
+
+
 def test_two_node_cluster(tmp_path, ray_processes):
     from ray.cluster_utils import Cluster
 
