@@ -359,6 +359,26 @@ class MPCStepRecord:
         }
 
 
+def damper_bound(cfg: MPCConfig, d: np.ndarray, v_now: np.ndarray | None = None) -> np.ndarray:
+    """The velocity damper's bound on the approach rates: ``S(d) vbar - k_esc max(0, d1 - d)`` (18).
+
+    Args:
+        cfg: The damper's parameters (``vbar``, ``d1``, ``d2``, ``k_escape``, ``lookahead``).
+        d: the 18 distances, m.
+        v_now: measured distance rates (18, positive approaching); with ``cfg.lookahead > 0`` the bound is
+            evaluated at ``d - lookahead max(0, v_now)``.
+
+    Returns:
+        The bound on ``v_dis = J_dis zeta`` for each row, m/s.
+    """
+    d = np.asarray(d, dtype=float)
+    if v_now is not None and cfg.lookahead > 0.0:
+        d = d - cfg.lookahead * np.maximum(0.0, np.asarray(v_now, dtype=float))
+    x = np.minimum(np.maximum((d - cfg.d1) / (cfg.d2 - cfg.d1), 0.0), 1.0)  # np.clip's values, cheaper
+    s = np.sin(0.5 * np.pi * x) ** 2
+    return s * cfg.vbar - cfg.k_escape * np.maximum(0.0, cfg.d1 - d)
+
+
 def hold_matrix(n_p: int, n_c: int) -> np.ndarray:
     """Hold matrix ``C_hold`` (N_p x N_c): ``sum_{i<j} zeta_i = sum_k C_hold[j-1, k] zeta_k`` (input held).
 
@@ -534,13 +554,7 @@ class KinematicMPC:
         Returns:
             The bound on ``v_dis`` for each row, m/s.
         """
-        cfg = self.config
-        d = np.asarray(d, dtype=float)
-        if v_now is not None and cfg.lookahead > 0.0:
-            d = d - cfg.lookahead * np.maximum(0.0, np.asarray(v_now, dtype=float))
-        x = np.minimum(np.maximum((d - cfg.d1) / (cfg.d2 - cfg.d1), 0.0), 1.0)  # np.clip's values, cheaper
-        s = np.sin(0.5 * np.pi * x) ** 2
-        return s * cfg.vbar - cfg.k_escape * np.maximum(0.0, cfg.d1 - d)
+        return damper_bound(self.config, d, v_now)
 
     # ------------------------------------------------------------------ QP
     def qp_matrices(self, problem: MPCProblem) -> QPMatrices:

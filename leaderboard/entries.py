@@ -25,6 +25,8 @@ log = logging.getLogger("uvdms.leaderboard")
 
 BASELINES: dict[str, str] = TRACK_OF
 """Named baselines and their tracks (:data:`leaderboard.registry.TRACK_OF`)."""
+FILTER_SUFFIX = "+filter"
+"""Entry-token suffix: the entry's actions go through the safety filter (:mod:`baselines.safety`)."""
 DEFAULT_ENTRIES: tuple[str, ...] = ("baselines", "agents")
 """``baselines`` stands for the four named baselines, ``agents`` for every agent folder in ``agents_dir``."""
 _AGENT_MODEL_SUFFIXES = (".zip", ".pkl", ".pt", ".npz")
@@ -45,6 +47,8 @@ class Entry:
         checksum: SHA-256 over the agent's model files (``None`` for baselines).
         training_seeds: Every seed recorded in the agent's run files.
         weights_only: The agent is a weights-only export (never unpickled).
+        safety_filter: The controller's actions go through :class:`baselines.safety.SafetyFilter` (an entry of
+            its own, named ``<name>+filter``).
     """
 
     name: str
@@ -55,10 +59,14 @@ class Entry:
     checksum: str | None = None
     training_seeds: frozenset[int] = frozenset()
     weights_only: bool = False
+    safety_filter: bool = False
 
     def identity(self) -> dict[str, Any]:
         """What identifies the entry's behaviour in the cache key (agents: by content, not path)."""
-        return {"name": self.name, "kind": self.kind, "checksum": self.checksum}
+        identity: dict[str, Any] = {"name": self.name, "kind": self.kind, "checksum": self.checksum}
+        if self.safety_filter:  # (absent otherwise: unfiltered entries keep their cache keys)
+            identity["safety_filter"] = True
+        return identity
 
     def runs_on(self, task: Task) -> bool:
         """Whether the entry is evaluated on ``task`` (agents: only their training environment id)."""
@@ -85,7 +93,9 @@ def resolve_entries(
 
     Args:
         tokens: Baseline names, agent paths (a folder or an SB3 zip), ``baselines`` (the four baselines) or
-            ``agents`` (every agent folder in ``agents_dir``). Default :data:`DEFAULT_ENTRIES`.
+            ``agents`` (every agent folder in ``agents_dir``). Default :data:`DEFAULT_ENTRIES`. A token ending in
+            :data:`FILTER_SUFFIX` (``mpc+filter``, ``trained_agents/x+filter``, ``agents+filter``) stands for the
+            same entries with the safety filter (velocity track only).
         agents_dir: The shipped-agents folder (default: ``trained_agents`` in the working directory if it exists,
             else the repository's; a missing folder contributes no agents, with a warning).
         trust: Allow full SB3 zips from outside the repository's ``trained_agents/`` folder.
@@ -103,7 +113,9 @@ def resolve_entries(
         agents_dir = Path("trained_agents") if Path("trained_agents").is_dir() else TRUSTED_DIR
     entries: list[Entry] = []
     seen_specs: set[str] = set()
-    for token in tokens or DEFAULT_ENTRIES:
+    for raw_token in tokens or DEFAULT_ENTRIES:
+        filtered = raw_token.endswith(FILTER_SUFFIX)
+        token = raw_token.removesuffix(FILTER_SUFFIX) if filtered else raw_token
         if token == "baselines":
             candidates: list[str] = list(BASELINES)
         elif token == "agents":
@@ -123,6 +135,13 @@ def resolve_entries(
                     )
                 key = str(path.resolve())
                 entry = agent_entry(path, trust=trust)
+            if filtered:
+                if entry.track != "velocity":
+                    if token != spec:  # a keyword: its torque-track members are simply not filtered
+                        continue
+                    raise ValueError(f"{raw_token}: the safety filter projects velocity commands; {spec} is torque")
+                entry = replace(entry, name=entry.name + FILTER_SUFFIX, safety_filter=True)
+                key += FILTER_SUFFIX
             if key in seen_specs:
                 continue
             seen_specs.add(key)

@@ -56,6 +56,13 @@ def load_agent(path: str | Path, trust: bool = False) -> Any:
         raise ValueError(f"{path}: a model file is not a valid zip archive, corrupt or truncated ({exc})") from None
 
 
+def with_safety_filter(controller: Any, env: Any) -> Any:
+    """``controller`` with its velocity commands projected onto the collision rows (:mod:`baselines.safety`)."""
+    from baselines.safety import SafetyFilter
+
+    return SafetyFilter(controller, env)
+
+
 def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) -> Any:
     """A controller from a name of :data:`CONTROLLERS` or a path to a trained agent.
 
@@ -94,6 +101,7 @@ def evaluate(
     save_trajectory: bool = False,
     progress: bool = True,
     trust: bool = False,
+    safety_filter: bool = False,
 ) -> dict:
     """Evaluate a named controller or an agent over ``episodes`` seeded episodes (seeds ``seed, seed + 1, ...``).
 
@@ -111,6 +119,7 @@ def evaluate(
         save_trajectory: Keep each episode's time series.
         progress: Show a tqdm progress bar.
         trust: Allow unpickling an agent's SB3 files.
+        safety_filter: Project every velocity command onto the collision rows (:func:`with_safety_filter`).
 
     Returns:
         ``{"episodes": [...], "summary": {...}, "meta": {...}}`` (:func:`uvdms_gym.evaluation.evaluate_controller`).
@@ -129,7 +138,8 @@ def evaluate(
         kwargs.setdefault("action_mode", TRACK_OF[controller_spec])
 
         def factory(env: Any) -> Any:
-            return make_controller(controller_spec, env, trust=trust)
+            controller = make_controller(controller_spec, env, trust=trust)
+            return with_safety_filter(controller, env) if safety_filter else controller
 
     else:
         path = Path(controller_spec)
@@ -141,10 +151,10 @@ def evaluate(
         kwargs.setdefault("action_mode", (agent.env_kwargs or {}).get("action_mode", "velocity"))
 
         def factory(env: Any) -> Any:
-            return agent
+            return with_safety_filter(agent, env) if safety_filter else agent
 
         def check(controller: Any, env: Any) -> None:
-            check_agent(controller, env, controller_spec)
+            check_agent(agent, env, controller_spec)  # the agent itself, filtered or not
 
     return evaluate_controller(
         factory,

@@ -122,6 +122,10 @@ def compute_job(job: Job, backend: Backend, trust: bool) -> dict[str, Any]:
     controller = _WORKER.get("controller") if job.entry.kind == "agent" else None
     if controller is None:  # baselines are stateful (adaptive networks, warm starts): a fresh one per episode
         controller = backend.make_controller(job.entry.spec, env, trust)
+        if job.entry.safety_filter:
+            from leaderboard.registry import with_safety_filter
+
+            controller = with_safety_filter(controller, env)
         if job.entry.kind == "agent":
             _WORKER["controller"] = controller
     with timing_record() as timing:

@@ -33,6 +33,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     ev.add_argument("--out", default=None, help="JSON file to write (atomically)")
     ev.add_argument("--save-trajectory", action="store_true", help="include each episode's time series")
     ev.add_argument("--trust", action="store_true", help="allow unpickling the agent's SB3/VecNormalize files")
+    ev.add_argument(
+        "--safety-filter",
+        action="store_true",
+        help="project every velocity command onto the collision rows (baselines.safety.SafetyFilter)",
+    )
     ev.add_argument("--no-progress", action="store_true", help="no progress bar")
     ev.set_defaults(func=_cmd_evaluate)
 
@@ -53,6 +58,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         save_trajectory=args.save_trajectory,
         progress=not args.no_progress,
         trust=args.trust,
+        safety_filter=args.safety_filter,
     )
     sys.stdout.write(json.dumps(result["summary"], indent=2, sort_keys=True) + "\n")
     if args.out:
