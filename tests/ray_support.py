@@ -13,6 +13,8 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections.abc import Callable
+from typing import Any
 
 import pytest
 
@@ -129,3 +131,18 @@ def descendants_matching(fragment: str) -> list[int]:
     return sorted(
         pid for pid, _ in _descendants(table, os.getpid()) if table[pid][1] != "Z" and fragment in _cmdline(pid)
     )
+
+
+def in_background(fn: Callable[[], Any]) -> tuple[threading.Thread, dict[str, Any]]:
+    """Start ``fn()`` in a thread; the returned dict gets ``"result"`` or ``"error"`` (any exception) when it ends."""
+    outcome: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            outcome["result"] = fn()
+        except BaseException as exc:  # reported by the caller's assertions
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    return thread, outcome

@@ -11,13 +11,12 @@ from __future__ import annotations
 import csv
 import os
 import signal
-import threading
 import time
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from ray_support import descendants_matching
+from ray_support import descendants_matching, in_background
 
 import leaderboard as lb
 from leaderboard.cache import read_cached
@@ -91,19 +90,18 @@ def test_a_killed_worker_is_retried_and_every_episode_is_cached_once(tmp_path, r
     tasks = [replace(t, max_episode_steps=60) for t in tasks]
     cache = tmp_path / "ray" / "cache"
     jobs = plan_jobs(entries, tasks, lb.evaluation_seeds(3), cache)
-    outcome: dict = {}
-
-    def run() -> None:
-        try:
-            outcome["result"] = lb.run_leaderboard(
-                entries, out_dir=tmp_path / "ray", tasks=tasks, episodes=3, executor="ray", num_cpus=2,
-                progress=False, plots=False,
-            )  # fmt: skip
-        except BaseException as exc:  # reported by the assertions below
-            outcome["error"] = exc
-
-    thread = threading.Thread(target=run)
-    thread.start()
+    thread, outcome = in_background(
+        lambda: lb.run_leaderboard(
+            entries,
+            out_dir=tmp_path / "ray",
+            tasks=tasks,
+            episodes=3,
+            executor="ray",
+            num_cpus=2,
+            progress=False,
+            plots=False,
+        )
+    )
     killed = None
     deadline = time.monotonic() + 240
     while killed is None and thread.is_alive() and time.monotonic() < deadline:

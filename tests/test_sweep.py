@@ -12,7 +12,6 @@ import io
 import json
 import os
 import signal
-import threading
 import time
 import zipfile
 from pathlib import Path
@@ -21,6 +20,7 @@ import numpy as np
 import pytest
 import torch
 import yaml
+from ray_support import in_background
 
 from agents.config import ConfigError, load_config
 from agents.sweep import (
@@ -317,19 +317,18 @@ def test_killed_worker_resumes_from_its_checkpoint(tiny_config, tmp_path, ray_pr
     with pytest.raises(ConfigError, match=r"a run needs 3 CPUs .* the largest Ray node has 2"):
         sweep("ppo", ENV, [0], config_path=tiny_config, n_envs=3, vec_env="subproc", backend="ray", out_dir=out)
     assert not out.exists() and ray.is_initialized()  # the caller's session is reused and left connected
-    outcome: dict = {}
-
-    def run() -> None:
-        try:
-            outcome["result"] = sweep(
-                "ppo", ENV, [0, 1], env_kwargs={"case": 1}, config_path=tiny_config, total_timesteps=1000,
-                backend="ray", out_dir=out,
-            )  # fmt: skip
-        except BaseException as exc:  # reported by the assertions below
-            outcome["error"] = exc
-
-    thread = threading.Thread(target=run)
-    thread.start()
+    thread, outcome = in_background(
+        lambda: sweep(
+            "ppo",
+            ENV,
+            [0, 1],
+            env_kwargs={"case": 1},
+            config_path=tiny_config,
+            total_timesteps=1000,
+            backend="ray",
+            out_dir=out,
+        )
+    )
     killed = None
     deadline = time.monotonic() + 120
     while killed is None and thread.is_alive() and time.monotonic() < deadline:

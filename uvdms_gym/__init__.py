@@ -20,32 +20,18 @@ from uvdms_gym.params import UVDMSParams
 __version__ = "0.1.0"
 __all__ = ["ENV_IDS", "UVDMSParams", "__version__"]
 
-ENV_IDS: tuple[str, ...] = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0", "uvdms/CircleTrack-v1", "uvdms/Transport-v1")
+_REGISTRATIONS: tuple[tuple[str, str, int], ...] = (
+    ("uvdms/CircleTrack-v0", "uvdms_gym.envs.circle:CircleTrackEnv", 500),
+    ("uvdms/Transport-v0", "uvdms_gym.envs.transport:TransportEnv", 600),
+    ("uvdms/CircleTrack-v1", "uvdms_gym.envs.v1:CircleTrackV1Env", 500),
+    ("uvdms/Transport-v1", "uvdms_gym.envs.v1:TransportV1Env", 600),
+)
+"""(id, entry point, max_episode_steps) of every registered environment."""
+ENV_IDS: tuple[str, ...] = tuple(env_id for env_id, _, _ in _REGISTRATIONS)
 
-if "uvdms/CircleTrack-v0" not in registry:
-    register(
-        id="uvdms/CircleTrack-v0",
-        entry_point="uvdms_gym.envs.circle:CircleTrackEnv",
-        max_episode_steps=500,
-    )
-if "uvdms/Transport-v0" not in registry:
-    register(
-        id="uvdms/Transport-v0",
-        entry_point="uvdms_gym.envs.transport:TransportEnv",
-        max_episode_steps=600,
-    )
-if "uvdms/CircleTrack-v1" not in registry:
-    register(
-        id="uvdms/CircleTrack-v1",
-        entry_point="uvdms_gym.envs.v1:CircleTrackV1Env",
-        max_episode_steps=500,
-    )
-if "uvdms/Transport-v1" not in registry:
-    register(
-        id="uvdms/Transport-v1",
-        entry_point="uvdms_gym.envs.v1:TransportV1Env",
-        max_episode_steps=600,
-    )
+for _env_id, _entry_point, _max_steps in _REGISTRATIONS:
+    if _env_id not in registry:
+        register(id=_env_id, entry_point=_entry_point, max_episode_steps=_max_steps)
 
 # v0 is not deprecated: it is the version of the published results and stays supported beside v1. Gymnasium's
 # make() warns that any version but the newest is "out of date"; silence that for the uvdms ids only.
