@@ -28,7 +28,7 @@ import atexit
 import logging
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -115,7 +115,6 @@ def run_on_ray(
     address: str | None = None,
     num_cpus: int | None = None,
     max_retries: int = DEFAULT_MAX_RETRIES,
-    on_submit: Callable[[Any], None] | None = None,
 ) -> Iterator[tuple[Any, dict[str, Any]]]:
     """Run the episodes of ``todo`` as Ray tasks and yield ``(job, result)`` as each finishes.
 
@@ -126,7 +125,6 @@ def run_on_ray(
         address: Ray cluster address (``None``: a local instance of ``num_cpus`` CPUs).
         num_cpus: CPUs of the local instance (default: every core of this machine).
         max_retries: Re-runs of an episode whose worker process dies.
-        on_submit: Called with the Ray module once the tasks are submitted (tests use it to inject faults).
 
     Raises:
         RuntimeError: Ray is not installed.
@@ -149,8 +147,6 @@ def run_on_ray(
             ): job
             for job in todo
         }
-        if on_submit is not None:
-            on_submit(ray)
         pending = list(refs)
         try:
             while pending:

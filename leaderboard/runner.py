@@ -151,7 +151,6 @@ def _execute(
     address: str | None,
     num_cpus: int | None,
     max_retries: int | None,
-    on_submit: Callable[[Any], None] | None,
 ) -> Iterator[tuple[Job, dict[str, Any]]]:
     """Compute the episodes of ``todo`` and yield ``(job, result)`` as each finishes (the caller stores them)."""
     if not todo:  # everything cached: no worker, no Ray instance
@@ -160,9 +159,7 @@ def _execute(
         from leaderboard.distributed import DEFAULT_MAX_RETRIES, run_on_ray
 
         retries = DEFAULT_MAX_RETRIES if max_retries is None else max_retries
-        yield from run_on_ray(
-            todo, backend, trust, address=address, num_cpus=num_cpus, max_retries=retries, on_submit=on_submit
-        )
+        yield from run_on_ray(todo, backend, trust, address=address, num_cpus=num_cpus, max_retries=retries)
         return
     if jobs <= 1 or len(todo) <= 1:
         try:
@@ -245,7 +242,6 @@ def run_leaderboard(
     address: str | None = None,
     num_cpus: int | None = None,
     max_retries: int | None = None,
-    on_submit: Callable[[Any], None] | None = None,
 ) -> LeaderboardResult:
     """Evaluate ``entries`` on ``tasks`` (cached), rank them per track and task, and write the outputs.
 
@@ -269,7 +265,6 @@ def run_leaderboard(
         num_cpus: CPUs of the local Ray instance (``ray`` executor without ``address``; default: every core).
         max_retries: Re-runs of an episode whose Ray worker dies (default
             :data:`leaderboard.distributed.DEFAULT_MAX_RETRIES`).
-        on_submit: ``ray`` executor: called with the Ray module once the episodes are submitted (fault tests).
 
     Returns:
         The ranked rows and run statistics.
@@ -338,7 +333,7 @@ def run_leaderboard(
             mininterval=0.1 if sys.stderr.isatty() else 30.0,  # a log file gets a line every 30 s, not every episode
         )
         try:
-            finished = _execute(todo, backend, trust, jobs, executor, address, num_cpus, max_retries, on_submit)
+            finished = _execute(todo, backend, trust, jobs, executor, address, num_cpus, max_retries)
             for job, result in finished:
                 results[job.path] = store_result(job, result)
                 bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
