@@ -102,9 +102,14 @@ def ray_episode(job: Any, backend: Any, trust: bool, files: Mapping[str, bytes] 
 
     worker_setup()
     if files is not None:
-        folder = materialise(job.entry.checksum or job.entry.name, files)
+        folder = materialise(_payload_key(job.entry), files)
         job = replace(job, entry=replace(job.entry, spec=str(folder), weights_only=True))
     return compute_job(job, backend, trust)
+
+
+def _payload_key(entry: Entry) -> str:
+    """What identifies an agent's files: their checksum (the name where there is none)."""
+    return entry.checksum or entry.name
 
 
 def run_on_ray(
@@ -136,14 +141,14 @@ def run_on_ray(
     if max_retries < 0:
         raise ValueError(f"max_retries must be >= 0, got {max_retries}")
     with ray_session(address=address, num_cpus=num_cpus) as ray:
-        payloads: dict[str, Any] = {}
+        payloads: dict[str, Any] = {}  # one export per agent (an agent and its ``+filter`` entry share it)
         for job in todo:
-            if job.entry.kind == "agent" and job.entry.name not in payloads:
-                payloads[job.entry.name] = ray.put(agent_files(job.entry, trust))
+            if job.entry.kind == "agent" and _payload_key(job.entry) not in payloads:
+                payloads[_payload_key(job.entry)] = ray.put(agent_files(job.entry, trust))
         task = ray.remote(num_cpus=1, max_retries=max_retries, retry_exceptions=False)(ray_episode)
         refs = {
             task.options(name=f"episode {job.entry.name} / {job.task.name} / seed {job.seed}").remote(
-                job, backend, trust, payloads.get(job.entry.name)
+                job, backend, trust, payloads.get(_payload_key(job.entry))
             ): job
             for job in todo
         }
