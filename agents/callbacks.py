@@ -2,7 +2,8 @@
 
 They extend SB3's ``CheckpointCallback`` and ``EvalCallback`` (the ones RL Zoo uses too) with what the
 project's run directories need: one replay-buffer checkpoint kept instead of all of them, evaluation envs
-reseeded before every evaluation, and the best model's VecNormalize statistics and step count saved with it.
+reseeded before every evaluation (and their benchmark metrics recorded as the learning curve,
+:mod:`agents.learning_curve`), and the best model's VecNormalize statistics and step count saved with it.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from typing import Any
 
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 
+from agents.learning_curve import INFO_KEY, LearningCurve, curve_point
 from agents.rundir import _write_json
 
 
@@ -31,20 +33,44 @@ class LatestBufferCheckpointCallback(CheckpointCallback):
 class SeededEvalCallback(EvalCallback):
     """``EvalCallback`` that reseeds the evaluation envs before every evaluation (same episodes each time).
 
+    With a ``learning_curve``, every evaluation also adds a point to it (:mod:`agents.learning_curve`): the
+    benchmark's metrics of the evaluation episodes, which the evaluation envs' :class:`EpisodeMetrics` wrapper
+    puts into each episode's last ``info`` (an evaluation whose episodes carry none adds no point).
+
     Args:
         *args: ``EvalCallback`` arguments.
         eval_seed: Seed passed to ``eval_env.seed`` before each evaluation.
+        learning_curve: Where the evaluations' metrics are recorded (``None``: not recorded).
+        segment: Index of the training segment (recorded in each point).
         **kwargs: ``EvalCallback`` keyword arguments.
     """
 
-    def __init__(self, *args: Any, eval_seed: int, **kwargs: Any) -> None:
+    def __init__(
+        self, *args: Any, eval_seed: int, learning_curve: LearningCurve | None = None, segment: int = 0, **kwargs: Any
+    ) -> None:
         super().__init__(*args, **kwargs)
         self.eval_seed = eval_seed
+        self.learning_curve = learning_curve
+        self.segment = segment
+        self._episode_metrics: list[dict[str, Any]] = []
+
+    def _log_success_callback(self, locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
+        super()._log_success_callback(locals_, globals_)
+        if locals_["done"]:
+            metrics = locals_["info"].get(INFO_KEY)
+            if metrics is not None:
+                self._episode_metrics.append(metrics)
 
     def _on_step(self) -> bool:
-        if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+        evaluating = self.eval_freq > 0 and self.n_calls % self.eval_freq == 0
+        if evaluating:
             self.eval_env.seed(self.eval_seed)
-        return super()._on_step()
+            self._episode_metrics = []
+        continue_training = super()._on_step()
+        if evaluating and self.learning_curve is not None and self._episode_metrics:
+            point = curve_point(self.num_timesteps, self.segment, self._episode_metrics, self.last_mean_reward)
+            self.learning_curve.add(point)
+        return continue_training
 
 
 class SaveBestExtras(BaseCallback):

@@ -19,6 +19,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
+from agents.learning_curve import EpisodeMetrics, has_tracking_metrics
 from agents.vecenv import HybridVecEnv
 from agents.wrappers import AliveBonus, ScalarInfo, ScaledAction
 
@@ -92,6 +93,8 @@ class EnvFactory:
         alive_bonus: Constant added to every reward inside the ``Monitor`` (0: no wrapper).
         action_scale: The policy's action is multiplied by this before the env sees it (1: no wrapper).
         scalar_info: Drop the array entries of ``info`` (:class:`agents.wrappers.ScalarInfo`; training envs).
+        episode_metrics: Put each episode's benchmark metrics into its last ``info``
+            (:class:`agents.learning_curve.EpisodeMetrics`; evaluation envs of a uvdms id, else no effect).
     """
 
     env_id: str
@@ -102,6 +105,7 @@ class EnvFactory:
     alive_bonus: float = 0.0
     action_scale: float = 1.0
     scalar_info: bool = False
+    episode_metrics: bool = False
 
     def __call__(self) -> gym.Env:
         """Create the environment wrapped in a ``Monitor`` (action scaling and alive bonus inside it).
@@ -115,6 +119,8 @@ class EnvFactory:
         if self.max_episode_steps is not None:
             make_kwargs["max_episode_steps"] = self.max_episode_steps
         env = gym.make(self.env_id, **make_kwargs)
+        if self.episode_metrics and has_tracking_metrics(env):
+            env = EpisodeMetrics(env)
         if self.action_scale != 1.0:
             env = ScaledAction(env, self.action_scale)
         if self.alive_bonus:

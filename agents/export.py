@@ -4,6 +4,8 @@ A directory written by :func:`export_agent` / :func:`export_controller` (layout 
 with :func:`load_weights_only` (also through :func:`agents.policy.load_agent`): the policy is rebuilt from the
 JSON by constructing the algorithm's policy class with the saved spaces and keyword arguments; the weights load
 with ``torch.load(..., weights_only=True)`` and the normalisation with ``numpy.load(..., allow_pickle=False)``.
+An export also carries the run's ``learning_curve.json`` (:mod:`agents.learning_curve`) when the agent's folder
+has one; it is plain data about the training, not part of the policy (nor of its checksum).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from gymnasium import spaces
 
 from agents.algos import ALGOS
 from agents.config import ConfigError, is_unit_scale
+from agents.learning_curve import copy_learning_curve
 from agents.policy import AgentController, ExportFormatError, ObsNormalizer, Which, load_agent
 from agents.policy_kwargs import plain_policy_kwargs, resolve_policy_kwargs
 from uvdms_gym.io import write_json_atomic
@@ -113,6 +116,7 @@ def export_controller(agent: AgentController, out_path: str | Path, *, overwrite
         "files": files,
     }
     write_json_atomic(out / AGENT_JSON, document)
+    copy_learning_curve(agent.source, out)  # the training history, if the agent's run recorded one
     return out
 
 

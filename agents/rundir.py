@@ -3,7 +3,8 @@
 Layout of ``<out>/<env id, '/' and ':' replaced by '_'>/<algo>_<seed>/`` (see :mod:`agents.train`)::
 
     config.yml, command.txt, meta.json, final_model.zip, vecnormalize.pkl, replay_buffer.pkl,
-    best_model.zip, best_vecnormalize.pkl, best_model.json, checkpoints/, logs/seg<k>/, monitor/
+    best_model.zip, best_vecnormalize.pkl, best_model.json, learning_curve.json, checkpoints/, logs/seg<k>/,
+    monitor/
 """
 
 from __future__ import annotations

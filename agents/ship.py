@@ -9,6 +9,8 @@ Shipped agent folder::
                             the training wall time, the seeds, versions and git revision
     training_curve.png      environment return (alive bonus removed) vs timesteps, training episodes and the
                             evaluation callback's episodes
+    learning_curve.json     the benchmark's metrics of the evaluation callback's episodes vs timesteps (when the
+                            run recorded them, :mod:`agents.learning_curve`)
     training_logs/          the run's Monitor CSVs, progress.csv and evaluations.npz (small text/npz files)
     evaluation.json         written afterwards by ``uvdms evaluate --controller trained_agents/<name> ...``
     README.md               what the agent is, its evaluation, and how to run it with this project or with
@@ -36,6 +38,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from agents.learning_curve import copy_learning_curve
 from agents.policy import SHIPPED_MODEL, SHIPPED_STATS
 from agents.train import git_info, package_versions, zip_num_timesteps
 
@@ -159,6 +162,7 @@ def package_run(run_dir: str | Path, out_dir: str | Path, *, which: str = "best"
     elif (out_dir / SHIPPED_STATS).exists():
         (out_dir / SHIPPED_STATS).unlink()
     shutil.copy2(run_dir / "config.yml", out_dir / "config.yml")
+    copy_learning_curve(run_dir, out_dir)
 
     logs = out_dir / "training_logs"
     if logs.exists():

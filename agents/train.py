@@ -17,6 +17,9 @@ Run directory ``<out>/<env id, '/' and ':' replaced by '_'>/<algo>_<seed>/``::
     best_model.zip              best model on the evaluation env (only if an evaluation ran)
     best_vecnormalize.pkl       VecNormalize statistics of best_model.zip (only with ``normalize``)
     best_model.json             num_timesteps and mean reward of best_model.zip
+    learning_curve.json         the benchmark's metrics of every evaluation (success rate, contact-free rates,
+                                position RMSE) against num_timesteps, kept through --resume (uvdms envs only;
+                                :mod:`agents.learning_curve`)
     checkpoints/                rl_model_<N>_steps.zip, rl_model_vecnormalize_<N>_steps.pkl,
                                 rl_model_replay_buffer_<N>_steps.pkl (latest one only)
     logs/seg<k>/                progress.csv, TensorBoard events, evaluations.npz of segment k
@@ -78,6 +81,7 @@ from agents.envs import (
     make_vec_env,
     train_env_seed,
 )
+from agents.learning_curve import LEARNING_CURVE_FILE, LearningCurve
 from agents.models import (
     configured_buffer_size,
     grow_replay_buffer,
@@ -416,6 +420,7 @@ def _run_segment(
             cfg.max_episode_steps,
             cfg.alive_bonus,
             cfg.action_scale,
+            episode_metrics=True,
         )
         for i in range(cfg.n_eval_envs)
     ]
@@ -521,6 +526,8 @@ def _run_segment(
             eval_callback = SeededEvalCallback(
                 eval_venv,
                 eval_seed=eval_env_seed(seed, 0),
+                learning_curve=LearningCurve.resume(run_dir / LEARNING_CURVE_FILE, env_id, seed, start_timesteps),
+                segment=segment,
                 callback_on_new_best=SaveBestExtras(run_dir, segment),
                 callback_after_eval=CallbackList(list(after_eval)) if after_eval else None,
                 n_eval_episodes=cfg.n_eval_episodes,

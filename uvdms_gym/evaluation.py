@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -148,6 +148,66 @@ def tracking_rmse(
     return pos, float(np.sqrt(np.mean(np.arccos(cos_a) ** 2)))
 
 
+class EpisodeTracker:
+    """The samples and counts of one episode that its outcome metrics are computed from.
+
+    The one home of the success rule and of what ``rmse_pos`` averages: :func:`run_episode` feeds it, and so does
+    anything else that steps an environment itself (a trainer's evaluation episodes,
+    ``agents.learning_curve.EpisodeMetrics``), so both report the same numbers for the same episode.
+
+    Args:
+        env: The environment (wrapped or not; its ``unwrapped`` has ``tracking_transient``).
+        reset_info: The ``info`` of ``env.reset`` (the sample at ``t = 0``).
+    """
+
+    def __init__(self, env: Any, reset_info: Mapping[str, Any]) -> None:
+        self.transport = is_transport(env)
+        self.transient = float(env.unwrapped.tracking_transient)
+        self.ts: list[Any] = [reset_info["t"]]
+        self.ys: list[Any] = [reset_info["y"]]
+        self.refs: list[Any] = [reset_info["y_ref"]]
+        self.contacts = 0
+        self.steps = 0
+        self.terminated = False
+        self.physics_error: str | None = None
+        self.last_info: Mapping[str, Any] = reset_info
+
+    def step(self, info: Mapping[str, Any], terminated: bool) -> None:
+        """Record the sample and counts of one ``env.step`` (its ``info`` and ``terminated`` flag)."""
+        self.steps += 1
+        self.contacts += int(info["contacts"] > 0)
+        self.ts.append(info["t"])
+        self.ys.append(info["y"])
+        self.refs.append(info["y_ref"])
+        if info.get("physics_error"):
+            self.physics_error = str(info["physics_error"])
+        self.terminated = bool(terminated)
+        self.last_info = info
+
+    def outcome(self) -> dict[str, Any]:
+        """``rmse_pos``, ``rmse_ori``, ``success``, ``contacts``, ``steps``, ``terminated``, ``physics_error``.
+
+        Definitions in the module docstring (``rmse_pos`` is ``nan`` when no sample lies past the transient).
+        """
+        rmse_pos, rmse_ori = tracking_rmse(
+            np.array(self.ts), np.array(self.ys), np.array(self.refs), self.transport, self.transient
+        )
+        if self.transport:
+            success = bool(self.last_info["is_success"])
+        else:
+            success = math.isfinite(rmse_pos) and rmse_pos <= CIRCLE_SUCCESS_RMSE
+        success = success and self.contacts == 0 and not self.terminated and self.physics_error is None
+        return {
+            "rmse_pos": rmse_pos,
+            "rmse_ori": rmse_ori,
+            "success": success,
+            "contacts": self.contacts,
+            "steps": self.steps,
+            "terminated": self.terminated,
+            "physics_error": self.physics_error,
+        }
+
+
 def run_episode(env: Any, controller: Any, seed: int, *, save_trajectory: bool = False) -> dict:
     """Run one episode of ``controller`` on ``env`` from ``env.reset(seed=seed)`` to termination or truncation.
 
@@ -161,13 +221,12 @@ def run_episode(env: Any, controller: Any, seed: int, *, save_trajectory: bool =
     Returns:
         A JSON-serialisable dict with the keys of :data:`EPISODE_KEYS` (definitions in the module docstring).
     """
-    u = env.unwrapped
     transport = is_transport(env)
     obs, info = env.reset(seed=seed)
     controller.reset(seed)
     n_dis = len(info["distances"])
     d_min = np.array(info["distances"], dtype=float)
-    ts, ys, refs, ori_err = [info["t"]], [info["y"]], [info["y_ref"]], [info["orientation_error"]]
+    tracker = EpisodeTracker(env, info)
     traj: dict[str, list] = {k: [] for k in TRAJECTORY_KEYS}
 
     def record(info: dict, action: np.ndarray | None, tau: np.ndarray | None) -> None:
@@ -190,12 +249,11 @@ def run_episode(env: Any, controller: Any, seed: int, *, save_trajectory: bool =
 
     record(info, None, None)
     ret = cost = 0.0
-    contacts = zone = steps = 0
+    zone = 0
     slack_max: float | None = None
     unsolved: int | None = None
     times_ms: list[float] = []
     terminated = truncated = False
-    physics_error = None
     has_nn = False
     while True:
         t0 = time.perf_counter()
@@ -207,47 +265,35 @@ def run_episode(env: Any, controller: Any, seed: int, *, save_trajectory: bool =
             unsolved = (unsolved or 0) + int(rec.get("status", "solved") != "solved")
         has_nn = has_nn or getattr(controller, "last_di", None) is not None
         obs, reward, terminated, truncated, info = env.step(action)
-        steps += 1
+        tracker.step(info, terminated)
         ret += float(reward)
         cost += float(info["cost"])
-        contacts += int(info["contacts"] > 0)
         zone += int(info["cost_zone"] > 0)
         np.minimum(d_min, info["distances"], out=d_min)
-        ts.append(info["t"])
-        ys.append(info["y"])
-        refs.append(info["y_ref"])
-        ori_err.append(info["orientation_error"])
         record(info, action, info.get("tau"))
-        if info.get("physics_error"):
-            physics_error = str(info["physics_error"])
         if terminated or truncated:
             break
-    rmse_pos, rmse_ori = tracking_rmse(np.array(ts), np.array(ys), np.array(refs), transport, u.tracking_transient)
-    if transport:
-        success = bool(info["is_success"])
-    else:
-        success = math.isfinite(rmse_pos) and rmse_pos <= CIRCLE_SUCCESS_RMSE
-    success = success and contacts == 0 and not terminated and physics_error is None
+    outcome = tracker.outcome()
     out: dict[str, Any] = {
         "seed": seed,
         "return": ret,
         "cost": cost,
-        "contacts": contacts,
+        "contacts": outcome["contacts"],
         "zone_steps": zone,
         "min_distance": float(d_min.min()),
         "min_distance_by_pair": d_min[:n_dis],
-        "rmse_pos": rmse_pos,
-        "rmse_ori": rmse_ori,
+        "rmse_pos": outcome["rmse_pos"],
+        "rmse_ori": outcome["rmse_ori"],
         "final_pos_error": float(info["tracking_error"]),
         "final_ori_error": float(info["orientation_error"]) if transport else None,
-        "success": success,
+        "success": outcome["success"],
         "controller_ms_median": float(np.median(times_ms)),
         "qp_slack_max": slack_max,
         "qp_unsolved": unsolved,
-        "steps": steps,
-        "terminated": bool(terminated),
+        "steps": outcome["steps"],
+        "terminated": outcome["terminated"],
         "truncated": bool(truncated),
-        "physics_error": physics_error,
+        "physics_error": outcome["physics_error"],
     }
     if save_trajectory:
         if not has_nn:
