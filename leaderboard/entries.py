@@ -2,6 +2,17 @@
 
 An agent's entry holds its training environment (it runs only on that environment's tasks), a checksum of its
 model files (the cache key) and every seed recorded in its run files (:func:`check_seed_disjointness`).
+
+A **multi-seed entry** is a folder of training seeds, each an agent folder of its own (a weights-only export, a
+shipped agent folder or a run directory) named ``seed_<k>`` after its training seed ``k``
+(:func:`multi_seed_entry`)::
+
+    trained_agents/<entry>/seed_0/   agent.json, policy.pt, ...     (or model.zip, config.yml, meta.json, ...)
+    trained_agents/<entry>/seed_1/
+    trained_agents/<entry>/seed_2/
+
+Its :class:`Entry` holds one member entry per seed (``<entry>/seed_<k>``), which the runner evaluates and caches
+like any agent; the leaderboard reports one row per task for the whole entry (:func:`leaderboard.stats.aggregate_runs`).
 """
 
 from __future__ import annotations
@@ -32,6 +43,13 @@ DEFAULT_ENTRIES: tuple[str, ...] = ("baselines", "agents")
 _AGENT_MODEL_SUFFIXES = (".zip", ".pkl", ".pt", ".npz")
 _AGENT_CONFIG_NAMES = ("agent.json", "config.yml", "config.yaml")
 _SEED_FILES = ("meta.json", "config.yml", "config.yaml", "agent.json")
+SEED_FOLDER_PREFIX = "seed_"
+"""Sub-folders of a multi-seed entry: ``seed_<k>``, ``k`` the training seed (``--seed``) of the run inside."""
+_SEED_FOLDER = re.compile(rf"^{SEED_FOLDER_PREFIX}(\d+)$")
+MIN_TRAINING_SEEDS = 2
+"""Fewest seed folders of a multi-seed entry (an interval over training seeds needs two)."""
+RECOMMENDED_TRAINING_SEEDS = 3
+"""Seeds every shipped learned entry should have (issue 14); fewer are accepted with a warning."""
 
 
 @dataclass(frozen=True)
@@ -49,6 +67,8 @@ class Entry:
         weights_only: The agent is a weights-only export (never unpickled).
         safety_filter: The controller's actions go through :class:`baselines.safety.SafetyFilter` (an entry of
             its own, named ``<name>+filter``).
+        members: A multi-seed entry's per-seed agent entries (empty otherwise); the runner evaluates these.
+        training_seed: A member's training seed (the ``k`` of its ``seed_<k>`` folder; ``None`` otherwise).
     """
 
     name: str
@@ -60,6 +80,32 @@ class Entry:
     training_seeds: frozenset[int] = frozenset()
     weights_only: bool = False
     safety_filter: bool = False
+    members: tuple[Entry, ...] = ()
+    training_seed: int | None = None
+
+    @property
+    def label(self) -> str:
+        """The name in tables and plots: a multi-seed entry's with its number of seeds (``x (3 seeds)``)."""
+        return f"{self.name} ({len(self.members)} seeds)" if self.members else self.name
+
+    @property
+    def multi_seed(self) -> bool:
+        """Whether the entry aggregates several training seeds."""
+        return bool(self.members)
+
+    def runs(self) -> tuple[Entry, ...]:
+        """The agents evaluated for this entry: its members, or the entry itself."""
+        return self.members or (self,)
+
+    def renamed(self, name: str) -> Entry:
+        """The entry under another name (members renamed ``<name>/seed_<k>``)."""
+        members = tuple(replace(m, name=f"{name}/{Path(m.spec).name}") for m in self.members)
+        return replace(self, name=name, members=members)
+
+    def filtered(self) -> Entry:
+        """The same entry with the safety filter (named ``<name>+filter``, members too)."""
+        members = tuple(replace(m, safety_filter=True) for m in self.members)
+        return replace(self, safety_filter=True, members=members).renamed(self.name + FILTER_SUFFIX)
 
     def identity(self) -> dict[str, Any]:
         """What identifies the entry's behaviour in the cache key (agents: by content, not path)."""
@@ -140,7 +186,7 @@ def resolve_entries(
                     if token != spec:  # a keyword: its torque-track members are simply not filtered
                         continue
                     raise ValueError(f"{raw_token}: the safety filter projects velocity commands; {spec} is torque")
-                entry = replace(entry, name=entry.name + FILTER_SUFFIX, safety_filter=True)
+                entry = entry.filtered()
                 key += FILTER_SUFFIX
             if key in seen_specs:
                 continue
@@ -156,18 +202,31 @@ def _unique_names(entries: list[Entry]) -> list[Entry]:
         n = counts.get(entry.name, 0)
         counts[entry.name] = n + 1
         if n:
-            entry = replace(entry, name=f"{entry.name}-{n + 1}")
+            entry = entry.renamed(f"{entry.name}-{n + 1}")
         out.append(entry)
     return out
 
 
 def find_agent_folders(agents_dir: str | Path) -> list[Path]:
-    """Sub-folders of ``agents_dir`` holding an agent (a weights-only ``agent.json`` or an SB3 ``.zip``)."""
+    """Sub-folders of ``agents_dir`` holding an agent (a weights-only ``agent.json`` or an SB3 ``.zip``) or seeds.
+
+    A folder with ``seed_*`` sub-folders is a multi-seed entry (:func:`is_multi_seed_folder`).
+    """
     root = Path(agents_dir)
     if not root.is_dir():
         log.warning("agents folder %s does not exist: no shipped agents are evaluated", root)
         return []
-    return [p for p in sorted(root.iterdir()) if p.is_dir() and (is_weights_only(p) or any(p.glob("*.zip")))]
+    return [
+        p
+        for p in sorted(root.iterdir())
+        if p.is_dir() and (is_weights_only(p) or any(p.glob("*.zip")) or is_multi_seed_folder(p))
+    ]
+
+
+def is_multi_seed_folder(path: str | Path) -> bool:
+    """Whether ``path`` is a folder with ``seed_*`` sub-folders (a multi-seed entry, :func:`multi_seed_entry`)."""
+    path = Path(path)
+    return path.is_dir() and any(p.is_dir() and p.name.startswith(SEED_FOLDER_PREFIX) for p in path.iterdir())
 
 
 def is_weights_only(path: str | Path) -> bool:
@@ -185,6 +244,8 @@ def agent_entry(path: str | Path, *, trust: bool = False) -> Entry:
     from agents.policy import UntrustedFileError, is_trusted_path
 
     path = Path(path)
+    if is_multi_seed_folder(path):
+        return multi_seed_entry(path, trust=trust)
     weights_only = is_weights_only(path)
     archives = sorted(path.glob("*.zip")) if path.is_dir() else [path]
     if path.is_dir() and not weights_only and not archives:
@@ -214,6 +275,111 @@ def agent_entry(path: str | Path, *, trust: bool = False) -> Entry:
         training_seeds=frozenset(training_seeds(path)),
         weights_only=weights_only,
     )
+
+
+def multi_seed_entry(path: str | Path, *, trust: bool = False) -> Entry:
+    """The :class:`Entry` of a folder of training seeds (layout in the module docstring).
+
+    Every ``seed_<k>`` sub-folder becomes a member (:func:`agent_entry`, named ``<entry>/seed_<k>``, with ``k``
+    among its training seeds); other sub-folders and files (a README, plots) are ignored. The entry's checksum
+    hashes its members' checksums; its training seeds are the union of theirs.
+
+    Raises:
+        ValueError: The folder is also an agent itself; a ``seed_*`` name that is not ``seed_<integer>``, or
+            two folders of the same seed; fewer than :data:`MIN_TRAINING_SEEDS` seeds; a seed folder that is
+            not an agent (or is itself a multi-seed folder); a run inside ``seed_<k>`` recorded with another
+            seed; seeds trained on different environments (id, keyword arguments or action mode); two seeds
+            with identical model files.
+        UntrustedFileError: A seed is a full SB3 zip outside ``trained_agents/`` and ``trust`` is false.
+    """
+    path = Path(path)
+    if is_weights_only(path) or any(path.glob("*.zip")):
+        raise ValueError(
+            f"{path} holds both an agent (agent.json or a .zip) and seed_* folders: a multi-seed entry holds only "
+            "its seed folders"
+        )
+    seeds: dict[int, Path] = {}
+    for sub in sorted(p for p in path.iterdir() if p.is_dir() and p.name.startswith(SEED_FOLDER_PREFIX)):
+        match = _SEED_FOLDER.match(sub.name)
+        if match is None:
+            raise ValueError(f"{sub}: a seed folder is named {SEED_FOLDER_PREFIX}<training seed>, e.g. seed_0")
+        k = int(match.group(1))
+        if k in seeds:
+            raise ValueError(f"{path}: {seeds[k].name} and {sub.name} are both training seed {k}")
+        seeds[k] = sub
+    if len(seeds) < MIN_TRAINING_SEEDS:
+        raise ValueError(
+            f"{path}: a multi-seed entry needs at least {MIN_TRAINING_SEEDS} seed folders, found {len(seeds)}"
+        )
+    if len(seeds) < RECOMMENDED_TRAINING_SEEDS:
+        log.warning(
+            "%s: %d training seeds; shipped learned entries should have at least %d",
+            path,
+            len(seeds),
+            RECOMMENDED_TRAINING_SEEDS,
+        )
+    name = path.name
+    members = []
+    environments: dict[str, tuple[str | None, dict[str, Any], str]] = {}
+    for k, folder in sorted(seeds.items()):
+        if is_multi_seed_folder(folder):
+            raise ValueError(f"{folder}: a seed folder must be an agent, not another folder of seeds")
+        member = agent_entry(folder, trust=trust)
+        recorded = _run_seed(folder)
+        if recorded is not None and recorded != k:
+            raise ValueError(f"{folder}: the run inside was trained with seed {recorded}, not {k}")
+        env_id, env_kwargs = agent_env(folder)
+        environments[folder.name] = (env_id, env_kwargs, member.track)
+        members.append(
+            replace(
+                member,
+                name=f"{name}/{folder.name}",
+                training_seed=k,
+                training_seeds=member.training_seeds | {k},
+            )
+        )
+    if len({json.dumps(env, sort_keys=True, default=str) for env in environments.values()}) > 1:
+        listing = "; ".join(f"{seed}: {env[0]} {env[1]} ({env[2]})" for seed, env in environments.items())
+        raise ValueError(f"{path}: its seeds were trained on different environments ({listing})")
+    by_checksum: dict[str | None, str] = {}
+    for member in members:
+        if member.checksum in by_checksum:
+            raise ValueError(
+                f"{path}: {by_checksum[member.checksum]} and {member.name} hold identical model files "
+                "(the same run twice, not two training seeds)"
+            )
+        by_checksum[member.checksum] = member.name
+    digest = hashlib.sha256()
+    for member in members:
+        digest.update(f"{Path(member.spec).name}\0{member.checksum}\0".encode())
+    first = members[0]
+    return Entry(
+        name=name,
+        kind="agent",
+        spec=str(path),
+        track=first.track,
+        env_id=first.env_id,
+        checksum=digest.hexdigest(),
+        training_seeds=frozenset().union(*(m.training_seeds for m in members)),
+        weights_only=all(m.weights_only for m in members),
+        members=tuple(members),
+    )
+
+
+def _run_seed(folder: Path) -> int | None:
+    """The base seed (``seed``) recorded at the top of a run's ``config.yml`` or ``meta.json`` (``None``: none)."""
+    for file_name in ("config.yml", "config.yaml", "meta.json"):
+        file = folder / file_name
+        if not file.is_file():
+            continue
+        try:
+            doc = _read_structured(file)
+        except (OSError, ValueError, yaml.YAMLError):
+            continue
+        seed = doc.get("seed") if isinstance(doc, dict) else None
+        if isinstance(seed, int) and not isinstance(seed, bool):
+            return seed
+    return None
 
 
 def _agent_folders(path: Path) -> list[Path]:
@@ -303,12 +469,16 @@ def agent_checksum(path: str | Path) -> str:
 
 
 def check_seed_disjointness(eval_seeds: Iterable[int], entries: Iterable[Entry]) -> None:
-    """Raise ``ValueError`` if an evaluation seed is a seed recorded in any agent's training files."""
+    """Raise ``ValueError`` if an evaluation seed is a seed recorded in any agent's training files.
+
+    A multi-seed entry is checked seed by seed (the message names the ``<entry>/seed_<k>`` that clashes).
+    """
     eval_set = set(eval_seeds)
     for entry in entries:
-        clash = sorted(eval_set & entry.training_seeds)
-        if clash:
-            raise ValueError(
-                f"evaluation seeds {clash[:5]} of the leaderboard are training seeds of {entry.name}; "
-                "the held-out evaluation must use seeds disjoint from training"
-            )
+        for run in entry.runs():
+            clash = sorted(eval_set & run.training_seeds)
+            if clash:
+                raise ValueError(
+                    f"evaluation seeds {clash[:5]} of the leaderboard are training seeds of {run.name}; "
+                    "the held-out evaluation must use seeds disjoint from training"
+                )

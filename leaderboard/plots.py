@@ -1,20 +1,28 @@
-"""Leaderboard plots: bar charts with CI whiskers per track and metric, and minimum distance over time."""
+"""Leaderboard plots: bar charts with CI whiskers per track and metric, minimum distance over time, learning curves."""
 
 from __future__ import annotations
 
+import logging
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from leaderboard.stats import METRICS
+from leaderboard.entries import Entry
+from leaderboard.stats import METRICS, learning_curve_stats
 from leaderboard.tasks import TRACKS
 from uvdms_gym.params import D1, D2
 
 if TYPE_CHECKING:
     from leaderboard.runner import LeaderboardResult
 
+log = logging.getLogger("uvdms.leaderboard")
+
 PLOT_METRICS: tuple[str, ...] = ("contact_free_success", "rmse_pos", "min_distance", "contacts", "return")
 """The metrics with a bar chart."""
+LEARNING_CURVE_PANELS: tuple[tuple[str, str], ...] = (("success_rate", "success"), ("rmse_pos_mean", "rmse_pos"))
+"""Panels of a learning-curve plot: (point key of :mod:`agents.learning_curve`, metric of :data:`METRICS` whose
+label and scale the panel uses)."""
 
 
 def write_plots(result: LeaderboardResult, plot_dir: str | Path) -> list[Path]:
@@ -55,14 +63,16 @@ def write_plots(result: LeaderboardResult, plot_dir: str | Path) -> list[Path]:
                     lo.append((stat.mean - a) * scale)
                     hi.append((b - stat.mean) * scale)
                 if xs:
-                    ax.bar(xs, ys, width, yerr=[lo, hi], capsize=3, label=name)
+                    label = next(r.entry.label for r in rows if r.entry.name == name)
+                    ax.bar(xs, ys, width, yerr=[lo, hi], capsize=3, label=label)
                     plotted.extend(ys)
             ax.set_xticks(range(len(tasks)), [t.label for t in tasks], rotation=15, ha="right")
             ax.set_ylabel(METRICS[metric]["label"])
             positive = [v for v in plotted if v > 0]
             if METRICS[metric].get("scale") and positive and max(positive) > 30 * min(positive):
                 ax.set_yscale("log")  # errors spanning orders of magnitude (sub-mm MPC vs. cm agents)
-            ax.set_title(f"{track} track: {METRICS[metric]['label']} (mean, 95 % bootstrap CI)")
+            estimate = "mean (IQM over seeds)" if any(r.entry.multi_seed for r in rows) else "mean"
+            ax.set_title(f"{track} track: {METRICS[metric]['label']} ({estimate}, 95 % bootstrap CI)")
             if metric == "min_distance":
                 ax.axhline(D1, color="black", linestyle="--", linewidth=1, label="d1")
                 ax.axhline(D2, color="0.4", linestyle=":", linewidth=1.2, label="d2")
@@ -98,6 +108,97 @@ def write_plots(result: LeaderboardResult, plot_dir: str | Path) -> list[Path]:
         ax.grid(alpha=0.3)
         fig.tight_layout()
         path = plot_dir / f"min_distance_{task.name}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        written.append(path)
+    written += write_learning_curves(result.entries, plot_dir)
+    return written
+
+
+def entry_learning_curves(entry: Entry) -> list[list[dict[str, Any]]]:
+    """The learning-curve points of each of an agent entry's runs that has a readable curve (baselines: none).
+
+    An unreadable curve file is skipped with a warning.
+    """
+    from agents.learning_curve import LearningCurveError, find_learning_curve, read_learning_curve
+
+    if entry.kind != "agent":
+        return []
+    curves = []
+    for run in entry.runs():
+        path = find_learning_curve(run.spec)
+        if path is None:
+            continue
+        try:
+            points = read_learning_curve(path)["points"]
+        except LearningCurveError as exc:
+            log.warning("%s: learning curve skipped: %s", run.name, exc)
+            continue
+        if points:
+            curves.append(points)
+    return curves
+
+
+def write_learning_curves(entries: Sequence[Entry], plot_dir: str | Path) -> list[Path]:
+    """``learning_curves_<entry>.png`` for every agent entry with learning curves.
+
+    Success rate and position RMSE of the evaluation callback's episodes against environment steps: each
+    training seed's curve (thin) and, at the step counts every seed has, their mean with a 95 % bootstrap
+    interval over seeds (:func:`leaderboard.stats.learning_curve_stats`). An entry and its ``+filter`` twin share
+    one plot (the same training).
+
+    Returns:
+        The written PNG paths.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    plot_dir = Path(plot_dir)
+    written: list[Path] = []
+    seen: set[tuple[str, ...]] = set()
+    for entry in entries:
+        key = tuple(run.spec for run in entry.runs())
+        if key in seen:
+            continue
+        seen.add(key)
+        curves = entry_learning_curves(entry)
+        if not curves:
+            continue
+        if len(curves) < len(entry.runs()):
+            log.warning("%s: %d of %d training seeds have a learning curve", entry.name, len(curves), len(entry.runs()))
+        plot_dir.mkdir(parents=True, exist_ok=True)
+        fig, axes = plt.subplots(len(LEARNING_CURVE_PANELS), 1, figsize=(7.0, 6.0), sharex=True)
+        for ax, (key_, metric) in zip(axes, LEARNING_CURVE_PANELS, strict=True):
+            scale = METRICS[metric].get("scale", 1.0)
+            for k, curve in enumerate(curves):
+                xs = [p["num_timesteps"] for p in curve if p.get(key_) is not None]
+                ys = [p[key_] * scale for p in curve if p.get(key_) is not None]
+                ax.plot(xs, ys, color="0.6", linewidth=0.8, alpha=0.6, label="each seed" if k == 0 else None)
+            steps, stats = learning_curve_stats(curves, key_)
+            kept = [(x, st) for x, st in zip(steps, stats, strict=True) if math.isfinite(st.mean)]
+            if kept:
+                xs = [x for x, _ in kept]
+                ax.plot(xs, [st.mean * scale for _, st in kept], "o-", color="tab:blue", ms=3, label="mean over seeds")
+                if len(curves) > 1:
+                    ax.fill_between(
+                        xs,
+                        [st.interval()[0] * scale for _, st in kept],
+                        [st.interval()[1] * scale for _, st in kept],
+                        color="tab:blue",
+                        alpha=0.2,
+                        label="95 % bootstrap CI over seeds",
+                    )
+            ax.set_ylabel(METRICS[metric]["label"])
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7)
+        axes[-1].set_xlabel("environment steps")
+        fig.suptitle(
+            f"{entry.name}: evaluation callback's episodes during training ({len(curves)} seed(s))", fontsize=10
+        )
+        fig.tight_layout()
+        path = plot_dir / f"learning_curves_{entry.slug}.png"
         fig.savefig(path, dpi=110)
         plt.close(fig)
         written.append(path)

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 from leaderboard.cache import PACKAGE_VERSION
 from leaderboard.entries import Entry
 from leaderboard.plots import write_plots
-from leaderboard.stats import METRICS, RankedRow, timing_summary
+from leaderboard.stats import METRICS, RATE_METRICS, RankedRow, timing_summary
 from leaderboard.tasks import TRACKS
 from uvdms_gym.io import write_json_atomic
 
@@ -50,14 +50,14 @@ def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_ME
         lines.append("|" + "|".join(["---"] * 3 + ["--:"] * (len(metrics) + 1)) + "|")
         marked = False
         for row in rows:
-            cells = [row.task.label, row.rank_label, row.entry.name]
+            cells = [row.task.label, row.rank_label, row.entry.label]
             for m in metrics:
                 cell = row.stats[m].format(METRICS[m]["fmt"], METRICS[m].get("scale", 1.0))
                 if m in TIMING_METRICS and row.timing["overloaded"]:
                     cell += f" {OVERLOAD_MARK}"
                     marked = True
                 cells.append(cell)
-            cells.append(str(len(row.episodes)))
+            cells.append(episodes_label(row))
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
         if marked:
@@ -67,6 +67,26 @@ def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_ME
             )
             lines.append("")
     return "\n".join(lines)
+
+
+def episodes_label(row: RankedRow) -> str:
+    """The ``n`` cell: the episode count, or ``seeds × episodes`` for a multi-seed row."""
+    if not row.entry.multi_seed:
+        return str(len(row.episodes))
+    seeds = len(row.entry.members)
+    per_seed = len(row.episodes) / seeds
+    return f"{seeds} × {per_seed:g}"
+
+
+MULTI_SEED_TEXT = (
+    "Rows of multi-seed entries (`name (k seeds)`, `n` = seeds × episodes) aggregate k training seeds on the same "
+    "evaluation seeds: rates are fractions of all k × n episodes, every other metric is the interquartile mean "
+    "(IQM, the mean of the middle 50 % of the k × n values), each ± the half-width of a 95 % stratified bootstrap "
+    "interval (percentile; for each evaluation episode the training seeds are resampled with replacement, the "
+    "method of Agarwal et al., NeurIPS 2021, `rliable`), so the interval shows how the entry would score if "
+    "trained again with other seeds."
+)
+"""The explanation that ``leaderboard.md`` carries when a row aggregates training seeds."""
 
 
 def timing_text(result: LeaderboardResult) -> str:
@@ -117,8 +137,10 @@ def _markdown_document(result: LeaderboardResult, command: str | None, plot_file
         "",
         timing_text(result),
         "",
-        markdown_tables(result),
     ]
+    if any(entry.multi_seed for entry in result.entries):
+        parts += [MULTI_SEED_TEXT, ""]
+    parts += [markdown_tables(result)]
     if plot_files:
         parts += ["## Plots", ""]
         parts += [f"![{Path(p).stem}]({p})" for p in plot_files]
@@ -133,6 +155,7 @@ def _csv_text(result: LeaderboardResult) -> str:
     for metric in METRICS:
         header += [f"{metric}_mean", f"{metric}_ci_low", f"{metric}_ci_high"]
     header += ["timing_episodes_overloaded", "timing_episodes_unknown_load", "timing_load_1min_max", "timing_machine"]
+    header += ["training_seeds", "aggregation"]
     writer.writerow(header)
     for row in result.rows:
         cells: list[Any] = [
@@ -151,12 +174,18 @@ def _csv_text(result: LeaderboardResult) -> str:
         load_max = timing["load_1min_max"]
         cells += [timing["overloaded"], timing["unknown"], "" if load_max is None else load_max]
         cells.append("; ".join(timing["machines"]))
+        cells += [len(row.entry.members) if row.entry.multi_seed else "", _aggregation(row.entry)]
         writer.writerow(cells)
     return buffer.getvalue()
 
 
+def _aggregation(entry: Entry) -> str:
+    """How a row's statistics were formed (CSV ``aggregation``): over episodes, or over seeds x episodes."""
+    return "seeds-iqm-stratified" if entry.multi_seed else "episodes-mean-bca"
+
+
 def _entry_document(entry: Entry, rows: Sequence[RankedRow]) -> dict[str, Any]:
-    return {
+    document = {
         "name": entry.name,
         "kind": entry.kind,
         "spec": entry.spec if entry.kind == "baseline" else Path(entry.spec).name,
@@ -176,6 +205,17 @@ def _entry_document(entry: Entry, rows: Sequence[RankedRow]) -> dict[str, Any]:
             for row in rows
         },
     }
+    if entry.multi_seed:  # (absent otherwise: the documents of single agents and baselines keep their form)
+        document["aggregation"] = {
+            "rates": f"mean over seeds x episodes ({', '.join(RATE_METRICS)})",
+            "other_metrics": "interquartile mean (25 % trimmed mean) over seeds x episodes",
+            "interval": "95 % stratified bootstrap: training seeds resampled within each evaluation episode",
+        }
+        document["seeds"] = [
+            {"training_seed": m.training_seed, "folder": Path(m.spec).name, "checksum": m.checksum}
+            for m in entry.members
+        ]
+    return document
 
 
 def write_outputs(result: LeaderboardResult, *, command: str | None = None, plots: bool = True) -> None:

@@ -19,7 +19,7 @@ from typing import Any
 from leaderboard.cache import CorruptCacheError, cache_key, cache_material, cache_path, compact_result, read_cached
 from leaderboard.entries import Entry, check_seed_disjointness
 from leaderboard.report import write_outputs
-from leaderboard.stats import RankedRow, aggregate, rank_rows
+from leaderboard.stats import RankedRow, aggregate, aggregate_runs, rank_rows
 from leaderboard.tasks import DEFAULT_EPISODES, TASKS, TRACKS, Task, evaluation_seeds
 from uvdms_gym.io import write_json_atomic
 from uvdms_gym.provenance import timing_record
@@ -210,18 +210,39 @@ class LeaderboardResult:
 def plan_jobs(
     entries: Sequence[Entry], tasks: Sequence[Task], seeds: Sequence[int], cache_dir: str | Path
 ) -> list[Job]:
-    """Every (entry, task, seed) episode of the run, grouped by entry and task."""
+    """Every (entry, task, seed) episode of the run, grouped by entry and task.
+
+    A multi-seed entry contributes the episodes of each of its members (:meth:`Entry.runs`): the job's entry is
+    the member, so each (entry, training seed, task, evaluation seed) episode is cached on its own.
+    """
     jobs = []
     for entry in entries:
         for task in tasks:
             if not entry.runs_on(task):
                 continue
-            for i, seed in enumerate(seeds):
-                save = task.trajectory and i == 0
-                material = cache_material(entry, task, seed, save)
-                key = cache_key(material)
-                jobs.append(Job(entry, task, seed, save, key, material, cache_path(cache_dir, entry, task, seed, key)))
+            for run in entry.runs():
+                for i, seed in enumerate(seeds):
+                    save = task.trajectory and i == 0
+                    material = cache_material(run, task, seed, save)
+                    key = cache_key(material)
+                    path = cache_path(cache_dir, run, task, seed, key)
+                    jobs.append(Job(run, task, seed, save, key, material, path))
     return jobs
+
+
+def row_for(entry: Entry, task: Task, episodes: Mapping[Entry, Sequence[dict[str, Any]]]) -> RankedRow:
+    """The (unranked) row of ``entry`` on ``task`` from the episodes of each of its runs (:meth:`Entry.runs`).
+
+    A single agent or baseline aggregates its episodes (:func:`leaderboard.stats.aggregate`); a multi-seed entry
+    its (training seed x episode) matrix (:func:`leaderboard.stats.aggregate_runs`), and its row's episodes are
+    those of every seed, each with its ``training_seed``.
+    """
+    if not entry.multi_seed:
+        own = list(episodes[entry])
+        return RankedRow(entry, task, aggregate(own), own)
+    runs = [list(episodes[member]) for member in entry.members]
+    flat = [{**ep, "training_seed": member.training_seed} for member, run in zip(entry.members, runs) for ep in run]
+    return RankedRow(entry, task, aggregate_runs(runs), flat)
 
 
 def run_leaderboard(
@@ -341,13 +362,15 @@ def run_leaderboard(
         finally:
             bar.close()
 
+    by_run: dict[tuple[Entry, str], list[dict[str, Any]]] = {}
+    for job in all_jobs:
+        by_run.setdefault((job.entry, job.task.name), []).append(results[job.path])
     rows = []
     for entry in entries:
         for task in tasks:
             if not entry.runs_on(task):
                 continue
-            episodes_ = [results[j.path] for j in all_jobs if j.entry is entry and j.task is task]
-            rows.append(RankedRow(entry, task, aggregate(episodes_), episodes_))
+            rows.append(row_for(entry, task, {run: by_run[run, task.name] for run in entry.runs()}))
     ranked: list[RankedRow] = []
     for track in TRACKS:
         for task in tasks:

@@ -1,4 +1,10 @@
-"""Leaderboard statistics: means with bootstrap CIs and the ranking with ties (rules in :mod:`leaderboard`)."""
+"""Leaderboard statistics: means with bootstrap CIs, multi-seed IQMs with stratified bootstrap CIs, and the ranking.
+
+Rules in :mod:`leaderboard`. A row of a single agent or a baseline aggregates its episodes (:func:`aggregate`,
+:func:`bootstrap_ci`); a row of a multi-seed entry aggregates its (training seed x evaluation episode) matrix
+(:func:`aggregate_runs`, :func:`stratified_bootstrap_ci`, the method of Agarwal et al., NeurIPS 2021, as in their
+``rliable`` library); :func:`learning_curve_stats` summarises learning curves over training seeds.
+"""
 
 from __future__ import annotations
 
@@ -16,6 +22,12 @@ from leaderboard.tasks import Task
 CONFIDENCE = 0.95
 N_RESAMPLES = 9999
 BOOTSTRAP_SEED = 20240926
+IQM_PROPORTION = 0.25
+"""Fraction cut from each end of the sorted values for the interquartile mean (a 25 % trimmed mean)."""
+RATE_METRICS: tuple[str, ...] = ("contact_free_success", "success", "contact_free")
+"""The 0/1 indicators: a multi-seed row reports their rate (the mean), not an IQM (see :func:`aggregate_runs`)."""
+ESTIMATORS: tuple[str, ...] = ("mean", "iqm")
+"""Point estimates a :class:`Stat` can hold."""
 
 METRICS: dict[str, dict[str, Any]] = {
     "contact_free_success": {"label": "Contact-free success", "fmt": ".2f", "better": "high"},
@@ -44,12 +56,21 @@ value would be ranked apart)."""
 
 @dataclass(frozen=True)
 class Stat:
-    """A mean with its bootstrap confidence interval (``low``/``high`` NaN when undefined)."""
+    """A point estimate with its bootstrap confidence interval (``low``/``high`` NaN when undefined).
+
+    Attributes:
+        mean: The point estimate: the mean, or the interquartile mean where ``estimator`` is ``"iqm"``.
+        low: Lower bound of the interval.
+        high: Upper bound of the interval.
+        n: Number of values.
+        estimator: ``"mean"`` or ``"iqm"`` (:data:`ESTIMATORS`).
+    """
 
     mean: float
     low: float
     high: float
     n: int
+    estimator: str = "mean"
 
     @property
     def half_width(self) -> float:
@@ -63,8 +84,11 @@ class Stat:
         return self.mean, self.mean
 
     def to_json(self) -> dict[str, Any]:
-        """Plain dict (NaN as ``None``)."""
-        return {k: _finite_or_none(getattr(self, k)) for k in ("mean", "low", "high")} | {"n": self.n}
+        """Plain dict (NaN as ``None``; ``estimator`` only when it is not the mean, so mean rows keep their form)."""
+        out = {k: _finite_or_none(getattr(self, k)) for k in ("mean", "low", "high")} | {"n": self.n}
+        if self.estimator != "mean":
+            out["estimator"] = self.estimator
+        return out
 
     def format(self, fmt: str = ".3f", scale: float = 1.0) -> str:
         """``mean ± half-width`` times ``scale`` (``—`` without data, ``mean (n=1)`` without an interval)."""
@@ -225,18 +249,185 @@ def episode_indicators(result: Mapping[str, Any]) -> dict[str, float]:
     return {"contact_free": contact_free, "contact_free_success": float(bool(result.get("success")) and contact_free)}
 
 
+def _episode_value(result: Mapping[str, Any], metric: str) -> float | None:
+    """One episode's value of ``metric`` (the derived indicators included); ``None`` where it has none."""
+    if metric in ("contact_free", "contact_free_success"):
+        return episode_indicators(result)[metric]
+    raw = result.get(metric)
+    if raw is None or isinstance(raw, str):
+        return None
+    return float(raw)
+
+
 def aggregate(results: Sequence[Mapping[str, Any]]) -> dict[str, Stat]:
     """Mean and bootstrap CI of every metric in :data:`METRICS` over the episodes ``results``."""
     out = {}
     for index, metric in enumerate(METRICS):
-        values = []
-        for result in results:
-            value = episode_indicators(result)[metric] if metric in ("contact_free", "contact_free_success") else None
-            if value is None:
-                raw = result.get(metric)
-                if raw is None or isinstance(raw, str):
-                    continue
-                value = float(raw)
-            values.append(value)
+        values = [v for v in (_episode_value(result, metric) for result in results) if v is not None]
         out[metric] = bootstrap_ci(values, seed=BOOTSTRAP_SEED + index)
     return out
+
+
+def iqm(values: Sequence[float] | np.ndarray) -> float:
+    """Interquartile mean of the finite ``values`` (pooled over every axis): ``scipy.stats.trim_mean(x, 0.25)``.
+
+    NaN without a finite value.
+    """
+    from scipy import stats
+
+    x = np.asarray(values, dtype=float).ravel()
+    x = x[np.isfinite(x)]
+    return float(stats.trim_mean(x, IQM_PROPORTION)) if x.size else math.nan
+
+
+def _point(x: np.ndarray, estimator: str) -> np.ndarray:
+    """The point estimate of each row of ``x`` (2-D, finite)."""
+    from scipy import stats
+
+    if estimator == "iqm":
+        return np.asarray(stats.trim_mean(x, IQM_PROPORTION, axis=1), dtype=float)
+    return x.mean(axis=1)
+
+
+def stratified_bootstrap_ci(
+    matrix: Sequence[Sequence[float]] | np.ndarray,
+    *,
+    estimator: str = "iqm",
+    confidence: float = CONFIDENCE,
+    n_resamples: int = N_RESAMPLES,
+    seed: int = BOOTSTRAP_SEED,
+) -> Stat:
+    """Point estimate and stratified bootstrap CI of a (training seed x evaluation episode) score matrix.
+
+    The scheme of ``rliable.library.StratifiedBootstrap`` (Agarwal et al., NeurIPS 2021) with the evaluation
+    episodes as the strata (rliable's tasks): every resample draws, for each evaluation episode (column)
+    independently, as many runs as the column has, with replacement, from that column's runs, and evaluates the
+    estimator on the pooled resampled values; the interval is the percentile interval of the ``n_resamples``
+    estimates (``numpy.percentile``, linear interpolation), widened to contain the point estimate if it falls
+    outside. Why this scheme: :mod:`leaderboard`, Statistics.
+
+    Non-finite cells are missing values (an episode without an RMSE): a column resamples its finite cells only, a
+    column without one is left out. Random draws, reproducible from ``seed``: ``rng =
+    numpy.random.default_rng(seed)``, then for each remaining column in order, with ``k`` finite cells, one
+    ``rng.integers(0, k, size=(n_resamples, k))``.
+
+    Args:
+        matrix: ``(runs, episodes)``; rows are training seeds, columns evaluation episodes (the same evaluation
+            seed in every row).
+        estimator: ``"iqm"`` (:func:`iqm` of the pooled values) or ``"mean"``.
+        confidence: Coverage of the interval.
+        n_resamples: Bootstrap resamples.
+        seed: Seed of the resampling.
+
+    Returns:
+        The :class:`Stat` (``n``: finite cells). No finite cell: NaN everything; one: no interval; all equal: the
+        zero-width interval at that value.
+
+    Raises:
+        ValueError: ``matrix`` is not 2-D, or an unknown ``estimator``.
+    """
+    if estimator not in ESTIMATORS:
+        raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
+    x = np.asarray(matrix, dtype=float)
+    if x.ndim != 2:
+        raise ValueError(f"a stratified bootstrap needs a (runs, episodes) matrix, got shape {x.shape}")
+    finite = np.isfinite(x)
+    pooled = x[finite]
+    n = int(pooled.size)
+    if n == 0:
+        return Stat(math.nan, math.nan, math.nan, 0, estimator)
+    point = float(_point(pooled[np.newaxis, :], estimator)[0])
+    if n < 2:
+        return Stat(point, math.nan, math.nan, n, estimator)
+    if np.all(pooled == pooled[0]):
+        value = float(pooled[0])
+        return Stat(value, value, value, n, estimator)
+    rng = np.random.default_rng(seed)
+    resampled = np.empty((n_resamples, n))
+    start = 0
+    for j in range(x.shape[1]):
+        column = x[finite[:, j], j]
+        k = column.size
+        if k == 0:
+            continue
+        resampled[:, start : start + k] = column[rng.integers(0, k, size=(n_resamples, k))]
+        start += k
+    estimates = _point(resampled, estimator)
+    tail = 100.0 * (1.0 - confidence) / 2.0
+    low, high = (float(v) for v in np.percentile(estimates, [tail, 100.0 - tail]))
+    return Stat(point, min(low, point), max(high, point), n, estimator)
+
+
+def run_matrix(runs: Sequence[Sequence[Mapping[str, Any]]], metric: str) -> np.ndarray:
+    """The ``(runs, episodes)`` matrix of ``metric``: one row per run, one column per evaluation seed.
+
+    Columns are the sorted evaluation seeds (``result["seed"]``) of all runs; a run without an episode of a seed, or
+    an episode without a value of the metric, leaves NaN.
+
+    Raises:
+        ValueError: A run with two episodes of the same seed.
+    """
+    seeds = sorted({int(result["seed"]) for run in runs for result in run})
+    column = {seed: j for j, seed in enumerate(seeds)}
+    x = np.full((len(runs), len(seeds)), math.nan)
+    for i, run in enumerate(runs):
+        seen: set[int] = set()
+        for result in run:
+            seed = int(result["seed"])
+            if seed in seen:
+                raise ValueError(f"run {i} has two episodes of evaluation seed {seed}")
+            seen.add(seed)
+            value = _episode_value(result, metric)
+            if value is not None:
+                x[i, column[seed]] = value
+    return x
+
+
+def aggregate_runs(runs: Sequence[Sequence[Mapping[str, Any]]]) -> dict[str, Stat]:
+    """The statistics of a multi-seed row: every metric of :data:`METRICS` over its runs' episodes.
+
+    Rates (:data:`RATE_METRICS`) are the fraction over all runs x episodes (the mean: an IQM of 0/1 values is
+    ``clip(2 p - 1/2, 0, 1)`` of the rate ``p``, not a rate); every other metric is the IQM of the matrix
+    (:func:`iqm`). Both with :func:`stratified_bootstrap_ci` (seed ``BOOTSTRAP_SEED + metric index``, as
+    :func:`aggregate`).
+
+    Args:
+        runs: One list of per-episode results per training seed (the same evaluation seeds in each).
+
+    Raises:
+        ValueError: No runs.
+    """
+    if not runs:
+        raise ValueError("aggregate_runs needs at least one run")
+    out = {}
+    for index, metric in enumerate(METRICS):
+        estimator = "mean" if metric in RATE_METRICS else "iqm"
+        out[metric] = stratified_bootstrap_ci(
+            run_matrix(runs, metric), estimator=estimator, seed=BOOTSTRAP_SEED + index
+        )
+    return out
+
+
+def learning_curve_stats(
+    curves: Sequence[Sequence[Mapping[str, Any]]], key: str
+) -> tuple[list[int], list[Stat]]:
+    """Mean over training seeds, with :func:`bootstrap_ci`, of a learning-curve value at each step count.
+
+    Args:
+        curves: One list of points (:mod:`agents.learning_curve`) per training seed.
+        key: The point's value (``success_rate``, ``rmse_pos_mean``, ...).
+
+    Returns:
+        ``(steps, stats)`` over the step counts present in every curve, ascending (a seed without a value at a
+        step, e.g. no RMSE, is left out of that step's statistic). A single curve gives its values without an
+        interval.
+    """
+    if not curves:
+        return [], []
+    by_seed = [{int(p["num_timesteps"]): p.get(key) for p in curve} for curve in curves]
+    steps = sorted(set.intersection(*(set(values) for values in by_seed)))
+    stats_ = []
+    for step in steps:
+        values = [float(v[step]) for v in by_seed if v[step] is not None]
+        stats_.append(bootstrap_ci(values))
+    return steps, stats_
