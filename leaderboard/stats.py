@@ -408,9 +408,7 @@ def aggregate_runs(runs: Sequence[Sequence[Mapping[str, Any]]]) -> dict[str, Sta
     return out
 
 
-def learning_curve_stats(
-    curves: Sequence[Sequence[Mapping[str, Any]]], key: str
-) -> tuple[list[int], list[Stat]]:
+def learning_curve_stats(curves: Sequence[Sequence[Mapping[str, Any]]], key: str) -> tuple[list[int], list[Stat]]:
     """Mean over training seeds, with :func:`bootstrap_ci`, of a learning-curve value at each step count.
 
     Args:
