@@ -1,12 +1,13 @@
 """Leaderboard: the baselines and trained agents ranked on collisions and tracking error, with bootstrap CIs.
 
 :func:`run_leaderboard` evaluates a set of **entries** (the named baselines ``mpc``, ``campc``, ``campc-di``,
-``campc-nndi``, every agent folder in the shipped-agents directory, and any agent checkpoint given by path)
-on a **task suite** (:data:`TASKS`: the paper's Case 1, Case 2 and transport, plus held-out randomised
-variants with ``hydro_randomization=0.3``) and writes ``leaderboard.md``, ``leaderboard.csv``, one JSON per
-entry and PNG plots. The ``uvdms leaderboard`` command (:mod:`leaderboard.cli`) wraps it. Modules:
-:mod:`~leaderboard.tasks` (task suite, tracks, seeds), :mod:`~leaderboard.entries`, :mod:`~leaderboard.registry`
-(name or path -> controller), :mod:`~leaderboard.stats` (bootstrap CIs, ranking), :mod:`~leaderboard.cache`,
+``campc-nndi``, every agent folder (one agent, or one per training seed) in the shipped-agents directory, and
+any agent checkpoint given by path) on a **task suite** (:data:`TASKS`: the paper's Case 1, Case 2 and
+transport, plus held-out randomised variants with ``hydro_randomization=0.3``) and writes ``leaderboard.md``,
+``leaderboard.csv``, one JSON per entry and PNG plots (learning curves too, for the agents that recorded them).
+The ``uvdms leaderboard`` command (:mod:`leaderboard.cli`) wraps it. Modules: :mod:`~leaderboard.tasks` (task
+suite, tracks, seeds), :mod:`~leaderboard.entries`, :mod:`~leaderboard.registry` (name or path -> controller),
+:mod:`~leaderboard.stats` (bootstrap CIs, multi-seed IQMs, ranking), :mod:`~leaderboard.cache`,
 :mod:`~leaderboard.runner`, :mod:`~leaderboard.report` and :mod:`~leaderboard.plots`; this package re-exports
 their public names.
 
@@ -17,12 +18,36 @@ Tracks
     the tasks of the environment id it was trained on (a CircleTrack agent on every circle task, including
     the case it was not trained on; a Transport agent on the transport tasks); baselines run on every task.
 
+Multi-seed entries
+    A folder whose sub-folders are named ``seed_<k>`` (:data:`SEED_FOLDER_PREFIX`), each an agent folder of its
+    own (a weights-only export, a shipped agent folder or a run directory) trained with ``--seed k``, is **one**
+    entry (:func:`multi_seed_entry`): ``trained_agents/<entry>/seed_0/``, ``seed_1/``, ``seed_2/``. It needs at
+    least :data:`MIN_TRAINING_SEEDS` (2) seed folders; shipped learned entries should have
+    :data:`RECOMMENDED_TRAINING_SEEDS` (3), fewer are accepted with a warning. Other sub-folders and files (a
+    README) are ignored. Refused with an error: a folder that is also an agent itself, a ``seed_*`` name that is
+    not ``seed_<integer>`` or repeats a seed, a seed folder that is not an agent (or holds seeds itself), a run
+    inside ``seed_<k>`` whose ``config.yml``/``meta.json`` records another seed, seeds trained on different
+    environments (id, keyword arguments or action mode) and two seeds with identical model files. Every seed
+    runs every evaluation seed of the entry's tasks; each (entry, training seed, task, evaluation seed) episode
+    is cached on its own (the seed's member entry ``<entry>/seed_<k>``, keyed by its own checksum), and the
+    leaderboard reports one row per task for the whole entry (``<entry> (3 seeds)``, ``n`` = seeds x episodes).
+    A single agent folder keeps working unchanged.
+
+Learning curves
+    A run whose evaluation callback ran records the benchmark's metrics of its evaluation episodes against
+    environment steps in ``learning_curve.json`` (:mod:`agents.learning_curve`, kept through ``--resume``,
+    copied by exports and ``agents.ship``). For every agent entry with such files the leaderboard writes
+    ``plots/learning_curves_<entry>.png``: success rate and position RMSE against environment steps, every
+    seed's curve and, at the step counts every seed has, the mean over seeds with a 95 % bootstrap interval
+    (:func:`bootstrap_ci` over the seeds' values, :func:`learning_curve_stats`).
+
 Seeds
     Episode ``i`` of every task uses seed ``SEED_BASE + i`` (:data:`SEED_BASE` = 2,000,000,000), far above
     the training scheme of :mod:`agents.train` (training envs ``seed + 1000 k + i``, its evaluation envs
     ``seed + 1,000,000 + i``). Every integer stored under a key containing ``seed`` in an agent's
-    ``meta.json``, ``config.yml`` or ``agent.json`` is collected and :func:`check_seed_disjointness` refuses
-    to run if an evaluation seed is among them.
+    ``meta.json``, ``config.yml`` or ``agent.json`` is collected (for a seed of a multi-seed entry also its
+    ``k``) and :func:`check_seed_disjointness` refuses to run if an evaluation seed is among them (naming the
+    seed folder for a multi-seed entry).
 
 Statistics
     Per entry and task, every per-episode metric of :func:`uvdms_gym.evaluation.run_episode` is aggregated as
@@ -35,6 +60,27 @@ Statistics
     identical and their intervals have zero width; the randomised tasks carry the spread. Tables print an interval as
     ``mean ± h`` with ``h = max(mean - low, high - mean)`` (bootstrap intervals are asymmetric; the CSV and
     JSON hold the exact bounds).
+
+    A multi-seed entry's cell (entry, task, metric) is the matrix of its scores, training seeds x evaluation
+    episodes (every seed ran the same evaluation seeds), and is aggregated as Agarwal et al. (NeurIPS 2021,
+    the ``rliable`` library) recommend (:func:`aggregate_runs`): the point estimate is the **interquartile mean**
+    (IQM, :func:`iqm`: ``scipy.stats.trim_mean(values, 0.25)`` of the pooled matrix, robust to a diverged seed
+    or episode), except for the three rates, which stay the fraction of all seeds x episodes (an IQM of 0/1
+    values is ``clip(2 p - 1/2, 0, 1)`` of the rate ``p``: a 75 % rate would print as 1.00 and tie a perfect
+    entry); the interval is a 95 % **stratified bootstrap** interval (:func:`stratified_bootstrap_ci`: 9,999
+    resamples, fixed seed, percentile method): the strata are the evaluation episodes, and each resample draws,
+    for every episode independently, as many training seeds as it has, with replacement (rliable's
+    ``StratifiedBootstrap`` with the episodes as its tasks, ``task_bootstrap=False``). [D] Why this scheme:
+    the evaluation seeds are fixed by the benchmark and the same for every entry (like rliable's fixed task
+    set), so the question the interval answers is how the entry would score if trained again with other seeds,
+    the variability that dominates RL results and that one seed cannot show. Resampling episodes within each
+    seed instead would give zero-width intervals on the paper's deterministic tasks however much the seeds
+    differ (all of a seed's episodes are identical there); resampling the episodes too (rliable's
+    ``task_bootstrap=True``) would mix in the choice of evaluation seeds, which is not a property of the entry.
+    Missing values (an episode without an RMSE) are left out of their stratum. The single-agent and baseline
+    rows keep the statistics above. ``Stat.estimator`` says ``"iqm"`` where the point is an IQM (the JSON has
+    ``estimator`` then); ``leaderboard.csv`` has ``training_seeds`` and ``aggregation``
+    (``episodes-mean-bca`` or ``seeds-iqm-stratified``) per row.
 
 Ranking (within each track and task, :func:`rank_rows`)
     1. Sort by contact-free success rate (higher first), then tracking RMSE ``rmse_pos`` (lower first; an

@@ -20,9 +20,12 @@ log = logging.getLogger("uvdms.leaderboard")
 
 PLOT_METRICS: tuple[str, ...] = ("contact_free_success", "rmse_pos", "min_distance", "contacts", "return")
 """The metrics with a bar chart."""
-LEARNING_CURVE_PANELS: tuple[tuple[str, str], ...] = (("success_rate", "success"), ("rmse_pos_mean", "rmse_pos"))
+LEARNING_CURVE_PANELS: tuple[tuple[str, str, str], ...] = (
+    ("success_rate", "success", "Success rate"),
+    ("rmse_pos_mean", "rmse_pos", "RMSE pos (mm)"),
+)
 """Panels of a learning-curve plot: (point key of :mod:`agents.learning_curve`, metric of :data:`METRICS` whose
-label and scale the panel uses)."""
+scale the panel uses, axis label)."""
 
 
 def write_plots(result: LeaderboardResult, plot_dir: str | Path) -> list[Path]:
@@ -170,7 +173,7 @@ def write_learning_curves(entries: Sequence[Entry], plot_dir: str | Path) -> lis
             log.warning("%s: %d of %d training seeds have a learning curve", entry.name, len(curves), len(entry.runs()))
         plot_dir.mkdir(parents=True, exist_ok=True)
         fig, axes = plt.subplots(len(LEARNING_CURVE_PANELS), 1, figsize=(7.0, 6.0), sharex=True)
-        for ax, (key_, metric) in zip(axes, LEARNING_CURVE_PANELS, strict=True):
+        for ax, (key_, metric, ylabel) in zip(axes, LEARNING_CURVE_PANELS, strict=True):
             scale = METRICS[metric].get("scale", 1.0)
             for k, curve in enumerate(curves):
                 xs = [p["num_timesteps"] for p in curve if p.get(key_) is not None]
@@ -190,7 +193,7 @@ def write_learning_curves(entries: Sequence[Entry], plot_dir: str | Path) -> lis
                         alpha=0.2,
                         label="95 % bootstrap CI over seeds",
                     )
-            ax.set_ylabel(METRICS[metric]["label"])
+            ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7)
         axes[-1].set_xlabel("environment steps")
