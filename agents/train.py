@@ -98,6 +98,7 @@ from agents.rundir import (
     utc_now,
     zip_num_timesteps,
 )
+from agents.threads import UpdateThreads, update_threads
 from agents.wrappers import AliveBonus, ScaledAction
 from uvdms_gym.kwargs import parse_kv as _parse_key_values
 from uvdms_gym.provenance import git_info, package_versions
@@ -430,6 +431,7 @@ def _run_segment(
         "eval_env_seeds": [eval_env_seed(seed, i) for i in range(cfg.n_eval_envs)],
         "vec_env": vec_env,
         "torch_num_threads": torch.get_num_threads(),
+        "torch_update_threads": update_threads(cfg.n_envs, vec_env, not is_off_policy(cfg.algo)),
         "versions": package_versions(),
         "git": git_info(),
         "started_utc": utc_now(),
@@ -536,6 +538,8 @@ def _run_segment(
                 if best is not None:
                     eval_callback.best_mean_reward = float(best)
             callbacks.append(eval_callback)
+        if record["torch_update_threads"] > 1:  # the envs are idle during an on-policy update (agents.threads)
+            callbacks.append(UpdateThreads(record["torch_update_threads"]))
         callbacks.extend(extra_callbacks)
 
         model.learn(
