@@ -375,9 +375,9 @@ def _resume(
     if not config_file.is_file() or not (run_dir / "meta.json").is_file():
         raise RunDirError(f"{run_dir} is not a run directory (config.yml / meta.json missing)")
     resolved = yaml.safe_load(config_file.read_text(encoding="utf-8"))
-    for name, given in (("algo", algo), ("env_id", env_id)):
-        if given is not None and given != resolved[name]:
-            raise ConfigError(f"--resume {run_dir}: {name} {given!r} differs from the run's {resolved[name]!r}")
+    for name, value in (("algo", algo), ("env_id", env_id)):
+        if value is not None and value != resolved[name]:
+            raise ConfigError(f"--resume {run_dir}: {name} {value!r} differs from the run's {resolved[name]!r}")
     algo, env_id, seed = resolved["algo"], resolved["env_id"], int(resolved["seed"])
     cfg = parse_entry(resolved["config"], algo, source=str(config_file), entry_name=env_id)
     if n_envs is not None and n_envs != cfg.n_envs:
