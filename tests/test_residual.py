@@ -312,6 +312,25 @@ def test_an_export_trained_with_the_filter_is_filtered_once(residual_export, tmp
     assert [(e.name, e.safety_filter) for e in entries] == [("residual-mpc-filtered+filter", True)]
 
 
+def test_uvdms_train_safety_filter_alone_is_recorded_and_evaluated_filtered(tmp_path):
+    argv = ["train", "--algo", "sac", "--env", CIRCLE, "--env-kwargs", "case=1", f"max_episode_steps={EPISODE_STEPS}"]
+    argv += ["--safety-filter", "--total-timesteps", "100", "--hyperparams", *TINY_SAC, "--n-envs", "1"]
+    assert uvdms([*argv, "--out", str(tmp_path / "runs"), "--no-progress"]) == 0
+    run_dir = run_dir_for(tmp_path / "runs", CIRCLE, "sac", 0)
+    record = json.loads((run_dir / "meta.json").read_text())["segments"][0]["action_composition"]
+    assert record["safety_filter"] is True and record["residual_base"] is None
+    assert record["filter_factory"] == "SafetyFilterFactory()"
+    assert uvdms(["export-agent", str(run_dir), str(tmp_path / "sac"), "--trust"]) == 0
+    assert json.loads((tmp_path / "sac" / "agent.json").read_text())["safety_filter"] is True
+    env = _circle(5)
+    try:
+        controller = make_controller(str(tmp_path / "sac"), env)
+        assert isinstance(controller, SafetyFilter) and type(controller.controller).__name__ == "AgentController"
+    finally:
+        env.close()
+    assert [e.name for e in resolve_entries([str(tmp_path / "sac")])] == ["sac+filter"]
+
+
 # ------------------------------------------------------------------------------------------------------
 # Bad inputs
 # ------------------------------------------------------------------------------------------------------
