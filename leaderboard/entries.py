@@ -1,7 +1,10 @@
 """Leaderboard entries: the named baselines and agent folders or checkpoints, read without unpickling.
 
 An agent's entry holds its training environment (it runs only on that environment's tasks), a checksum of its
-model files (the cache key) and every seed recorded in its run files (:func:`check_seed_disjointness`).
+model files (the cache key) and every seed recorded in its run files (:func:`check_seed_disjointness`). An agent
+trained as a residual or with the safety filter (:mod:`uvdms_gym.residual`, recorded in its ``agent.json`` or
+``config.yml``) is evaluated composed the same way, and its name says so: ``residual-<base>-<folder>``, with
+``+filter`` when it was trained with the filter (a ``PATH+filter`` token then names the same entry).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import yaml
 
 from leaderboard.registry import TRACK_OF
 from leaderboard.tasks import TRACKS, Task
+from uvdms_gym.residual import ActionComposition
 
 log = logging.getLogger("uvdms.leaderboard")
 
@@ -48,7 +52,8 @@ class Entry:
         training_seeds: Every seed recorded in the agent's run files.
         weights_only: The agent is a weights-only export (never unpickled).
         safety_filter: The controller's actions go through :class:`baselines.safety.SafetyFilter` (an entry of
-            its own, named ``<name>+filter``).
+            its own, named ``<name>+filter``; always for an agent trained with the filter).
+        residual_base: The base controller of a residual agent (``None``: not a residual agent).
     """
 
     name: str
@@ -60,6 +65,7 @@ class Entry:
     training_seeds: frozenset[int] = frozenset()
     weights_only: bool = False
     safety_filter: bool = False
+    residual_base: str | None = None
 
     def identity(self) -> dict[str, Any]:
         """What identifies the entry's behaviour in the cache key (agents: by content, not path)."""
@@ -135,12 +141,13 @@ def resolve_entries(
                     )
                 key = str(path.resolve())
                 entry = agent_entry(path, trust=trust)
-            if filtered:
+            if filtered and not entry.safety_filter:
                 if entry.track != "velocity":
                     if token != spec:  # a keyword: its torque-track members are simply not filtered
                         continue
                     raise ValueError(f"{raw_token}: the safety filter projects velocity commands; {spec} is torque")
                 entry = replace(entry, name=entry.name + FILTER_SUFFIX, safety_filter=True)
+            if entry.safety_filter:  # (an agent trained with the filter is the same entry with or without +filter)
                 key += FILTER_SUFFIX
             if key in seen_specs:
                 continue
@@ -203,7 +210,10 @@ def agent_entry(path: str | Path, *, trust: bool = False) -> Entry:
     track = str(env_kwargs.get("action_mode", "velocity"))
     if track not in TRACKS:
         raise ValueError(f"{path}: unknown action_mode {track!r} in its configuration")
-    name = path.name if path.is_dir() else f"{path.parent.name}/{path.stem}"
+    composition = agent_composition(path)
+    name = composition.describe(path.name if path.is_dir() else f"{path.parent.name}/{path.stem}")
+    if composition.safety_filter:
+        name += FILTER_SUFFIX
     return Entry(
         name=name,
         kind="agent",
@@ -213,6 +223,8 @@ def agent_entry(path: str | Path, *, trust: bool = False) -> Entry:
         checksum=agent_checksum(path),
         training_seeds=frozenset(training_seeds(path)),
         weights_only=weights_only,
+        safety_filter=composition.safety_filter,
+        residual_base=composition.residual_base,
     )
 
 
@@ -251,6 +263,33 @@ def agent_env(path: str | Path) -> tuple[str | None, dict[str, Any]]:
             if env_id is not None:
                 return str(env_id).split(":")[-1], dict(env_kwargs)
     return None, {}
+
+
+def agent_composition(path: str | Path) -> ActionComposition:
+    """The residual base and safety filter an agent was trained with, from ``agent.json`` or ``config.yml``.
+
+    Read from the first configuration file found (as :func:`agent_env`); none found: a plain agent.
+
+    Raises:
+        ValueError: The recorded values are invalid (the message names the file).
+    """
+    for folder in _agent_folders(Path(path)):
+        for name in _AGENT_CONFIG_NAMES:
+            file = folder / name
+            if not file.is_file():
+                continue
+            try:
+                doc = _read_structured(file)
+            except (OSError, ValueError, yaml.YAMLError):
+                continue  # (agent_env has logged it)
+            if not isinstance(doc, dict):
+                continue
+            record = doc["config"] if isinstance(doc.get("config"), dict) else doc
+            try:
+                return ActionComposition.from_record(record)
+            except ValueError as exc:
+                raise ValueError(f"{file}: {exc}") from None
+    return ActionComposition()
 
 
 def _collect_seeds(node: Any, under_seed_key: bool = False) -> set[int]:
