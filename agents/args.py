@@ -62,6 +62,21 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PKG",
         help="packages imported to register env ids (default: uvdms_gym)",
     )
+    parser.add_argument(
+        "--residual",
+        metavar="BASE",
+        help="train a residual agent on this velocity-mode baseline (mpc, campc): the env gets "
+        "clip(a_base + S * a, -1, 1), the policy observes [obs; a_base] (uvdms train only)",
+    )
+    parser.add_argument(
+        "--residual-scale", type=float, metavar="S", help="bound S of the residual, in (0, 1] (with --residual)"
+    )
+    parser.add_argument(
+        "--safety-filter",
+        action="store_true",
+        help="filter the training envs' velocity command (after the residual) with baselines.safety.SafetyFilter; "
+        "evaluation composes the same (uvdms train only)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity (1 prints training tables)")
     return parser

@@ -15,11 +15,13 @@ load affects all alike; the figures are medians over blocks and ``speedup_2_vs_1
 medians (``speedup_2_dummy_vs_1`` and ``speedup_2_hybrid_vs_1`` likewise). The load average before and
 after is part of the result: timings taken beside other jobs are only indicative.
 
-Threads: the trainer runs ``torch.set_num_threads(1)`` (as :func:`agents.train.train` does), and each env
-worker sets it too (:class:`agents.envs.EnvFactory`). With ``SubprocVecEnv`` the two workers step the
-physics while the trainer waits for them, then the trainer runs inference or an update while the workers
-wait; with ``HybridVecEnv`` the trainer and its one worker step at the same time. Either way at most two busy
-processes at a time, so one torch thread per process does not oversubscribe the 2 cores.
+Threads (:mod:`agents.threads`, as :func:`agents.train.train` sets them): one torch thread in the trainer while
+the envs step and the policy acts, and each env worker sets one too (:class:`agents.envs.EnvFactory`). PPO's
+gradient update after each rollout runs with as many threads as the run holds CPUs (1 with ``dummy`` envs,
+``n_envs`` with ``subproc`` or ``hybrid``: every env is idle then); SAC keeps one thread (its updates interleave
+with single env steps). With ``SubprocVecEnv`` the two workers step the physics while the trainer waits for
+them; with ``HybridVecEnv`` the trainer and its one worker step at the same time. Either way at most two busy
+threads at a time, so the 2 cores are not oversubscribed. Each entry records its ``torch_update_threads``.
 """
 
 from __future__ import annotations
@@ -76,11 +78,18 @@ def _build(algo: str, n_envs: int, vec_env: str, total_steps: int, seed: int = 0
     return ALGOS[algo](cfg.policy, venv, policy_kwargs=cfg.sb3_policy_kwargs(), seed=seed, verbose=0, **kwargs)
 
 
-def _block(model: Any, steps: int) -> tuple[int, float]:
-    """Run ``model.learn`` for ``steps`` more steps; return the steps actually run and the wall time."""
+def _block(model: Any, steps: int, update_threads: int = 1) -> tuple[int, float]:
+    """Run ``model.learn`` for ``steps`` more steps; return the steps actually run and the wall time.
+
+    ``update_threads`` > 1 runs each on-policy update with that many torch threads, as :func:`agents.train.train`
+    does (:class:`agents.threads.UpdateThreads`).
+    """
+    from agents.threads import UpdateThreads
+
     before = model.num_timesteps
+    callback = UpdateThreads(update_threads) if update_threads > 1 else None
     t0 = time.perf_counter()
-    model.learn(total_timesteps=steps, reset_num_timesteps=False, progress_bar=False)
+    model.learn(total_timesteps=steps, reset_num_timesteps=False, progress_bar=False, callback=callback)
     return model.num_timesteps - before, time.perf_counter() - t0
 
 
@@ -100,6 +109,9 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
     """
     import torch
 
+    from agents.algos import is_off_policy
+    from agents.threads import update_threads
+
     torch.set_num_threads(1)
     blocks = blocks if blocks is not None else (1 if quick else 3)
     sac_steps = sac_block_steps if sac_block_steps is not None else (200 if quick else 1000)
@@ -114,15 +126,16 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
         total = (blocks + 1) * sac_steps + SAC_LEARNING_STARTS + 2
         models = {key: _build(algo, n, vec_env, total) for key, n, vec_env in CONFIGURATIONS}
         n_envs = {key: n for key, n, _ in CONFIGURATIONS}
+        threads = {key: update_threads(n, vec_env, not is_off_policy(algo)) for key, n, vec_env in CONFIGURATIONS}
         try:
             # PPO: one rollout of n_steps x n_envs and its update per block; SAC: sac_steps environment steps
             sizes = {key: int(m.n_steps) * n_envs[key] if algo == "ppo" else sac_steps for key, m in models.items()}
             for key, model in models.items():  # warm-up: past SAC's learning_starts, PPO's first update
-                _block(model, sizes[key] if algo == "ppo" else max(sac_steps, SAC_LEARNING_STARTS + 2))
+                _block(model, sizes[key] if algo == "ppo" else max(sac_steps, SAC_LEARNING_STARTS + 2), threads[key])
             rates: dict[str, list[float]] = {key: [] for key in models}
             for _ in range(blocks):
                 for key, model in models.items():
-                    steps, seconds = _block(model, sizes[key])
+                    steps, seconds = _block(model, sizes[key], threads[key])
                     rates[key].append(steps / seconds)
         finally:
             for model in models.values():
@@ -133,6 +146,7 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
                 "n_envs": n,
                 "vec_env": vec_env,
                 "block_steps": sizes[key],
+                "torch_update_threads": threads[key],
                 "steps_per_s": float(np.median(rates[key])),
                 "blocks_steps_per_s": rates[key],
             }

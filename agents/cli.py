@@ -1,24 +1,35 @@
 """``uvdms`` subcommands of the agents package: ``uvdms train`` and ``uvdms export-agent``.
 
 :mod:`uvdms_cli.main` imports this module and calls :func:`register` with its subparsers.
-``uvdms train`` takes exactly the arguments of ``python -m agents.train`` (the parser is shared);
+``uvdms train`` takes exactly the arguments of ``python -m agents.train`` (the parser is shared); unlike it, it
+gets the base and filter factories of residual agents and the safety filter from the composition layer
+(``register(..., components=...)``: :mod:`uvdms_cli.main` passes the registry's, built on first use).
 ``uvdms export-agent RUN_DIR OUT`` writes the weights-only export of :func:`agents.policy.export_agent`.
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from agents.envs import ActionComponents
 
 _TRAIN_HELP = "train a Stable-Baselines3 agent from train_configs/<algo>.yml (same as python -m agents.train)"
 _EXPORT_HELP = "export a trained agent to the weights-only format (no pickles; loads with load_weights_only)"
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(
+    subparsers: argparse._SubParsersAction, *, components: Callable[[], ActionComponents] | None = None
+) -> None:
     """Add ``train`` and ``export-agent`` to the ``uvdms`` subcommands.
 
     Args:
         subparsers: The ``add_subparsers()`` object of the ``uvdms`` parser.
+        components: Returns the base and filter factories that residual and filtered training need (called
+            only when ``uvdms train`` runs; ``None``: such configurations are refused).
     """
     from agents.args import build_parser
 
@@ -31,7 +42,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         parents=[train_parser],
         add_help=False,
     )
-    train.set_defaults(func=_cmd_train, _train_parser=train)
+    train.set_defaults(func=_cmd_train, _train_parser=train, _components=components)
 
     export = subparsers.add_parser("export-agent", help=_EXPORT_HELP, description=_EXPORT_HELP)
     export.add_argument(
@@ -73,6 +84,12 @@ def _train_argv(args: argparse.Namespace) -> list[str]:
         argv += ["--resume", str(args.resume)]
     argv += ["--vec-env", args.vec_env]
     argv += ["--gym-packages", *args.gym_packages]
+    if args.residual is not None:
+        argv += ["--residual", args.residual]
+    if args.residual_scale is not None:
+        argv += ["--residual-scale", repr(args.residual_scale)]
+    if args.safety_filter:
+        argv.append("--safety-filter")
     if args.no_progress:
         argv.append("--no-progress")
     argv += ["--verbose", str(args.verbose)]
@@ -98,9 +115,12 @@ def _cmd_train(args: argparse.Namespace) -> int:
             except EnvironmentNotFoundError as exc:
                 raise ValueError(str(exc)) from None
         check_make_kwargs(args.env_id, env_kwargs)
+    components = args._components() if args._components is not None else None
+    if args.residual is not None and components is not None:
+        components.base_factory(args.residual)  # an unknown or torque-mode base: one line, before torch loads
     from agents.train import main
 
-    return main(_train_argv(args))
+    return main(_train_argv(args), components=components)
 
 
 def _import_quietly(packages: list[str]) -> None:

@@ -72,6 +72,7 @@ from agents.typecheck import (
 )
 from agents.wrappers import is_unit_scale
 from agents.zoo import TRAIN_OPTIONS, flatten_entry, train_options
+from uvdms_gym.residual import ActionComposition
 
 DEFAULT_ENTRY = "default"
 
@@ -161,6 +162,14 @@ class TrainConfig:
             :class:`agents.policy.AgentController` at evaluation and recorded in exports). The tasks need
             commands of a few percent of ``zeta_max``; a squashed-Gaussian (SAC) policy over the full range
             explores with motions large enough to hit the frame within seconds. 1.0: no scaling.
+        residual_base: Train a residual agent on this base controller (a velocity-mode baseline name, ``mpc`` or
+            ``campc``; ``None``: a plain agent): the environment receives
+            ``clip(a_base + residual_scale * a, -1, 1)`` and the policy observes ``[obs; a_base]``
+            (:mod:`uvdms_gym.residual`). Only ``uvdms train`` can build the base (``python -m agents.train``
+            refuses); which names are valid is checked there.
+        residual_scale: Bound of the residual, in (0, 1]; required with ``residual_base``, not allowed without.
+        safety_filter: The training envs' velocity command (after the residual, if any) goes through the safety
+            filter (``baselines.safety.SafetyFilter``, injected by ``uvdms train``); evaluation composes the same.
     """
 
     algo: str
@@ -183,6 +192,9 @@ class TrainConfig:
     alive_bonus: float = 0.0
     action_init_scale: float | None = None
     action_scale: float = 1.0
+    residual_base: str | None = None
+    residual_scale: float | None = None
+    safety_filter: bool = False
 
     # ----------------------------------------------------------------------------------------------
     def to_entry(self) -> dict[str, Any]:
@@ -194,6 +206,11 @@ class TrainConfig:
             entry[f.name] = copy_plain(getattr(self, f.name))
         entry.update(copy_plain(self.hyperparams))
         return entry
+
+    @property
+    def composition(self) -> ActionComposition:
+        """The residual base and safety filter of the run (:class:`uvdms_gym.residual.ActionComposition`)."""
+        return ActionComposition(self.residual_base, self.residual_scale, self.safety_filter)
 
     def normalize_kwargs(self) -> dict[str, Any] | None:
         """Keyword arguments for ``VecNormalize`` or ``None`` when normalisation is off.
@@ -470,6 +487,21 @@ def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
             raise ConfigError(f"{where}: key 'noise_type' is only for off-policy algorithms, not {algo}")
     if values.get("save_replay_buffer") and not is_off_policy(algo):
         raise ConfigError(f"{where}: key 'save_replay_buffer' is only for off-policy algorithms")
+    _check_composition(values, where)
+
+
+def _check_composition(values: dict[str, Any], where: str) -> None:
+    """``residual_base`` / ``residual_scale`` / ``safety_filter``: consistent, and only on a velocity-mode env."""
+    try:
+        composition = ActionComposition.from_record(values)
+    except ValueError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+    if composition.is_plain:
+        return
+    mode = values.get("env_kwargs", {}).get("action_mode", "velocity")
+    if mode != "velocity":
+        what = "residual_base" if composition.is_residual else "safety_filter"
+        raise ConfigError(f"{where}: key {what!r} composes velocity commands, but env_kwargs has action_mode={mode!r}")
 
 
 def _check_algo(algo: str, source: str) -> None:

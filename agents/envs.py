@@ -1,5 +1,10 @@
 """Environment construction for training: env-id lookup, the picklable env factory, vector envs, env seeds.
 
+Residual agents and the safety filter (:mod:`uvdms_gym.residual`) compose the policy with controllers of
+``baselines``, which ``agents`` never imports: the composition layer injects them as :class:`ActionComponents`
+(``uvdms train`` passes ``leaderboard.registry.ACTION_COMPONENTS``), and :class:`EnvFactory` holds the resulting
+picklable factories.
+
 Seed scheme (``seed`` = ``--seed``; segment k = 0 for a fresh run, k = 1, 2, ... for each ``--resume``):
 training env ``i`` of segment ``k`` is reset with seed ``seed + 1000 * k + i`` (:func:`train_env_seed`); the
 evaluation envs with ``seed + 1_000_000 + i`` before every evaluation (:func:`eval_env_seed`).
@@ -22,6 +27,7 @@ from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
 from agents.learning_curve import EpisodeMetrics, has_tracking_metrics
 from agents.vecenv import HybridVecEnv
 from agents.wrappers import AliveBonus, ScalarInfo, ScaledAction
+from uvdms_gym.residual import ControllerFactory, FilteredAction, FilterFactory, ResidualAction
 
 SEGMENT_SEED_STRIDE = 1000
 """Seed distance between training segments (so at most 1000 training envs)."""
@@ -81,6 +87,23 @@ def check_env_id(env_id: str, packages: Sequence[str]) -> None:
 
 
 @dataclasses.dataclass(frozen=True)
+class ActionComponents:
+    """The controllers training may compose with the policy, injected by the composition layer.
+
+    Both must return picklable module-level objects (they travel to ``SubprocVecEnv`` / hybrid workers inside
+    :class:`EnvFactory`).
+
+    Attributes:
+        base_factory: ``residual_base`` name -> the factory of that base controller; raises ``ValueError`` for a
+            name that cannot be a residual base (unknown, or not a velocity-mode controller).
+        filter_factory: Wraps a controller in the safety filter.
+    """
+
+    base_factory: Callable[[str], ControllerFactory]
+    filter_factory: FilterFactory
+
+
+@dataclasses.dataclass(frozen=True)
 class EnvFactory:
     """Picklable environment constructor (works with ``SubprocVecEnv``).
 
@@ -93,6 +116,10 @@ class EnvFactory:
         alive_bonus: Constant added to every reward inside the ``Monitor`` (0: no wrapper).
         action_scale: The policy's action is multiplied by this before the env sees it (1: no wrapper).
         scalar_info: Drop the array entries of ``info`` (:class:`agents.wrappers.ScalarInfo`; training envs).
+        base_factory: Base controller of a residual agent (``None``: no residual; :class:`ResidualAction`).
+        residual_scale: Bound of the residual (with ``base_factory``).
+        filter_factory: Safety filter of the velocity command, applied after the residual (``None``: none;
+            :class:`FilteredAction`).
         episode_metrics: Put each episode's benchmark metrics into its last ``info``
             (:class:`agents.learning_curve.EpisodeMetrics`; evaluation envs of a uvdms id, else no effect).
     """
@@ -105,10 +132,18 @@ class EnvFactory:
     alive_bonus: float = 0.0
     action_scale: float = 1.0
     scalar_info: bool = False
+    base_factory: ControllerFactory | None = None
+    residual_scale: float | None = None
+    filter_factory: FilterFactory | None = None
     episode_metrics: bool = False
 
     def __call__(self) -> gym.Env:
-        """Create the environment wrapped in a ``Monitor`` (action scaling and alive bonus inside it).
+        """Create the environment wrapped in a ``Monitor`` (filter, residual, action scaling and alive bonus inside).
+
+        From the inside out: ``gymnasium.make``, :class:`agents.learning_curve.EpisodeMetrics` (evaluation envs),
+        :class:`FilteredAction`, :class:`ResidualAction` (both see the full ``info``), ``ScaledAction``,
+        ``AliveBonus``, ``ScalarInfo``, ``Monitor``; so the policy's
+        ``action_scale * a`` is the residual, and the filter gets the composed command.
 
         Also sets ``torch.set_num_threads(1)`` in the calling process: in a ``SubprocVecEnv`` worker (which
         imports torch with this module but never uses it) as in the trainer (see :func:`agents.train.train`).
@@ -121,6 +156,12 @@ class EnvFactory:
         env = gym.make(self.env_id, **make_kwargs)
         if self.episode_metrics and has_tracking_metrics(env):
             env = EpisodeMetrics(env)
+        if self.filter_factory is not None:
+            env = FilteredAction(env, self.filter_factory)
+        if self.base_factory is not None:
+            if self.residual_scale is None:
+                raise ValueError("a residual base needs residual_scale")
+            env = ResidualAction(env, self.base_factory, self.residual_scale)
         if self.action_scale != 1.0:
             env = ScaledAction(env, self.action_scale)
         if self.alive_bonus:

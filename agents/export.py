@@ -25,7 +25,7 @@ from gymnasium import spaces
 from agents.algos import ALGOS
 from agents.config import ConfigError, is_unit_scale
 from agents.learning_curve import copy_learning_curve
-from agents.policy import AgentController, ExportFormatError, ObsNormalizer, Which, load_agent
+from agents.policy import AgentController, ExportFormatError, ObsNormalizer, Which, load_agent, recorded_composition
 from agents.policy_kwargs import plain_policy_kwargs, resolve_policy_kwargs
 from uvdms_gym.io import write_json_atomic
 from uvdms_gym.provenance import package_versions
@@ -110,6 +110,7 @@ def export_controller(agent: AgentController, out_path: str | Path, *, overwrite
         "action_space": _space_to_json(action_space),
         "normalization": normalization,
         "action_scale": agent.action_scale,
+        **agent.composition.to_record(),
         "num_timesteps": agent.num_timesteps,
         "source": Path(agent.source).name,
         "versions": package_versions(),
@@ -205,6 +206,7 @@ def load_weights_only(path: str | Path, device: str = "cpu") -> AgentController:
         num_timesteps=doc.get("num_timesteps"),
         source=str(folder),
         action_scale=_action_scale(doc, folder),
+        composition=recorded_composition(doc, str(folder)),
     )
 
 

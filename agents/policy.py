@@ -10,7 +10,9 @@ deterministic, VecNormalize observation statistics applied without a VecEnv):
 
       agent.json          format, algo, env id/kwargs, policy alias, policy_kwargs (plain data, class names
                           whitelisted), observation/action spaces (shape, dtype, bounds), normalisation
-                          settings, num_timesteps, package versions, SHA-256 of the two files below
+                          settings, action_scale, the composition (residual_base, residual_scale,
+                          safety_filter: :mod:`uvdms_gym.residual`), num_timesteps, package versions,
+                          SHA-256 of the two files below
       policy.pt           ``torch.save(policy.state_dict())``: tensors only, loaded with
                           ``torch.load(..., weights_only=True)``
       normalization.npz   ``obs_mean``, ``obs_var`` (only when observations are normalised), loaded with
@@ -43,6 +45,7 @@ from agents.algos import ALGOS
 from agents.config import is_unit_scale
 from agents.paths import trained_agents_dir
 from uvdms_gym.evaluation import check_action_mode
+from uvdms_gym.residual import ActionComposition, residual_observation_space
 
 TRUSTED_DIR = trained_agents_dir()
 """The shipped agents (the checkout's ``trained_agents/`` or its installed copy, :mod:`agents.paths`): SB3 zips
@@ -105,6 +108,10 @@ class AgentController:
         num_timesteps: Training steps of the loaded model (``None`` if unknown).
         source: Where the agent was loaded from.
         action_scale: The network's output is multiplied by this (``TrainConfig.action_scale``).
+        composition: The residual base and safety filter the agent was trained with
+            (:class:`uvdms_gym.residual.ActionComposition`). A residual agent observes ``[obs; a_base]`` and its
+            output is a residual: evaluate it through ``leaderboard.registry.make_controller``, which composes the
+            base (and the filter) from this record.
     """
 
     def __init__(
@@ -118,6 +125,7 @@ class AgentController:
         num_timesteps: int | None = None,
         source: str = "",
         action_scale: float = 1.0,
+        composition: ActionComposition | None = None,
     ) -> None:
         if not is_unit_scale(action_scale):
             raise ValueError(f"action_scale must be in (0, 1], got {action_scale}")
@@ -130,6 +138,7 @@ class AgentController:
         self.num_timesteps = num_timesteps
         self.source = source
         self.action_scale = float(action_scale)
+        self.composition = composition or ActionComposition()
         self.seed: int | None = None
 
     @property
@@ -196,7 +205,8 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
     """Check that a loaded agent fits ``env``: its action mode and its observation/action shapes.
 
     An agent trained on another environment id gets a warning (:class:`EnvMismatchWarning`), not an error:
-    running it elsewhere is allowed, but never silently.
+    running it elsewhere is allowed, but never silently. A residual agent (its ``composition``) observes the
+    environment's observation extended by the base's action (:func:`uvdms_gym.residual.residual_observation_space`).
 
     Raises:
         ValueError: On a mismatch (the message names the expected and found values).
@@ -205,10 +215,15 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
     check_action_mode(f"agent {name}", env, mode)
     if hasattr(agent, "check_env_id") and env.spec is not None:
         agent.check_env_id(env.spec.id)  # warns (EnvMismatchWarning) on another env id
-    if tuple(agent.observation_space.shape) != tuple(env.observation_space.shape):
+    composition = getattr(agent, "composition", None) or ActionComposition()
+    expected = env.observation_space
+    if composition.is_residual:
+        expected = residual_observation_space(env.observation_space, env.action_space)
+    if tuple(agent.observation_space.shape) != tuple(expected.shape):
+        what = f" (with the residual base's {env.action_space.shape[0]} actions)" if composition.is_residual else ""
         raise ValueError(
             f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "
-            f"{env.observation_space.shape}"
+            f"{expected.shape}{what}"
         )
     if tuple(agent.action_space.shape) != tuple(env.action_space.shape):
         raise ValueError(f"agent {name} outputs actions of shape {agent.action_space.shape}")
@@ -347,7 +362,22 @@ def load_agent(
         num_timesteps=int(model.num_timesteps),
         source=str(model_path),
         action_scale=float(config.get("action_scale", 1.0)),
+        composition=recorded_composition(config, str(model_path)),
     )
+
+
+def recorded_composition(record: Mapping[str, Any], where: str) -> ActionComposition:
+    """The residual base and safety filter recorded in a run's config entry or an export's ``agent.json``.
+
+    Records written before these keys existed hold none of them: a plain agent.
+
+    Raises:
+        ExportFormatError: Invalid recorded values (the message names ``where``).
+    """
+    try:
+        return ActionComposition.from_record(record)
+    except ValueError as exc:
+        raise ExportFormatError(f"{where}: {exc}") from None
 
 
 def _stats_path(model_path: Path) -> Path | None:

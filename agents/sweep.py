@@ -50,6 +50,7 @@ from agents.envs import check_env_id
 from agents.rundir import RunDirError, latest_checkpoint, run_dir_for, utc_now
 from agents.sweep_report import evaluation_summary, write_summary
 from agents.sweep_worker import CheckpointStore, RunJob, StoreClient, relocate_records, run_job, unpack_run_dir
+from agents.threads import run_cpus
 from uvdms_gym.cluster import ray_session
 from uvdms_gym.kwargs import check_make_kwargs, parse_kv
 
@@ -120,11 +121,6 @@ def grid_points(axes: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
     """The Cartesian product of the axes, the last axis varying fastest (``[{}]`` without axes)."""
     keys = list(axes)
     return [dict(zip(keys, values)) for values in itertools.product(*(axes[k] for k in keys))]
-
-
-def run_cpus(n_envs: int, vec_env: str) -> int:
-    """CPUs a run keeps busy: 1 with ``dummy`` envs (stepped by the trainer), ``n_envs`` with ``subproc``/``hybrid``."""
-    return 1 if vec_env == "dummy" else max(int(n_envs), 1)
 
 
 def check_seeds(seeds: Sequence[int]) -> list[int]:

@@ -41,6 +41,14 @@ allocated for at most the steps of the run (:func:`replay_buffer_size`; training
 ``n_steps x n_envs`` steps, so it warns when that rounds ``--total-timesteps`` up (``planned_timesteps`` in the
 segment record).
 
+Residual agents and the safety filter (``residual_base``, ``residual_scale``, ``safety_filter`` in the config, or
+``--residual BASE --residual-scale S`` / ``--safety-filter``; :mod:`uvdms_gym.residual`) compose the policy with
+controllers of ``baselines``, which this package never imports: :func:`train` needs them injected as
+``components`` (:class:`agents.envs.ActionComponents`; ``uvdms train`` passes the registry's). Without them (this
+module's ``python -m agents.train``) such a configuration is refused with an error naming ``uvdms train``. The
+composition is recorded in ``config.yml`` (the flat entry) and in every segment of ``meta.json``, kept by
+``--resume``, and exported with the agent.
+
 ``--resume DIR`` reloads the newest of ``final_model.zip`` and ``checkpoints/rl_model_<N>_steps.zip``
 (with its VecNormalize statistics and, if saved, its replay buffer), keeps counting ``num_timesteps``
 (``reset_num_timesteps=False``) and writes into the same directory. ``--total-timesteps`` then means
@@ -73,6 +81,7 @@ from agents.config import ConfigError, TrainConfig, default_config_path, load_co
 from agents.envs import (
     EVAL_SEED_OFFSET,
     SEGMENT_SEED_STRIDE,
+    ActionComponents,
     EnvFactory,
     EnvironmentNotFoundError,
     check_env_id,
@@ -102,14 +111,17 @@ from agents.rundir import (
     utc_now,
     zip_num_timesteps,
 )
+from agents.threads import UpdateThreads, update_threads
 from agents.wrappers import AliveBonus, ScaledAction
 from uvdms_gym.kwargs import parse_kv as _parse_key_values
 from uvdms_gym.provenance import git_info, package_versions
+from uvdms_gym.residual import ControllerFactory, FilterFactory
 
 __all__ = [  # the names other modules and the tests import from here (the implementations live in the modules above)
     "CHECKPOINT_PREFIX",
     "EVAL_SEED_OFFSET",
     "SEGMENT_SEED_STRIDE",
+    "ActionComponents",
     "AliveBonus",
     "Checkpoint",
     "EnvFactory",
@@ -117,6 +129,7 @@ __all__ = [  # the names other modules and the tests import from here (the imple
     "RunDirError",
     "ScaledAction",
     "check_env_id",
+    "composition_factories",
     "eval_env_seed",
     "git_info",
     "grow_replay_buffer",
@@ -159,6 +172,10 @@ def train(
     verbose: int = 0,
     callbacks: Sequence[BaseCallback] = (),
     after_eval: Sequence[BaseCallback] = (),
+    residual_base: str | None = None,
+    residual_scale: float | None = None,
+    safety_filter: bool | None = None,
+    components: ActionComponents | None = None,
 ) -> Path:
     """Train (or resume training of) an agent and return its run directory.
 
@@ -187,6 +204,12 @@ def train(
         after_eval: SB3 callbacks called after every evaluation; their ``parent`` is the evaluation callback
             (``parent.last_mean_reward``; :mod:`agents.tune` reports it to Ray Tune). Returning ``False``
             stops training. Ignored when ``eval_freq`` is 0.
+        residual_base: Train a residual on this base controller (overrides the config's ``residual_base``;
+            ``--residual``). Resume: must equal the run's, if given.
+        residual_scale: Bound of the residual in (0, 1] (``--residual-scale``; same rules).
+        safety_filter: Filter the training envs' velocity command (``--safety-filter``; ``None``: the config's).
+        components: The base and filter factories of the composition layer; required when the configuration
+            has a residual base or the safety filter.
 
     Returns:
         The run directory.
@@ -205,8 +228,20 @@ def train(
                 "--resume takes its configuration from the run's config.yml; do not pass "
                 "--config, --env-kwargs or --hyperparams"
             )
+        given = {"residual_base": residual_base, "residual_scale": residual_scale, "safety_filter": safety_filter}
         return _resume(
-            Path(resume_dir), algo, env_id, total_timesteps, n_envs, progress, vec_env, verbose, callbacks, after_eval
+            Path(resume_dir),
+            algo,
+            env_id,
+            total_timesteps,
+            n_envs,
+            progress,
+            vec_env,
+            verbose,
+            callbacks,
+            after_eval,
+            given,
+            components,
         )
 
     if algo is None or env_id is None:
@@ -216,15 +251,25 @@ def train(
     gym_packages = tuple(gym_packages)
     check_env_id(env_id, gym_packages)
     config_path = Path(config_path) if config_path is not None else default_config_path(algo)
-    cfg = resolve_config(config_path, algo, env_id, hyperparams, env_kwargs, n_envs, total_timesteps)
+    composition_args = {
+        key: value
+        for key, value in (
+            ("residual_base", residual_base),
+            ("residual_scale", residual_scale),
+            ("safety_filter", safety_filter),
+        )
+        if value is not None
+    }
+    cfg = resolve_config(
+        config_path, algo, env_id, hyperparams, env_kwargs, n_envs, total_timesteps, composition=composition_args
+    )
+    factories = composition_factories(cfg, components)  # before the run directory exists
 
     run_dir = create_run_dir(
         run_dir_for(out_dir, env_id, algo, seed), algo, env_id, seed, gym_packages, config_path, cfg
     )
     command = [
-        "python",
-        "-m",
-        "agents.train",
+        *_command_prefix(cfg),
         "--algo",
         algo,
         "--env",
@@ -248,6 +293,12 @@ def train(
         command += ["--env-kwargs", *(f"{k}={json.dumps(v)}" for k, v in env_kwargs.items())]
     if hyperparams:
         command += ["--hyperparams", *(f"{k}={json.dumps(v)}" for k, v in hyperparams.items())]
+    if residual_base is not None:
+        command += ["--residual", residual_base]
+    if residual_scale is not None:
+        command += ["--residual-scale", repr(float(residual_scale))]
+    if safety_filter:
+        command.append("--safety-filter")
     try:
         _run_segment(
             run_dir,
@@ -263,6 +314,7 @@ def train(
             verbose,
             callbacks,
             after_eval,
+            factories,
         )
     except BaseException as exc:
         # a user error (bad config or kwargs: a ValueError) is reported by the caller in one line; say nothing more
@@ -279,6 +331,8 @@ def resolve_config(
     env_kwargs: Mapping[str, Any] | None = None,
     n_envs: int | None = None,
     total_timesteps: int | None = None,
+    *,
+    composition: Mapping[str, Any] | None = None,
 ) -> TrainConfig:
     """The configuration a fresh run of :func:`train` uses: the file's entry with the command line's overrides.
 
@@ -290,6 +344,8 @@ def resolve_config(
         env_kwargs: Merged into the entry's ``env_kwargs`` (``--env-kwargs``).
         n_envs: Overrides ``n_envs`` (``--n-envs``).
         total_timesteps: Overrides ``n_timesteps`` (``--total-timesteps``).
+        composition: Overrides of ``residual_base``, ``residual_scale``, ``safety_filter`` (``--residual``,
+            ``--residual-scale``, ``--safety-filter``).
 
     Raises:
         ConfigError: An invalid file, key or value.
@@ -302,6 +358,7 @@ def resolve_config(
         entry["n_envs"] = n_envs
     if total_timesteps is not None:
         entry["n_timesteps"] = total_timesteps
+    entry.update(composition or {})
     return parse_entry(entry, algo, source=f"{config_path} + command line", entry_name=env_id)
 
 
@@ -316,18 +373,27 @@ def _resume(
     verbose: int,
     callbacks: Sequence[BaseCallback] = (),
     after_eval: Sequence[BaseCallback] = (),
+    given: Mapping[str, Any] | None = None,
+    components: ActionComponents | None = None,
 ) -> Path:
     config_file = run_dir / "config.yml"
     if not config_file.is_file() or not (run_dir / "meta.json").is_file():
         raise RunDirError(f"{run_dir} is not a run directory (config.yml / meta.json missing)")
     resolved = yaml.safe_load(config_file.read_text(encoding="utf-8"))
-    for name, given in (("algo", algo), ("env_id", env_id)):
-        if given is not None and given != resolved[name]:
-            raise ConfigError(f"--resume {run_dir}: {name} {given!r} differs from the run's {resolved[name]!r}")
+    for name, value in (("algo", algo), ("env_id", env_id)):
+        if value is not None and value != resolved[name]:
+            raise ConfigError(f"--resume {run_dir}: {name} {value!r} differs from the run's {resolved[name]!r}")
     algo, env_id, seed = resolved["algo"], resolved["env_id"], int(resolved["seed"])
     cfg = parse_entry(resolved["config"], algo, source=str(config_file), entry_name=env_id)
     if n_envs is not None and n_envs != cfg.n_envs:
         raise ConfigError(f"--resume: n_envs cannot change ({cfg.n_envs} in {config_file}, got {n_envs})")
+    for name, value in (given or {}).items():
+        if value is not None and value != getattr(cfg, name):
+            raise ConfigError(
+                f"--resume: {name} cannot change ({getattr(cfg, name)!r} in {config_file}, got {value!r}); "
+                "the run keeps its composition"
+            )
+    factories = composition_factories(cfg, components)
     gym_packages = tuple(resolved.get("gym_packages", DEFAULT_GYM_PACKAGES))
     check_env_id(env_id, gym_packages)
 
@@ -346,9 +412,7 @@ def _resume(
     if total_timesteps <= 0:
         raise ConfigError(f"total_timesteps must be positive, got {total_timesteps}")
     command = [
-        "python",
-        "-m",
-        "agents.train",
+        *_command_prefix(cfg),
         "--resume",
         str(run_dir),
         "--total-timesteps",
@@ -370,8 +434,53 @@ def _resume(
         verbose,
         callbacks,
         after_eval,
+        factories,
     )
     return run_dir
+
+
+def composition_factories(
+    cfg: TrainConfig, components: ActionComponents | None
+) -> tuple[ControllerFactory | None, FilterFactory | None]:
+    """The base and filter factories of a configuration's residual base and safety filter.
+
+    Args:
+        cfg: The configuration.
+        components: The composition layer's factories (``None``: none available).
+
+    Returns:
+        ``(base_factory, filter_factory)``, each ``None`` when not configured.
+
+    Raises:
+        ConfigError: A residual base or the filter without ``components`` (the message names ``uvdms train``), or
+            a base name the components reject.
+    """
+    composition = cfg.composition
+    if composition.is_plain:
+        return None, None
+    if components is None:
+        parts = []
+        if composition.is_residual:
+            parts.append(f"a residual on {composition.residual_base!r}")
+        if composition.safety_filter:
+            parts.append("the safety filter")
+        raise ConfigError(
+            f"this configuration trains {' with '.join(parts)}, whose controllers live in the baselines package, "
+            "which agents does not import: train it with `uvdms train` (python -m agents.train cannot), or pass "
+            "components= to agents.train.train"
+        )
+    base_factory = None
+    if composition.is_residual:
+        try:
+            base_factory = components.base_factory(str(composition.residual_base))
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+    return base_factory, components.filter_factory if composition.safety_filter else None
+
+
+def _command_prefix(cfg: TrainConfig) -> list[str]:
+    """What runs ``cfg``: ``uvdms train`` when it composes controllers, else ``python -m agents.train``."""
+    return ["python", "-m", "agents.train"] if cfg.composition.is_plain else ["uvdms", "train"]
 
 
 def _run_segment(
@@ -388,6 +497,7 @@ def _run_segment(
     verbose: int,
     extra_callbacks: Sequence[BaseCallback] = (),
     after_eval: Sequence[BaseCallback] = (),
+    factories: tuple[ControllerFactory | None, FilterFactory | None] = (None, None),
 ) -> None:
     meta = json.loads((run_dir / "meta.json").read_text(encoding="utf-8"))
     segment = len(meta["segments"])
@@ -397,6 +507,12 @@ def _run_segment(
         f.write(shlex.join(command) + "\n")
     model_seed = train_env_seed(seed, segment, 0)
     (run_dir / "monitor").mkdir(exist_ok=True)
+    base_factory, filter_factory = factories
+    composed = {
+        "base_factory": base_factory,
+        "residual_scale": cfg.residual_scale if base_factory is not None else None,
+        "filter_factory": filter_factory,
+    }
     train_factories = [
         EnvFactory(
             env_id,
@@ -407,6 +523,7 @@ def _run_segment(
             cfg.alive_bonus,
             cfg.action_scale,
             scalar_info=True,
+            **composed,
         )
         for i in range(cfg.n_envs)
     ]
@@ -420,6 +537,7 @@ def _run_segment(
             cfg.max_episode_steps,
             cfg.alive_bonus,
             cfg.action_scale,
+            **composed,
             episode_metrics=True,
         )
         for i in range(cfg.n_eval_envs)
@@ -434,7 +552,13 @@ def _run_segment(
         "train_env_seeds": [train_env_seed(seed, segment, i) for i in range(cfg.n_envs)],
         "eval_env_seeds": [eval_env_seed(seed, i) for i in range(cfg.n_eval_envs)],
         "vec_env": vec_env,
+        "action_composition": {
+            **cfg.composition.to_record(),
+            "base_factory": repr(base_factory) if base_factory is not None else None,
+            "filter_factory": repr(filter_factory) if filter_factory is not None else None,
+        },
         "torch_num_threads": torch.get_num_threads(),
+        "torch_update_threads": update_threads(cfg.n_envs, vec_env, not is_off_policy(cfg.algo)),
         "versions": package_versions(),
         "git": git_info(),
         "started_utc": utc_now(),
@@ -543,6 +667,8 @@ def _run_segment(
                 if best is not None:
                     eval_callback.best_mean_reward = float(best)
             callbacks.append(eval_callback)
+        if record["torch_update_threads"] > 1:  # the envs are idle during an on-policy update (agents.threads)
+            callbacks.append(UpdateThreads(record["torch_update_threads"]))
         callbacks.extend(extra_callbacks)
 
         model.learn(
@@ -596,8 +722,14 @@ def parse_key_values(items: Sequence[str] | None, option: str = "--env-kwargs") 
         raise ConfigError(str(exc)) from None
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command-line entry point; returns the exit code (0 ok, 2 bad arguments/config, 130 interrupted)."""
+def main(argv: Sequence[str] | None = None, *, components: ActionComponents | None = None) -> int:
+    """Command-line entry point; returns the exit code (0 ok, 2 bad arguments/config, 130 interrupted).
+
+    Args:
+        argv: The arguments (default ``sys.argv[1:]``).
+        components: The base and filter factories (``uvdms train`` passes the registry's; ``python -m
+            agents.train`` has none, so it refuses residual and filtered configurations).
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.resume is None and (args.algo is None or args.env_id is None):
@@ -618,6 +750,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             vec_env=args.vec_env,
             gym_packages=args.gym_packages,
             verbose=args.verbose,
+            residual_base=args.residual,
+            residual_scale=args.residual_scale,
+            safety_filter=True if args.safety_filter else None,
+            components=components,
         )
     except (ConfigError, EnvironmentNotFoundError, RunDirError) as exc:
         print("uvdms: error: " + " ".join(str(exc).split()), file=sys.stderr)  # one line, as the uvdms command

@@ -12,7 +12,7 @@ those trials were pruned (as RL Zoo's pruner does). A trial that trains to the e
 Every trial trains with the same ``--seed`` (common random numbers: trials differ only in their
 hyperparameters). The sampler is seeded with ``--seed`` too, but with more than one trial at a time the order
 in which results arrive (and so what TPE sees when it samples) depends on timing; ``--max-concurrent 1``
-makes a search repeatable. CPUs: a trial declares :func:`agents.sweep.run_cpus` (as a sweep run).
+makes a search repeatable. CPUs: a trial declares :func:`agents.threads.run_cpus` (as a sweep run).
 
 Output under ``--out``: ``<algo>.yml`` (the best configuration as an entry of an RL Zoo hyperparameter file, in
 the format of ``train_configs/<algo>.yml``, so ``uvdms train --algo A --env ID --config <out>/<algo>.yml``
@@ -41,7 +41,8 @@ from agents.config import ConfigError, default_config_path
 from agents.envs import check_env_id
 from agents.rundir import RunDirError, latest_checkpoint, utc_now
 from agents.search_space import SearchSpace, default_search_space_path, load_search_space
-from agents.sweep import check_fits, run_cpus
+from agents.sweep import check_fits
+from agents.threads import run_cpus
 from agents.zoo import TRAIN_OPTIONS, zoo_entry
 from uvdms_gym.cluster import ray_session
 from uvdms_gym.io import to_jsonable, write_json_atomic

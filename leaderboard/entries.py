@@ -1,7 +1,10 @@
 """Leaderboard entries: the named baselines and agent folders or checkpoints, read without unpickling.
 
 An agent's entry holds its training environment (it runs only on that environment's tasks), a checksum of its
-model files (the cache key) and every seed recorded in its run files (:func:`check_seed_disjointness`).
+model files (the cache key) and every seed recorded in its run files (:func:`check_seed_disjointness`). An agent
+trained as a residual or with the safety filter (:mod:`uvdms_gym.residual`, recorded in its ``agent.json`` or
+``config.yml``) is evaluated composed the same way, and its name says so: ``residual-<base>-<folder>``, with
+``+filter`` when it was trained with the filter (a ``PATH+filter`` token then names the same entry).
 
 A **multi-seed entry** is a folder of training seeds, each an agent folder of its own (a weights-only export, a
 shipped agent folder or a run directory) named ``seed_<k>`` after its training seed ``k``
@@ -31,6 +34,7 @@ import yaml
 
 from leaderboard.registry import TRACK_OF
 from leaderboard.tasks import TRACKS, Task
+from uvdms_gym.residual import ActionComposition
 
 log = logging.getLogger("uvdms.leaderboard")
 
@@ -66,7 +70,8 @@ class Entry:
         training_seeds: Every seed recorded in the agent's run files.
         weights_only: The agent is a weights-only export (never unpickled).
         safety_filter: The controller's actions go through :class:`baselines.safety.SafetyFilter` (an entry of
-            its own, named ``<name>+filter``).
+            its own, named ``<name>+filter``; always for an agent trained with the filter).
+        residual_base: The base controller of a residual agent (``None``: not a residual agent).
         members: A multi-seed entry's per-seed agent entries (empty otherwise); the runner evaluates these.
         training_seed: A member's training seed (the ``k`` of its ``seed_<k>`` folder; ``None`` otherwise).
     """
@@ -80,6 +85,7 @@ class Entry:
     training_seeds: frozenset[int] = frozenset()
     weights_only: bool = False
     safety_filter: bool = False
+    residual_base: str | None = None
     members: tuple[Entry, ...] = ()
     training_seed: int | None = None
 
@@ -181,12 +187,13 @@ def resolve_entries(
                     )
                 key = str(path.resolve())
                 entry = agent_entry(path, trust=trust)
-            if filtered:
+            if filtered and not entry.safety_filter:
                 if entry.track != "velocity":
                     if token != spec:  # a keyword: its torque-track members are simply not filtered
                         continue
                     raise ValueError(f"{raw_token}: the safety filter projects velocity commands; {spec} is torque")
                 entry = entry.filtered()
+            if entry.safety_filter:  # (an agent trained with the filter is the same entry with or without +filter)
                 key += FILTER_SUFFIX
             if key in seen_specs:
                 continue
@@ -264,7 +271,10 @@ def agent_entry(path: str | Path, *, trust: bool = False) -> Entry:
     track = str(env_kwargs.get("action_mode", "velocity"))
     if track not in TRACKS:
         raise ValueError(f"{path}: unknown action_mode {track!r} in its configuration")
-    name = path.name if path.is_dir() else f"{path.parent.name}/{path.stem}"
+    composition = agent_composition(path)
+    name = composition.describe(path.name if path.is_dir() else f"{path.parent.name}/{path.stem}")
+    if composition.safety_filter:
+        name += FILTER_SUFFIX
     return Entry(
         name=name,
         kind="agent",
@@ -274,6 +284,8 @@ def agent_entry(path: str | Path, *, trust: bool = False) -> Entry:
         checksum=agent_checksum(path),
         training_seeds=frozenset(training_seeds(path)),
         weights_only=weights_only,
+        safety_filter=composition.safety_filter,
+        residual_base=composition.residual_base,
     )
 
 
@@ -281,15 +293,16 @@ def multi_seed_entry(path: str | Path, *, trust: bool = False) -> Entry:
     """The :class:`Entry` of a folder of training seeds (layout in the module docstring).
 
     Every ``seed_<k>`` sub-folder becomes a member (:func:`agent_entry`, named ``<entry>/seed_<k>``, with ``k``
-    among its training seeds); other sub-folders and files (a README, plots) are ignored. The entry's checksum
-    hashes its members' checksums; its training seeds are the union of theirs.
+    among its training seeds); other sub-folders and files (a README, plots) are ignored. The entry is named
+    after the folder as a single agent would be (``residual-<base>-<folder>``, ``+filter`` when trained with the
+    filter); its checksum hashes its members' checksums; its training seeds are the union of theirs.
 
     Raises:
         ValueError: The folder is also an agent itself; a ``seed_*`` name that is not ``seed_<integer>``, or
             two folders of the same seed; fewer than :data:`MIN_TRAINING_SEEDS` seeds; a seed folder that is
             not an agent (or is itself a multi-seed folder); a run inside ``seed_<k>`` recorded with another
-            seed; seeds trained on different environments (id, keyword arguments or action mode); two seeds
-            with identical model files.
+            seed; seeds trained on different environments (id, keyword arguments, action mode, residual base or
+            safety filter); two seeds with identical model files.
         UntrustedFileError: A seed is a full SB3 zip outside ``trained_agents/`` and ``trust`` is false.
     """
     path = Path(path)
@@ -318,9 +331,8 @@ def multi_seed_entry(path: str | Path, *, trust: bool = False) -> Entry:
             len(seeds),
             RECOMMENDED_TRAINING_SEEDS,
         )
-    name = path.name
     members = []
-    environments: dict[str, tuple[str | None, dict[str, Any], str]] = {}
+    environments: dict[str, tuple[str | None, dict[str, Any], str, str | None, bool]] = {}
     for k, folder in sorted(seeds.items()):
         if is_multi_seed_folder(folder):
             raise ValueError(f"{folder}: a seed folder must be an agent, not another folder of seeds")
@@ -329,18 +341,18 @@ def multi_seed_entry(path: str | Path, *, trust: bool = False) -> Entry:
         if recorded is not None and recorded != k:
             raise ValueError(f"{folder}: the run inside was trained with seed {recorded}, not {k}")
         env_id, env_kwargs = agent_env(folder)
-        environments[folder.name] = (env_id, env_kwargs, member.track)
-        members.append(
-            replace(
-                member,
-                name=f"{name}/{folder.name}",
-                training_seed=k,
-                training_seeds=member.training_seeds | {k},
-            )
-        )
+        environments[folder.name] = (env_id, env_kwargs, member.track, member.residual_base, member.safety_filter)
+        members.append(replace(member, training_seed=k, training_seeds=member.training_seeds | {k}))
     if len({json.dumps(env, sort_keys=True, default=str) for env in environments.values()}) > 1:
-        listing = "; ".join(f"{seed}: {env[0]} {env[1]} ({env[2]})" for seed, env in environments.items())
+        listing = "; ".join(
+            f"{seed}: {env[0]} {env[1]} ({env[2]}{f', residual on {env[3]}' if env[3] else ''}"
+            f"{', safety filter' if env[4] else ''})"
+            for seed, env in environments.items()
+        )
         raise ValueError(f"{path}: its seeds were trained on different environments ({listing})")
+    first = members[0]
+    name = agent_composition(Path(first.spec)).describe(path.name) + (FILTER_SUFFIX if first.safety_filter else "")
+    members = [replace(m, name=f"{name}/{Path(m.spec).name}") for m in members]
     by_checksum: dict[str | None, str] = {}
     for member in members:
         if member.checksum in by_checksum:
@@ -352,7 +364,6 @@ def multi_seed_entry(path: str | Path, *, trust: bool = False) -> Entry:
     digest = hashlib.sha256()
     for member in members:
         digest.update(f"{Path(member.spec).name}\0{member.checksum}\0".encode())
-    first = members[0]
     return Entry(
         name=name,
         kind="agent",
@@ -362,6 +373,8 @@ def multi_seed_entry(path: str | Path, *, trust: bool = False) -> Entry:
         checksum=digest.hexdigest(),
         training_seeds=frozenset().union(*(m.training_seeds for m in members)),
         weights_only=all(m.weights_only for m in members),
+        safety_filter=first.safety_filter,
+        residual_base=first.residual_base,
         members=tuple(members),
     )
 
@@ -417,6 +430,33 @@ def agent_env(path: str | Path) -> tuple[str | None, dict[str, Any]]:
             if env_id is not None:
                 return str(env_id).split(":")[-1], dict(env_kwargs)
     return None, {}
+
+
+def agent_composition(path: str | Path) -> ActionComposition:
+    """The residual base and safety filter an agent was trained with, from ``agent.json`` or ``config.yml``.
+
+    Read from the first configuration file found (as :func:`agent_env`); none found: a plain agent.
+
+    Raises:
+        ValueError: The recorded values are invalid (the message names the file).
+    """
+    for folder in _agent_folders(Path(path)):
+        for name in _AGENT_CONFIG_NAMES:
+            file = folder / name
+            if not file.is_file():
+                continue
+            try:
+                doc = _read_structured(file)
+            except (OSError, ValueError, yaml.YAMLError):
+                continue  # (agent_env has logged it)
+            if not isinstance(doc, dict):
+                continue
+            record = doc["config"] if isinstance(doc.get("config"), dict) else doc
+            try:
+                return ActionComposition.from_record(record)
+            except ValueError as exc:
+                raise ValueError(f"{file}: {exc}") from None
+    return ActionComposition()
 
 
 def _collect_seeds(node: Any, under_seed_key: bool = False) -> set[int]:

@@ -8,18 +8,29 @@ controller is one line in :data:`CONTROLLERS`.
 * a name of :data:`CONTROLLERS` (the baselines of :data:`baselines.controllers.BASELINES`) ->
   :func:`baselines.controllers.make_baseline`;
 * an existing path -> :func:`agents.policy.load_agent` (a weights-only export, a run directory or an SB3 zip),
-  checked against the environment with :func:`agents.policy.check_agent`.
+  checked against the environment with :func:`agents.policy.check_agent`, then composed as it was trained
+  (:func:`compose_agent`): a residual agent (:mod:`uvdms_gym.residual`) gets its base baseline from the record
+  of its export or run (:class:`uvdms_gym.residual.ResidualController`), and an agent trained with the safety
+  filter is filtered.
 
 ``uvdms evaluate`` (:func:`evaluate`) and the leaderboard (:mod:`leaderboard.runner`) resolve through here.
+Training gets the same pieces injected (``agents`` does not import ``baselines``): :func:`action_components`
+returns the picklable factories :class:`BaselineFactory` and :class:`SafetyFilterFactory` that ``uvdms train``
+passes to :func:`agents.train.train`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from baselines.controllers import BASELINES, make_baseline
+from uvdms_gym.residual import ResidualController
+
+if TYPE_CHECKING:
+    from agents.envs import ActionComponents
 
 CONTROLLERS: dict[str, Callable[..., Any]] = {name: make_baseline for name in BASELINES}
 """Named controllers: name -> factory ``(name, env, **kwargs) -> controller``."""
@@ -56,11 +67,96 @@ def load_agent(path: str | Path, trust: bool = False) -> Any:
         raise ValueError(f"{path}: a model file is not a valid zip archive, corrupt or truncated ({exc})") from None
 
 
+RESIDUAL_BASES: tuple[str, ...] = tuple(name for name, mode in TRACK_OF.items() if mode == "velocity")
+"""The baselines a residual agent can be trained on: those whose action is a velocity command."""
+
+
+@dataclass(frozen=True)
+class BaselineFactory:
+    """A picklable ``(env) -> controller`` for a residual agent's base: the named velocity-mode baseline.
+
+    Module-level and plain data, so it travels to ``SubprocVecEnv`` / hybrid workers by reference.
+
+    Attributes:
+        name: One of :data:`RESIDUAL_BASES`.
+
+    Raises:
+        ValueError: An unknown name, or a torque-mode baseline (the message lists the valid names).
+    """
+
+    name: str
+
+    def __post_init__(self) -> None:
+        if self.name not in TRACK_OF:
+            raise ValueError(
+                f"unknown residual base {self.name!r}: a residual agent's base is a velocity-mode baseline, one of "
+                f"{', '.join(RESIDUAL_BASES)}"
+            )
+        if self.name not in RESIDUAL_BASES:
+            raise ValueError(
+                f"residual base {self.name!r} is a {TRACK_OF[self.name]}-mode baseline, but a residual is added to "
+                f"a velocity command: choose one of {', '.join(RESIDUAL_BASES)}"
+            )
+
+    def __call__(self, env: Any) -> Any:
+        """The baseline for ``env`` (:func:`baselines.controllers.make_baseline`)."""
+        return make_baseline(self.name, env)
+
+
+@dataclass(frozen=True)
+class SafetyFilterFactory:
+    """A picklable ``(controller, env) -> controller`` that wraps the controller in the safety filter."""
+
+    def __call__(self, controller: Any, env: Any) -> Any:
+        """``controller`` filtered (:func:`with_safety_filter`)."""
+        return with_safety_filter(controller, env)
+
+
+def action_components() -> ActionComponents:
+    """What ``uvdms train`` injects into :func:`agents.train.train`: the residual bases and the safety filter."""
+    from agents.envs import ActionComponents
+
+    return ActionComponents(base_factory=BaselineFactory, filter_factory=SafetyFilterFactory())
+
+
 def with_safety_filter(controller: Any, env: Any) -> Any:
-    """``controller`` with its velocity commands projected onto the collision rows (:mod:`baselines.safety`)."""
+    """``controller`` with its velocity commands projected onto the collision rows (:mod:`baselines.safety`).
+
+    A controller that already is a :class:`~baselines.safety.SafetyFilter` (an agent trained with the filter,
+    composed by :func:`compose_agent`) is returned as it is: the filter is applied once.
+    """
     from baselines.safety import SafetyFilter
 
+    if isinstance(controller, SafetyFilter):
+        return controller
     return SafetyFilter(controller, env)
+
+
+def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
+    """An agent as it was trained: its residual base added, then the safety filter if it was trained with one.
+
+    Args:
+        agent: A loaded agent (:class:`agents.policy.AgentController`; its ``composition`` says what to add).
+        env: The environment the controller will drive.
+        safety_filter: Filter the result also if the agent was trained without the filter.
+
+    Returns:
+        The agent itself when there is nothing to compose, else a
+        :class:`uvdms_gym.residual.ResidualController` and/or a :class:`baselines.safety.SafetyFilter`.
+
+    Raises:
+        ValueError: The recorded base is not a velocity-mode baseline, or an action-mode mismatch.
+    """
+    from uvdms_gym.residual import ActionComposition
+
+    composition = getattr(agent, "composition", None) or ActionComposition()
+    controller = agent
+    if composition.is_residual:
+        base = BaselineFactory(str(composition.residual_base))(env)
+        controller = ResidualController(base, agent, float(composition.residual_scale))  # type: ignore[arg-type]
+    if composition.safety_filter or safety_filter:
+        controller = with_safety_filter(controller, env)
+    return controller
 
 
 def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) -> Any:
@@ -87,7 +183,7 @@ def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) 
 
     agent = load_agent(path, trust=trust)
     check_agent(agent, env, spec)
-    return agent
+    return compose_agent(agent, env)
 
 
 def evaluate(
@@ -119,7 +215,9 @@ def evaluate(
         save_trajectory: Keep each episode's time series.
         progress: Show a tqdm progress bar.
         trust: Allow unpickling an agent's SB3 files.
-        safety_filter: Project every velocity command onto the collision rows (:func:`with_safety_filter`).
+        safety_filter: Project every velocity command onto the collision rows (:func:`with_safety_filter`); an
+            agent trained with the filter is filtered anyway (once), a residual agent gets its base composed
+            (:func:`compose_agent`).
 
     Returns:
         ``{"episodes": [...], "summary": {...}, "meta": {...}}`` (:func:`uvdms_gym.evaluation.evaluate_controller`).
@@ -151,7 +249,7 @@ def evaluate(
         kwargs.setdefault("action_mode", (agent.env_kwargs or {}).get("action_mode", "velocity"))
 
         def factory(env: Any) -> Any:
-            return with_safety_filter(agent, env) if safety_filter else agent
+            return compose_agent(agent, env, safety_filter=safety_filter)
 
         def check(controller: Any, env: Any) -> None:
             check_agent(agent, env, controller_spec)  # the agent itself, filtered or not

@@ -119,14 +119,16 @@ def compute_job(job: Job, backend: Backend, trust: bool) -> dict[str, Any]:
         _WORKER["env"] = backend.make_env(job.task.spec(job.entry.track))
         _WORKER["key"] = group
     env = _WORKER["env"]
-    controller = _WORKER.get("controller") if job.entry.kind == "agent" else None
-    if controller is None:  # baselines are stateful (adaptive networks, warm starts): a fresh one per episode
+    # baselines are stateful (adaptive networks, warm starts): a fresh one per episode; so is a residual agent's base
+    reusable = job.entry.kind == "agent" and job.entry.residual_base is None
+    controller = _WORKER.get("controller") if reusable else None
+    if controller is None:
         controller = backend.make_controller(job.entry.spec, env, trust)
         if job.entry.safety_filter:
             from leaderboard.registry import with_safety_filter
 
             controller = with_safety_filter(controller, env)
-        if job.entry.kind == "agent":
+        if reusable:
             _WORKER["controller"] = controller
     with timing_record() as timing:
         raw = backend.run_episode(env, controller, job.seed, job.save_trajectory)

@@ -177,13 +177,16 @@ def test_learning_curve_stats_over_seeds():
 # ------------------------------------------------------------------------------------------------------
 # Layout of a multi-seed entry
 # ------------------------------------------------------------------------------------------------------
-def _agent_folder(folder: Path, seed: int, env_id: str = CIRCLE, env_kwargs=None, recorded_seed=None) -> Path:
+def _agent_folder(
+    folder: Path, seed: int, env_id: str = CIRCLE, env_kwargs=None, recorded_seed=None, composition=None
+) -> Path:
     """A run-like agent folder (a valid zip that is never loaded, config.yml and meta.json with seeds)."""
     folder.mkdir(parents=True)
     with zipfile.ZipFile(folder / "final_model.zip", "w") as archive:
         archive.writestr("data", json.dumps({"seed": seed}))  # different bytes per seed
     recorded = seed if recorded_seed is None else recorded_seed
-    config = {"algo": "sac", "env_id": env_id, "seed": recorded, "config": {"env_kwargs": env_kwargs or {}}}
+    entry = {"env_kwargs": env_kwargs or {}, **(composition or {})}
+    config = {"algo": "sac", "env_id": env_id, "seed": recorded, "config": entry}
     (folder / "config.yml").write_text(json.dumps(config))
     meta = {"seed": recorded, "segments": [{"model_seed": recorded, "train_env_seeds": [recorded, recorded + 1]}]}
     (folder / "meta.json").write_text(json.dumps(meta))
@@ -217,6 +220,16 @@ def test_multi_seed_folder_is_one_entry_with_a_member_per_seed(tmp_path):
     assert not plain.multi_seed and plain.runs() == (plain,) and plain.label == "sac_single"
 
 
+def test_a_residual_entry_trained_with_the_filter_is_named_as_a_single_agent_would_be(tmp_path):
+    composition = {"residual_base": "campc", "residual_scale": 0.2, "safety_filter": True}
+    folder = _multi_seed(tmp_path, seeds=(0, 1, 2), composition=composition)
+    (entry,) = lb.resolve_entries([str(folder)], trust=True)
+    assert entry.name == "residual-campc-sac_multi+filter" and entry.safety_filter and entry.residual_base == "campc"
+    assert entry.members[1].name == "residual-campc-sac_multi+filter/seed_1"
+    assert all(m.safety_filter and m.residual_base == "campc" for m in entry.members)
+    assert lb.resolve_entries([str(folder), str(folder) + "+filter"], trust=True) == [entry]  # the same entry
+
+
 def test_two_seeds_are_accepted_with_a_warning(tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="uvdms.leaderboard"):
         entry = lb.agent_entry(_multi_seed(tmp_path, seeds=(3, 4)), trust=True)
@@ -236,6 +249,10 @@ def test_two_seeds_are_accepted_with_a_warning(tmp_path, caplog):
             "different environments",
         ),
         (lambda root: _agent_folder(_multi_seed(root) / "seed_4", 4, recorded_seed=7), "trained with seed 7"),
+        (
+            lambda root: _agent_folder(_multi_seed(root) / "seed_4", 4, composition={"safety_filter": True}),
+            "different environments.*safety filter",
+        ),
         (lambda root: _agent_folder(_multi_seed(root) / "seed_0" / "seed_5", 5), "not another folder of seeds"),
         (lambda root: (_agent_folder(root / "sac_multi", 9), _multi_seed(root)), "holds both an agent"),
     ],

@@ -149,6 +149,28 @@ SHRUNK: dict[str, Shrunk] = {
         creates=("eval.json",),
         stdout_json=True,
     ),
+    # residual agents
+    "uvdms train --algo sac --env uvdms/CircleTrack-v0 --env-kwargs case=1 --seed 1 --residual mpc "
+    "--residual-scale 0.2 --total-timesteps 60000": Shrunk(
+        "residual",
+        "uvdms train --algo sac --env uvdms/CircleTrack-v0 --env-kwargs case=1 max_episode_steps=20 --seed 1 "
+        f"--residual mpc --residual-scale 0.2 --total-timesteps 200 --hyperparams {TINY_SAC} --no-progress",
+        creates=("runs/uvdms_CircleTrack-v0/sac_1/final_model.zip",),
+        contains=(("runs/uvdms_CircleTrack-v0/sac_1/config.yml", "residual_base: mpc"),),
+    ),
+    "uvdms export-agent runs/uvdms_CircleTrack-v0/sac_1 exported/residual-mpc-sac --trust": Shrunk(
+        "residual",
+        "uvdms export-agent runs/uvdms_CircleTrack-v0/sac_1 exported/residual-mpc-sac --trust",
+        creates=("exported/residual-mpc-sac/agent.json",),
+        contains=(("exported/residual-mpc-sac/agent.json", '"residual_base": "mpc"'),),
+    ),
+    "uvdms evaluate --controller exported/residual-mpc-sac --env uvdms/CircleTrack-v0 --env-kwargs case=1 "
+    "--episodes 5": Shrunk(
+        "residual",
+        "uvdms evaluate --controller exported/residual-mpc-sac --env uvdms/CircleTrack-v0 --env-kwargs case=1 "
+        "max_episode_steps=20 --episodes 1 --no-progress",
+        stdout_json=True,
+    ),
 }
 """README command (normalised: see :func:`readme_commands`) -> how it is run."""
 
@@ -162,6 +184,11 @@ ORDER: tuple[str, ...] = (
     "uvdms train --resume runs/uvdms_CircleTrack-v0/sac_0 --total-timesteps 20000",
     "uvdms export-agent runs/uvdms_CircleTrack-v0/sac_0 exported/sac_case1 --which best --trust",
     "uvdms evaluate --controller path/to/agent_export --env uvdms/CircleTrack-v0 --episodes 5",
+    # residual: train, export, evaluate the export
+    "uvdms train --algo sac --env uvdms/CircleTrack-v0 --env-kwargs case=1 --seed 1 --residual mpc "
+    "--residual-scale 0.2 --total-timesteps 60000",
+    "uvdms export-agent runs/uvdms_CircleTrack-v0/sac_1 exported/residual-mpc-sac --trust",
+    "uvdms evaluate --controller exported/residual-mpc-sac --env uvdms/CircleTrack-v0 --env-kwargs case=1 --episodes 5",
     # leaderboard: the full suite and the submission reuse the quick run's cache
     "uvdms leaderboard --quick",
     "uvdms leaderboard --out docs/leaderboard",

@@ -61,9 +61,14 @@ def _effective_policy_kwargs(cfg) -> dict:
     return {**defaults, **cfg.sb3_policy_kwargs()}
 
 
+# Entries added after the rewrite (they have no "before" value; the RL Zoo key checks below cover them).
+ADDED_SINCE = {f"{algo}/uvdms/{task}-v1" for algo in ("ppo", "sac") for task in ("CircleTrack", "Transport")}
+
+
 def test_before_values_cover_every_entry():
     now = {f"{path.stem}/{name}" for path in CONFIGS for name in validate_config_file(path)}
-    assert now == set(BEFORE)
+    assert now - ADDED_SINCE == set(BEFORE)
+    assert ADDED_SINCE <= now
 
 
 @pytest.mark.parametrize("key", sorted(BEFORE))

@@ -17,8 +17,12 @@ import logging
 import os
 import sys
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import yaml
+
+if TYPE_CHECKING:
+    from agents.envs import ActionComponents
 
 log = logging.getLogger("uvdms")
 
@@ -111,8 +115,18 @@ def _register_commands(sub: argparse._SubParsersAction) -> None:
     from leaderboard import cli as leaderboard_cli
     from uvdms_cli import evaluate
 
-    for module in (evaluate, baselines_cli, agents_cli, sweep_cli, leaderboard_cli):
-        module.register(sub)
+    evaluate.register(sub)
+    baselines_cli.register(sub)
+    agents_cli.register(sub, components=_action_components)  # uvdms train composes residuals and the filter
+    sweep_cli.register(sub)
+    leaderboard_cli.register(sub)
+
+
+def _action_components() -> ActionComponents:
+    """What ``uvdms train`` injects: the residual bases and the safety filter (built when training starts)."""
+    from leaderboard.registry import action_components
+
+    return action_components()
 
 
 def user_error_types() -> tuple[type[BaseException], ...]:

@@ -325,7 +325,11 @@ def summarize(episodes: list[dict]) -> dict:
 
 
 def controller_settings(controller: Any) -> dict:
-    """The configuration of a baseline (MPC and DI dataclasses as dicts) or an agent's description."""
+    """The configuration of a baseline (MPC and DI dataclasses as dicts) or an agent's description.
+
+    A residual agent (:class:`uvdms_gym.residual.ResidualController`) records its base's MPC settings, its
+    policy's description and ``residual_scale``.
+    """
     from dataclasses import asdict, is_dataclass
 
     out: dict[str, Any] = {"class": type(controller).__name__}
@@ -335,7 +339,7 @@ def controller_settings(controller: Any) -> dict:
     di = getattr(controller, "di", None)
     if di is not None and is_dataclass(getattr(di, "config", None)):
         out["di"] = asdict(di.config)
-    for attr in ("algo", "env_id", "num_timesteps", "source"):
+    for attr in ("algo", "env_id", "num_timesteps", "source", "residual_scale"):
         if hasattr(controller, attr):
             out[attr] = getattr(controller, attr)
     return to_jsonable(out)

@@ -1,0 +1,88 @@
+"""Torch threads of training (agents/threads.py): the rule, the switch at rollout boundaries, same results."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import gymnasium as gym
+import pytest
+import torch
+from stable_baselines3 import PPO
+
+from agents.envs import EnvFactory, make_vec_env
+from agents.threads import ROLLOUT_THREADS, UpdateThreads, available_cpus, run_cpus, update_threads
+
+ENV_ID = "uvdms/CircleTrack-v0"
+
+
+def _factories(n: int) -> list[EnvFactory]:
+    return [EnvFactory(ENV_ID, {"case": "random"}, max_episode_steps=40) for _ in range(n)]
+
+
+def test_update_thread_rule():
+    cpus = available_cpus()
+    assert cpus >= 1
+    assert update_threads(1, "dummy", on_policy=True) == 1
+    assert update_threads(2, "dummy", on_policy=True) == 1  # a dummy run holds one CPU whatever its n_envs
+    assert update_threads(2, "hybrid", on_policy=True) == min(2, cpus)
+    assert update_threads(64, "subproc", on_policy=True) == min(64, cpus)
+    assert update_threads(2, "subproc", on_policy=False) == 1  # off-policy updates interleave with env steps
+    assert update_threads(2, "hybrid", on_policy=True) <= run_cpus(2, "hybrid")
+    with pytest.raises(ValueError, match="integer >= 1"):
+        UpdateThreads(0)
+
+
+class _ThreadProbe(gym.Wrapper):
+    """Records torch's thread count at every env step (the env runs in the trainer's process)."""
+
+    seen: ClassVar[list[int]] = []
+
+    def step(self, action):
+        _ThreadProbe.seen.append(torch.get_num_threads())
+        return super().step(action)
+
+
+def test_update_runs_with_more_threads_and_rollouts_with_one():
+    torch.set_num_threads(ROLLOUT_THREADS)
+    _ThreadProbe.seen = []
+    venv = make_vec_env([lambda: _ThreadProbe(EnvFactory(ENV_ID, {"case": 1}, max_episode_steps=40)())], "dummy")
+    during_update: list[int] = []
+    try:
+        model = PPO("MlpPolicy", venv, n_steps=32, batch_size=32, n_epochs=1, seed=0, device="cpu")
+        train = model.train
+
+        def recording_train() -> None:
+            during_update.append(torch.get_num_threads())
+            train()
+
+        model.train = recording_train  # type: ignore[method-assign]
+        model.learn(total_timesteps=96, callback=UpdateThreads(2))
+    finally:
+        venv.close()
+    assert during_update == [2, 2, 2]
+    assert _ThreadProbe.seen and set(_ThreadProbe.seen) == {ROLLOUT_THREADS}
+    assert torch.get_num_threads() == ROLLOUT_THREADS  # restored at the end of training
+
+
+def test_two_update_threads_train_bit_identically():
+    """The shipped PPO sizes (batch 256, 256-wide layers): 2 update threads give the same parameters as 1."""
+    params = []
+    for threads in (1, 2):
+        torch.set_num_threads(ROLLOUT_THREADS)
+        venv = make_vec_env(_factories(2), "hybrid")
+        try:
+            model = PPO(
+                "MlpPolicy",
+                venv,
+                n_steps=128,
+                batch_size=256,
+                n_epochs=2,
+                seed=5,
+                device="cpu",
+                policy_kwargs={"net_arch": {"pi": [256, 256], "vf": [256, 256]}},
+            )
+            model.learn(total_timesteps=512, callback=UpdateThreads(threads) if threads > 1 else None)
+            params.append(torch.nn.utils.parameters_to_vector(model.policy.parameters()).detach().clone())
+        finally:
+            venv.close()
+    assert torch.equal(params[0], params[1])

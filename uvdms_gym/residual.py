@@ -1,0 +1,347 @@
+"""Action compositions shared by training and evaluation: a bounded learned residual and a command filter.
+
+Residual agent. A learned policy corrects a base controller's velocity command by a bounded amount::
+
+    a_base = base.predict(obs, info)
+    a_env  = clip(a_base + residual_scale * a_policy, -1, 1)
+
+``a_policy`` is the policy's output in ``[-1, 1]^18`` (already multiplied by the agent's own ``action_scale``, if
+any), so the residual moves each normalised command by at most ``residual_scale``. The policy observes
+``[obs; a_base]``: the environment's observation followed by the base's action at the same state (18 entries in
+``[-1, 1]``), so it knows what it corrects (:func:`residual_observation`, :func:`residual_observation_space`).
+:func:`compose_residual` is the one implementation of the formula: :class:`ResidualAction` applies it in training
+(a Gymnasium wrapper around the training and evaluation-callback environments) and :class:`ResidualController`
+at evaluation (around the trained agent's controller), so that for the same inputs both send the same action,
+bit for bit.
+
+Command filter. :class:`FilteredAction` passes every action through a controller-wrapping filter (in this project
+``baselines.safety.SafetyFilter``), the training-time counterpart of wrapping the evaluated controller in the same
+filter. With both, the order is the residual first, then the filter: ``FilteredAction`` is the inner wrapper
+(``env -> FilteredAction -> ResidualAction``), and at evaluation ``filter(ResidualController(...))``.
+
+[D] The base and the filter are *injected* as factories (:data:`ControllerFactory`, :data:`FilterFactory`): this
+module, like all of layer 0, imports no other package of the project; the composition layer
+(``leaderboard.registry.BaselineFactory``, ``SafetyFilterFactory``) provides picklable module-level factories, so
+that the wrappers also build in ``SubprocVecEnv`` / hybrid workers. :class:`ActionComposition` is what a run's
+``config.yml`` and an export's ``agent.json`` record (names, not objects), so evaluation rebuilds the same
+composition from the record alone.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from uvdms_gym.evaluation import Controller
+
+ControllerFactory = Callable[[Any], Controller]
+"""``(env) -> controller``: builds a base controller for an environment (picklable in training)."""
+FilterFactory = Callable[[Controller, Any], Controller]
+"""``(controller, env) -> controller``: wraps a controller so that its actions are filtered (picklable in training)."""
+
+ACTION_LOW = -1.0
+"""Lower bound of the normalised action space (the composed action is clipped to it)."""
+ACTION_HIGH = 1.0
+"""Upper bound of the normalised action space."""
+RECORD_KEYS: tuple[str, ...] = ("residual_base", "residual_scale", "safety_filter")
+"""The keys of an :class:`ActionComposition` in a run's config entry and in an export's ``agent.json``."""
+
+
+def is_residual_scale(value: Any) -> bool:
+    """Whether ``value`` is a real number in (0, 1] (a valid ``residual_scale``)."""
+    return (
+        isinstance(value, int | float)
+        and not isinstance(value, bool)
+        and math.isfinite(value)
+        and 0.0 < float(value) <= 1.0
+    )
+
+
+@dataclass(frozen=True)
+class ActionComposition:
+    """How an agent's output reaches the environment: an optional residual base and an optional safety filter.
+
+    Recorded as plain data (the keys of :data:`RECORD_KEYS`) in a run's ``config.yml`` and an export's
+    ``agent.json``; the composition layer turns the names back into controllers.
+
+    Attributes:
+        residual_base: Name of the base controller the policy's output is added to (``None``: a plain agent).
+            Which names are valid (velocity-mode baselines) is the composition layer's to check.
+        residual_scale: Bound of the residual, in (0, 1]; given exactly when ``residual_base`` is.
+        safety_filter: The (composed) velocity command goes through the safety filter.
+
+    Raises:
+        ValueError: A scale outside (0, 1], a scale without a base or a base without a scale, or a base that is
+            not a non-empty string.
+    """
+
+    residual_base: str | None = None
+    residual_scale: float | None = None
+    safety_filter: bool = False
+
+    def __post_init__(self) -> None:
+        if self.residual_base is not None and (not isinstance(self.residual_base, str) or not self.residual_base):
+            raise ValueError(f"residual_base must be a controller name, got {self.residual_base!r}")
+        if self.residual_base is None and self.residual_scale is not None:
+            raise ValueError(f"residual_scale {self.residual_scale} is given without a residual_base")
+        if self.residual_base is not None and not is_residual_scale(self.residual_scale):
+            raise ValueError(
+                f"residual_scale must be a number in (0, 1] for residual_base {self.residual_base!r}, "
+                f"got {self.residual_scale!r}"
+            )
+        if not isinstance(self.safety_filter, bool):
+            raise ValueError(f"safety_filter must be true or false, got {self.safety_filter!r}")
+
+    @property
+    def is_residual(self) -> bool:
+        """Whether the agent is a residual on a base controller."""
+        return self.residual_base is not None
+
+    @property
+    def is_plain(self) -> bool:
+        """Whether the policy's output is the environment's action (no residual, no filter)."""
+        return not self.is_residual and not self.safety_filter
+
+    def to_record(self) -> dict[str, Any]:
+        """The record: ``{"residual_base": ..., "residual_scale": ..., "safety_filter": ...}``."""
+        scale = None if self.residual_scale is None else float(self.residual_scale)
+        return {"residual_base": self.residual_base, "residual_scale": scale, "safety_filter": self.safety_filter}
+
+    @classmethod
+    def from_record(cls, record: Mapping[str, Any] | None) -> ActionComposition:
+        """The composition of a record (a config entry or ``agent.json``; absent keys: a plain agent).
+
+        Raises:
+            ValueError: The record's values are invalid (see the class).
+        """
+        record = record or {}
+        scale = record.get("residual_scale")
+        safety_filter = record.get("safety_filter")
+        return cls(
+            residual_base=record.get("residual_base"),
+            residual_scale=float(scale) if is_residual_scale(scale) else scale,
+            safety_filter=False if safety_filter is None else safety_filter,
+        )
+
+    def describe(self, name: str) -> str:
+        """``name`` prefixed with what the agent is made of: ``residual-<base>-<name>`` for a residual agent."""
+        if not self.is_residual:
+            return name
+        prefix = f"residual-{self.residual_base}-"
+        return name if name.startswith(prefix) else prefix + name
+
+
+def compose_residual(base_action: np.ndarray, policy_action: np.ndarray, scale: float) -> tuple[np.ndarray, bool]:
+    """``clip(base_action + scale * policy_action, -1, 1)`` and whether the clip changed anything.
+
+    Computed in float64 and returned as float32 (the action space's dtype), so the training wrapper and the
+    evaluation controller, which both call this, agree to the bit.
+
+    Args:
+        base_action: The base controller's action (18).
+        policy_action: The policy's output (18, in ``[-1, 1]``).
+        scale: ``residual_scale``, in (0, 1].
+
+    Returns:
+        ``(action, clipped)``.
+    """
+    raw = np.asarray(base_action, dtype=np.float64) + float(scale) * np.asarray(policy_action, dtype=np.float64)
+    action = np.clip(raw, ACTION_LOW, ACTION_HIGH)
+    return action.astype(np.float32), bool(np.any(action != raw))
+
+
+def residual_observation(obs: np.ndarray, base_action: np.ndarray) -> np.ndarray:
+    """What a residual policy observes: ``[obs; base_action]`` in the observation's dtype."""
+    obs = np.asarray(obs)
+    return np.concatenate([obs, np.asarray(base_action, dtype=obs.dtype)])
+
+
+def residual_observation_space(observation_space: gym.spaces.Box, action_space: gym.spaces.Box) -> gym.spaces.Box:
+    """The observation space of a residual policy: the environment's, extended by the action box.
+
+    Raises:
+        ValueError: Either space is not a one-dimensional ``Box``.
+    """
+    for what, space in (("observation", observation_space), ("action", action_space)):
+        if not isinstance(space, gym.spaces.Box) or len(space.shape) != 1:
+            raise ValueError(f"a residual agent needs a one-dimensional Box {what} space, got {space}")
+    dtype = observation_space.dtype
+    low = np.concatenate([observation_space.low, action_space.low.astype(dtype)])
+    high = np.concatenate([observation_space.high, action_space.high.astype(dtype)])
+    return gym.spaces.Box(low=low, high=high, dtype=dtype)  # type: ignore[arg-type]
+
+
+def _check_unit_box(env: gym.Env, what: str) -> None:
+    space = env.action_space
+    if not (
+        isinstance(space, gym.spaces.Box) and np.all(space.low == ACTION_LOW) and np.all(space.high == ACTION_HIGH)
+    ):
+        raise ValueError(f"{what} needs the normalised action space Box(-1, 1), got {space}")
+
+
+class ResidualAction(gym.Wrapper):
+    """Training-side residual: the agent's action is added to a base controller's (module docstring).
+
+    ``reset`` resets the environment, then the base (``base.reset(seed)``, as :func:`uvdms_gym.evaluation.run_episode`
+    does) and returns ``[obs; a_base]``; ``step(a)`` sends :func:`compose_residual` of the current ``a_base`` and
+    ``a`` to the environment, then computes the base's action at the new state for the next observation (also at
+    the last state of an episode: the learner bootstraps from it on truncation). ``info`` gains
+    ``residual_clipped`` (the clip changed the sum), ``residual_base_action`` (the ``a_base`` that was used) and
+    ``residual_action`` (the action sent); the base reads the environment's own ``info``.
+
+    Args:
+        env: A velocity-mode environment with the action space ``Box(-1, 1)``.
+        base_factory: Builds the base controller for ``env``.
+        scale: ``residual_scale``, in (0, 1].
+
+    Raises:
+        ValueError: A scale outside (0, 1], an action space other than ``Box(-1, 1)``, or what the factory raises.
+    """
+
+    def __init__(self, env: gym.Env, base_factory: ControllerFactory, scale: float) -> None:
+        super().__init__(env)
+        if not is_residual_scale(scale):
+            raise ValueError(f"residual_scale must be a number in (0, 1], got {scale!r}")
+        _check_unit_box(env, "a residual agent")
+        self.scale = float(scale)
+        self.base = base_factory(env)
+        self.observation_space = residual_observation_space(env.observation_space, env.action_space)
+        self._base_action: np.ndarray | None = None
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset the environment and the base; the observation is ``[obs; a_base]``."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.base.reset(seed)
+        self._base_action = np.asarray(self.base.predict(obs, info))
+        return residual_observation(obs, self._base_action), info
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        """Send ``clip(a_base + scale * action)``; the next observation is ``[obs; a_base(next state)]``."""
+        if self._base_action is None:
+            raise RuntimeError("ResidualAction.step called before reset")
+        base_action = self._base_action
+        sent, clipped = compose_residual(base_action, action, self.scale)
+        obs, reward, terminated, truncated, info = self.env.step(sent)
+        self._base_action = np.asarray(self.base.predict(obs, info))
+        info = {**info, "residual_clipped": clipped, "residual_base_action": base_action, "residual_action": sent}
+        return residual_observation(obs, self._base_action), reward, terminated, truncated, info
+
+
+class ResidualController:
+    """Evaluation-side residual: a base controller plus a trained policy's bounded correction (module docstring).
+
+    ``predict(obs, info)`` computes ``a_base = base.predict(obs, info)``, asks the policy for its output on
+    ``[obs; a_base]`` and returns :func:`compose_residual` of the two: for the same ``(obs, info)`` sequence the
+    actions :class:`ResidualAction` sends in training. ``last_record`` holds the base's record (its QP slack and
+    status feed the episode metrics) with ``zeta_cmd`` renamed ``base_zeta_cmd`` (the command sent is not the
+    base's), plus ``residual_clipped``.
+
+    Args:
+        base: The base controller (velocity action mode).
+        policy: The trained policy's controller; it receives ``[obs; a_base]``.
+        scale: ``residual_scale``, in (0, 1].
+
+    Raises:
+        ValueError: A scale outside (0, 1].
+    """
+
+    action_mode = "velocity"
+
+    def __init__(self, base: Controller, policy: Controller, scale: float) -> None:
+        if not is_residual_scale(scale):
+            raise ValueError(f"residual_scale must be a number in (0, 1], got {scale!r}")
+        self.base = base
+        self.policy = policy
+        self.residual_scale = float(scale)
+        self.last_record: dict[str, Any] = {}
+        for attr in ("algo", "env_id", "num_timesteps", "source"):  # what evaluation records of an agent
+            if hasattr(policy, attr):
+                setattr(self, attr, getattr(policy, attr))
+        if getattr(base, "mpc", None) is not None:
+            self.mpc = base.mpc  # type: ignore[attr-defined]
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start an episode (the base's and the policy's ``reset``)."""
+        self.base.reset(seed)
+        self.policy.reset(seed)
+        self.last_record = {}
+
+    def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        """``clip(a_base + scale * a_policy, -1, 1)`` with ``a_policy`` the policy's output on ``[obs; a_base]``."""
+        base_action = np.asarray(self.base.predict(obs, info))
+        record = dict(getattr(self.base, "last_record", None) or {})
+        if "zeta_cmd" in record:
+            record["base_zeta_cmd"] = record.pop("zeta_cmd")
+        policy_action = self.policy.predict(residual_observation(obs, base_action), info)
+        action, clipped = compose_residual(base_action, policy_action, self.residual_scale)
+        self.last_record = {**record, "residual_clipped": clipped}
+        return action
+
+
+class _GivenAction:
+    """The controller a filter wraps in training: it returns the action it was last given."""
+
+    def __init__(self) -> None:
+        self.action: np.ndarray | None = None
+
+    def reset(self, seed: int | None = None) -> None:
+        """Nothing to reset."""
+
+    def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        """The given action."""
+        if self.action is None:
+            raise RuntimeError("no action given")
+        return self.action
+
+
+class FilteredAction(gym.Wrapper):
+    """Training-side command filter: every action goes through a controller-wrapping filter before the environment.
+
+    The filter is built once, as ``filter_factory(inner, env)`` around a controller that returns the action being
+    stepped, and is reset with the environment; on ``step(a)`` it receives the observation and ``info`` of the
+    current state, exactly as the same filter wrapped around an evaluated controller does. ``info`` gains
+    ``filter_active`` and ``filter_change`` from the filter's ``last_record`` (``False`` / 0 when it has none).
+
+    Args:
+        env: The environment (velocity mode for ``baselines.safety.SafetyFilter``).
+        filter_factory: Wraps a controller in the filter.
+
+    Raises:
+        ValueError: An action space other than ``Box(-1, 1)``, or what the factory raises.
+    """
+
+    def __init__(self, env: gym.Env, filter_factory: FilterFactory) -> None:
+        super().__init__(env)
+        _check_unit_box(env, "the command filter")
+        self._given = _GivenAction()
+        self.filter = filter_factory(self._given, env)
+        self._obs: Any = None
+        self._info: dict[str, Any] | None = None
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset the environment and the filter."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.filter.reset(seed)
+        self._obs, self._info = obs, info
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        """Step with the filtered action."""
+        if self._info is None:
+            raise RuntimeError("FilteredAction.step called before reset")
+        self._given.action = np.asarray(action)
+        filtered = self.filter.predict(self._obs, self._info)
+        record = getattr(self.filter, "last_record", None) or {}
+        obs, reward, terminated, truncated, info = self.env.step(filtered)
+        self._obs, self._info = obs, info
+        info = {
+            **info,
+            "filter_active": bool(record.get("filter_active", False)),
+            "filter_change": float(record.get("filter_change", 0.0)),
+        }
+        return obs, reward, terminated, truncated, info
