@@ -17,6 +17,10 @@ Tracks
     (``campc-di``, ``campc-nndi``). An entry runs only on its own track's action mode. An agent runs only on
     the tasks of the environment id it was trained on (a CircleTrack agent on every circle task, including
     the case it was not trained on; a Transport agent on the transport tasks); baselines run on every task.
+    Any version of the environment counts: the task suite names ``uvdms/CircleTrack-v0`` and
+    ``uvdms/Transport-v0``, and an agent trained on ``-v1`` runs the same tasks on ``-v1``
+    (:meth:`Entry.task_spec`). The versions share dynamics, tasks, observations and costs and differ only in the
+    reward, so every metric but ``return`` (and so the ranking) is independent of the version.
 
 Multi-seed entries
     A folder whose sub-folders are named ``seed_<k>`` (:data:`SEED_FOLDER_PREFIX`), each an agent folder of its

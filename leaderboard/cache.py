@@ -37,7 +37,7 @@ def cache_material(entry: Entry, task: Task, seed: int, save_trajectory: bool) -
         "format": CACHE_FORMAT,
         "package_version": PACKAGE_VERSION,
         "entry": entry.identity(),
-        "task": task.spec(entry.track),
+        "task": entry.task_spec(task),
         "seed": int(seed),
         "trajectory": bool(save_trajectory),
     }

@@ -33,7 +33,7 @@ from typing import Any
 import yaml
 
 from leaderboard.registry import TRACK_OF
-from leaderboard.tasks import TRACKS, Task
+from leaderboard.tasks import TRACKS, Task, env_family
 from uvdms_gym.residual import ActionComposition
 
 log = logging.getLogger("uvdms.leaderboard")
@@ -121,8 +121,20 @@ class Entry:
         return identity
 
     def runs_on(self, task: Task) -> bool:
-        """Whether the entry is evaluated on ``task`` (agents: only their training environment id)."""
-        return self.env_id is None or self.env_id == task.env_id
+        """Whether the entry is evaluated on ``task`` (agents: only tasks of the environment they were trained on).
+
+        Any version of the task's environment counts (:func:`leaderboard.tasks.env_family`): an agent trained
+        on ``uvdms/CircleTrack-v1`` runs the circle tasks, on ``-v1`` (:meth:`task_spec`).
+        """
+        return self.env_id is None or env_family(self.env_id) == env_family(task.env_id)
+
+    def task_spec(self, task: Task) -> dict[str, Any]:
+        """The environment this entry runs ``task`` on: the task's, in the version the agent was trained on.
+
+        Baselines (and agents of the task's own version) run the task's environment id; the versions differ
+        only in the reward, so only the ``return`` metric depends on the version.
+        """
+        return task.spec(self.track, self.env_id if self.env_id is not None and self.runs_on(task) else None)
 
     @property
     def slug(self) -> str:

@@ -113,10 +113,10 @@ def _close_worker_env() -> None:
 
 def compute_job(job: Job, backend: Backend, trust: bool) -> dict[str, Any]:
     """Run one episode and return its compact result (the driver stores it with :func:`store_result`)."""
-    group = (job.entry.name, job.entry.checksum, json.dumps(job.task.spec(job.entry.track), sort_keys=True))
+    group = (job.entry.name, job.entry.checksum, json.dumps(job.entry.task_spec(job.task), sort_keys=True))
     if _WORKER.get("key") != group:
         _close_worker_env()
-        _WORKER["env"] = backend.make_env(job.task.spec(job.entry.track))
+        _WORKER["env"] = backend.make_env(job.entry.task_spec(job.task))
         _WORKER["key"] = group
     env = _WORKER["env"]
     # baselines are stateful (adaptive networks, warm starts): a fresh one per episode; so is a residual agent's base

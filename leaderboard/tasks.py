@@ -6,6 +6,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from gymnasium.envs.registration import parse_env_id
+
 SEED_BASE = 2_000_000_000
 """Evaluation seed of episode ``i`` is ``SEED_BASE + i`` (see :mod:`leaderboard`)."""
 TRACKS: tuple[str, ...] = ("velocity", "torque")
@@ -36,13 +38,34 @@ class Task:
     trajectory: bool = False
     max_episode_steps: int | None = None
 
-    def spec(self, track: str) -> dict[str, Any]:
-        """The environment specification of this task on ``track`` (part of the cache key)."""
+    def spec(self, track: str, env_id: str | None = None) -> dict[str, Any]:
+        """The environment specification of this task on ``track`` (part of the cache key).
+
+        Args:
+            track: ``"velocity"`` or ``"torque"`` (the ``action_mode``).
+            env_id: Another version of the task's environment (same :func:`env_family`, e.g. ``-v1`` for an
+                agent trained on it); ``None``: :attr:`env_id`.
+
+        Raises:
+            ValueError: ``env_id`` is not a version of the task's environment.
+        """
+        if env_id is not None and env_family(env_id) != env_family(self.env_id):
+            raise ValueError(f"task {self.name!r} runs {self.env_id!r}, not {env_id!r} (another environment)")
         return {
-            "env_id": self.env_id,
+            "env_id": env_id or self.env_id,
             "env_kwargs": {**dict(self.env_kwargs), "action_mode": track},
             "max_episode_steps": self.max_episode_steps,
         }
+
+
+def env_family(env_id: str) -> str:
+    """The environment id without its version (``uvdms/CircleTrack-v1`` -> ``uvdms/CircleTrack``).
+
+    The versions of a uvdms task share dynamics, task, observations and costs and differ only in the reward
+    (``uvdms_gym/envs/v1.py``), so every leaderboard metric but ``return`` is the same on each of them.
+    """
+    namespace, name, _version = parse_env_id(env_id.split(":")[-1])
+    return f"{namespace}/{name}" if namespace else name
 
 
 CIRCLE_ID, TRANSPORT_ID = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"

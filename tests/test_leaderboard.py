@@ -484,3 +484,25 @@ def test_cli_prints_ranked_tables_and_reuses_the_cache(tmp_path, monkeypatch, ca
     assert "uvdms leaderboard --quick --entries campc campc-nndi" in md
     assert uvdms_main(["leaderboard", "--entries", "nope", "--out", str(tmp_path / "x")]) == 2
     assert "neither a baseline" in capsys.readouterr().err
+
+
+def test_agents_of_another_env_version_run_the_tasks_on_their_version():
+    from leaderboard.entries import Entry
+    from leaderboard.tasks import TASKS, env_family
+
+    by_name = {t.name: t for t in TASKS}
+    circle, transport = by_name["case1"], by_name["transport"]
+    assert env_family("uvdms/CircleTrack-v1") == env_family("uvdms/CircleTrack-v0") == "uvdms/CircleTrack"
+    assert env_family("uvdms_gym:uvdms/Transport-v1") == "uvdms/Transport"
+    v1 = Entry("a", "agent", "path/a", "velocity", env_id="uvdms/CircleTrack-v1", checksum="0" * 64)
+    v0 = Entry("b", "agent", "path/b", "velocity", env_id="uvdms/CircleTrack-v0", checksum="1" * 64)
+    base = Entry("campc", "baseline", "campc", "velocity")
+    assert v1.runs_on(circle) and not v1.runs_on(transport)
+    assert v1.task_spec(circle) == {**circle.spec("velocity"), "env_id": "uvdms/CircleTrack-v1"}
+    # v0 agents and baselines keep the task's own spec (and so their cache keys)
+    assert v0.task_spec(circle) == base.task_spec(circle) == circle.spec("velocity")
+    assert base.task_spec(transport)["env_id"] == "uvdms/Transport-v0"
+    with pytest.raises(ValueError, match="another environment"):
+        circle.spec("velocity", "uvdms/Transport-v1")
+    material = lb.cache.cache_material(v1, circle, 2_000_000_000, False)
+    assert material["task"]["env_id"] == "uvdms/CircleTrack-v1"
