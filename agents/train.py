@@ -17,6 +17,8 @@ Run directory ``<out>/<env id, '/' and ':' replaced by '_'>/<algo>_<seed>/``::
     best_model.zip              best model on the evaluation env (only if an evaluation ran)
     best_vecnormalize.pkl       VecNormalize statistics of best_model.zip (only with ``normalize``)
     best_model.json             num_timesteps and mean reward of best_model.zip
+    lagrangian.csv              ppo_lagrangian only: the multiplier after every rollout, all segments
+                                (agents.ppo_lagrangian.HISTORY_FIELDS)
     checkpoints/                rl_model_<N>_steps.zip, rl_model_vecnormalize_<N>_steps.pkl,
                                 rl_model_replay_buffer_<N>_steps.pkl (latest one only)
     logs/seg<k>/                progress.csv, TensorBoard events, evaluations.npz of segment k
@@ -85,6 +87,7 @@ from agents.models import (
     replay_buffer_size,
     scale_action_layer,
 )
+from agents.ppo_lagrangian import HISTORY_FILE, LagrangianHistory, PPOLagrangian
 from agents.rundir import (
     CHECKPOINT_PREFIX,
     Checkpoint,
@@ -159,7 +162,7 @@ def train(
     """Train (or resume training of) an agent and return its run directory.
 
     Args:
-        algo: Algorithm name (``ppo``, ``sac``, ``td3``, ``tqc``); optional when resuming.
+        algo: Algorithm name (``ppo``, ``ppo_lagrangian``, ``sac``, ``td3``, ``tqc``); optional when resuming.
         env_id: Gymnasium environment id; optional when resuming.
         env_kwargs: Extra ``gymnasium.make`` keyword arguments (override the config's ``env_kwargs``).
         config_path: YAML config; default ``train_configs/<algo>.yml``.
@@ -536,6 +539,8 @@ def _run_segment(
                 if best is not None:
                     eval_callback.best_mean_reward = float(best)
             callbacks.append(eval_callback)
+        if isinstance(model, PPOLagrangian):
+            callbacks.append(LagrangianHistory(run_dir / HISTORY_FILE, segment))
         callbacks.extend(extra_callbacks)
 
         model.learn(
