@@ -62,7 +62,11 @@ def _effective_policy_kwargs(cfg) -> dict:
 
 
 def test_before_values_cover_every_entry():
-    now = {f"{path.stem}/{name}" for path in CONFIGS for name in validate_config_file(path)}
+    """Every entry of the files that existed at the rewrite (files added later, e.g. ppo_lagrangian.yml, aside)."""
+    before_files = {key.split("/", 1)[0] for key in BEFORE}
+    assert before_files <= {path.stem for path in CONFIGS}
+    files = [path for path in CONFIGS if path.stem in before_files]
+    now = {f"{path.stem}/{name}" for path in files for name in validate_config_file(path)}
     assert now == set(BEFORE)
 
 
