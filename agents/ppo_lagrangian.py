@@ -22,8 +22,9 @@ reference algorithms (OmniSafe's ``PPOLag``), with a plain (not Adam) dual step:
 * Multiplier. After every rollout, before the policy update: ``lambda <- max(0, lambda + lagrangian_lr * (J_c -
   cost_limit))``, where ``J_c`` is the mean summed raw cost of the episodes that *ended* in the rollout (an episode
   spanning rollouts counts whole, in the rollout it ends in). A rollout in which no episode ended leaves
-  ``lambda`` unchanged. The step is plain projected gradient ascent (the brief's rule; OmniSafe uses Adam on the
-  same objective).
+  ``lambda`` unchanged. The step is plain projected gradient ascent: its size reads directly as lambda per unit of
+  cost excess, and it is easy to recompute from a run's episodes (the tests do); safety-starter-agents (Adam on a
+  softplus parameter) and OmniSafe (Adam) take adaptive steps on the same objective.
 * Policy update. PPO's clipped surrogate on ``A = (A_r - lambda A_c) / (1 + lambda)``, with ``A_r`` standardised
   over the rollout and ``A_c`` centred (as Ray et al. and OmniSafe do): ``lambda`` then weighs one standard
   deviation of reward advantage against one unit of cost advantage, whatever the reward's scale (VecNormalize's
@@ -329,7 +330,8 @@ class PPOLagrangian(PPO):
         verbose: As PPO.
         seed: As PPO (also seeds the cost critic's minibatch generator).
         device: As PPO.
-        cost_limit: Per-episode cost budget ``d`` (undiscounted sum of ``info["cost"]``), >= 0.
+        cost_limit: Per-episode cost budget ``d`` (undiscounted sum of ``info["cost"]``), >= 0 (default 25, the
+            budget of Safety-Gymnasium's benchmarks).
         lagrangian_lr: Step size of the dual ascent, > 0.
         lagrangian_init: Initial multiplier ``lambda``, >= 0.
         _init_setup_model: As PPO.
@@ -572,6 +574,8 @@ class LagrangianHistory(BaseCallback):
 
     The update happens after a rollout; the row is written when the next rollout starts or training ends.
     The file is appended to across training segments (``segment`` column); :data:`HISTORY_FIELDS` are the columns.
+    ``update`` continues the resumed model's count, so after resuming from a checkpoint older than the last row
+    (a crash between checkpoints) an update number appears twice, with different segments.
 
     Args:
         path: The CSV file (``<run dir>/lagrangian.csv``).
