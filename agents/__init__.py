@@ -2,7 +2,8 @@
 
 Modules (imported on demand, so ``import agents`` stays light):
 
-* :mod:`agents.algos`: the algorithm table ``ALGOS`` (PPO, SAC, TD3, TQC).
+* :mod:`agents.algos`: the algorithm table ``ALGOS`` (PPO, PPO-Lagrangian, SAC, TD3, TQC).
+* :mod:`agents.ppo_lagrangian`: PPO-Lagrangian (a cost critic and a Lagrange multiplier on ``info["cost"]``).
 * :mod:`agents.typecheck`: generic checking of YAML data against type annotations (strict keys, no eval).
 * :mod:`agents.config`: ``train_configs/<algo>.yml`` loading and validation (the ``TrainConfig`` schema).
 * :mod:`agents.zoo`: RL Baselines3 Zoo's config keys (``env_wrapper``, ``callback``, ``train_options``).

@@ -1,11 +1,23 @@
-"""The reinforcement-learning algorithms available to the training scripts."""
+"""The reinforcement-learning algorithms available to the training scripts.
+
+SB3's PPO, SAC, TD3, sb3-contrib's TQC, and the project's PPO-Lagrangian (:mod:`agents.ppo_lagrangian`: PPO under a
+per-episode budget on ``info["cost"]``).
+"""
 
 from sb3_contrib import TQC
 from stable_baselines3 import PPO, SAC, TD3
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
-ALGOS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC, "td3": TD3, "tqc": TQC}
+from agents.ppo_lagrangian import PPOLagrangian
+
+ALGOS: dict[str, type[BaseAlgorithm]] = {
+    "ppo": PPO,
+    "ppo_lagrangian": PPOLagrangian,
+    "sac": SAC,
+    "td3": TD3,
+    "tqc": TQC,
+}
 """Algorithm name (as used in ``--algo`` and in ``train_configs/<algo>.yml``) -> SB3 class."""
 
 

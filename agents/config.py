@@ -417,6 +417,7 @@ def parse_entry(
     if isinstance(values.get("normalize"), dict):
         values["normalize"] = _validate_normalize(values["normalize"], where)
     _check_ranges(values, algo, where)
+    _check_hyperparam_ranges(algo_cls, hyperparams, where)
     return TrainConfig(algo=algo, hyperparams=hyperparams, **values)
 
 
@@ -434,7 +435,7 @@ def _validate_policy_kwargs(kwargs: dict[str, Any], algo: str, policy: str, wher
         out[key] = _CHECKER.validate(value, params[key].annotation, where, full_key)
     net_arch = out.get("net_arch")
     if isinstance(net_arch, dict):
-        allowed = {"pi", "vf"} if algo == "ppo" else {"pi", "qf"}
+        allowed = {"pi", "qf"} if is_off_policy(algo) else {"pi", "vf"}
         extra = set(net_arch) - allowed
         if extra:
             raise ConfigError(
@@ -502,6 +503,17 @@ def _check_composition(values: dict[str, Any], where: str) -> None:
     if mode != "velocity":
         what = "residual_base" if composition.is_residual else "safety_filter"
         raise ConfigError(f"{where}: key {what!r} composes velocity commands, but env_kwargs has action_mode={mode!r}")
+
+
+def _check_hyperparam_ranges(algo_cls: type, hyperparams: Mapping[str, Any], where: str) -> None:
+    """The algorithm's own range checks of its keyword arguments (``check_hyperparams``, if it has one)."""
+    check = getattr(algo_cls, "check_hyperparams", None)
+    if check is None:
+        return
+    try:
+        check(hyperparams)
+    except ValueError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
 
 
 def _check_algo(algo: str, source: str) -> None:

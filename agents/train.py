@@ -20,6 +20,8 @@ Run directory ``<out>/<env id, '/' and ':' replaced by '_'>/<algo>_<seed>/``::
     learning_curve.json         the benchmark's metrics of every evaluation (success rate, contact-free rates,
                                 position RMSE) against num_timesteps, kept through --resume (uvdms envs only;
                                 :mod:`agents.learning_curve`)
+    lagrangian.csv              ppo_lagrangian only: the multiplier after every rollout, all segments
+                                (agents.ppo_lagrangian.HISTORY_FIELDS)
     checkpoints/                rl_model_<N>_steps.zip, rl_model_vecnormalize_<N>_steps.pkl,
                                 rl_model_replay_buffer_<N>_steps.pkl (latest one only)
     logs/seg<k>/                progress.csv, TensorBoard events, evaluations.npz of segment k
@@ -98,6 +100,7 @@ from agents.models import (
     replay_buffer_size,
     scale_action_layer,
 )
+from agents.ppo_lagrangian import HISTORY_FILE, LagrangianHistory, PPOLagrangian
 from agents.rundir import (
     CHECKPOINT_PREFIX,
     Checkpoint,
@@ -180,7 +183,7 @@ def train(
     """Train (or resume training of) an agent and return its run directory.
 
     Args:
-        algo: Algorithm name (``ppo``, ``sac``, ``td3``, ``tqc``); optional when resuming.
+        algo: Algorithm name (``ppo``, ``ppo_lagrangian``, ``sac``, ``td3``, ``tqc``); optional when resuming.
         env_id: Gymnasium environment id; optional when resuming.
         env_kwargs: Extra ``gymnasium.make`` keyword arguments (override the config's ``env_kwargs``).
         config_path: YAML config; default ``train_configs/<algo>.yml``.
@@ -669,6 +672,8 @@ def _run_segment(
             callbacks.append(eval_callback)
         if record["torch_update_threads"] > 1:  # the envs are idle during an on-policy update (agents.threads)
             callbacks.append(UpdateThreads(record["torch_update_threads"]))
+        if isinstance(model, PPOLagrangian):
+            callbacks.append(LagrangianHistory(run_dir / HISTORY_FILE, segment))
         callbacks.extend(extra_callbacks)
 
         model.learn(

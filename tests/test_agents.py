@@ -54,6 +54,9 @@ TEST_ENVS: list[tuple[str, dict]] = [
 ]
 ALGO_NAMES = sorted(ALGOS)
 UVDMS_IDS = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0")
+COST_ALGOS = ("ppo_lagrangian",)  # need info["cost"]: trained on the uvdms ids only
+RUNS = [(a, e) for a in ALGO_NAMES for e, _ in TEST_ENVS if a not in COST_ALGOS or e in UVDMS_IDS]
+"""The (algo, env id) pairs of the shared training runs."""
 
 # A tiny config per algorithm (tests override n_timesteps; small nets, buffers and batches).
 _COMMON = {"n_timesteps": 300, "n_envs": 2, "eval_freq": 200, "n_eval_episodes": 1, "checkpoint_freq": 200}
@@ -64,6 +67,16 @@ TINY = {
         "n_steps": 64,
         "batch_size": 64,
         "n_epochs": 2,
+        "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}, "log_std_init": -1.0},
+    },
+    "ppo_lagrangian": {
+        **_COMMON,
+        "normalize": True,
+        "n_steps": 64,
+        "batch_size": 64,
+        "n_epochs": 2,
+        "cost_limit": 1.0,
+        "lagrangian_init": 0.5,
         "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}, "log_std_init": -1.0},
     },
     "sac": {
@@ -122,27 +135,36 @@ def config_dir(tmp_path_factory) -> Path:
     return folder
 
 
-@pytest.fixture(scope="module")
-def runs(tmp_path_factory, config_dir) -> dict[tuple[str, str], Path]:
-    """One short training run per (algo, env) of the test lists, shared by several tests."""
-    out = tmp_path_factory.mktemp("runs")
-    result = {}
-    for algo in ALGO_NAMES:
-        for env_id, env_kwargs in TEST_ENVS:
-            result[algo, env_id] = train(
+class _Runs:
+    """One short training run per (algo, env) pair of :data:`RUNS`, trained when a test first asks for it."""
+
+    def __init__(self, out: Path, config_dir: Path) -> None:
+        self.out, self.config_dir = out, config_dir
+        self._done: dict[tuple[str, str], Path] = {}
+
+    def __getitem__(self, key: tuple[str, str]) -> Path:
+        if key not in self._done:
+            algo, env_id = key
+            self._done[key] = train(
                 algo,
                 env_id,
-                env_kwargs,
-                config_dir / f"{algo}.yml",
+                dict(TEST_ENVS)[env_id],
+                self.config_dir / f"{algo}.yml",
                 seed=7,
                 total_timesteps=None,
                 n_envs=None,
-                out_dir=out,
+                out_dir=self.out,
                 resume_dir=None,
                 progress=False,
                 gym_packages=["uvdms_gym"],
             )
-    return result
+        return self._done[key]
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory, config_dir) -> _Runs:
+    """The shared training runs (:class:`_Runs`), shared by several tests."""
+    return _Runs(tmp_path_factory.mktemp("runs"), config_dir)
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -267,8 +289,7 @@ def test_parse_key_values():
 # ------------------------------------------------------------------------------------------------------
 # Training runs
 # ------------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("env_id", [e for e, _ in TEST_ENVS])
-@pytest.mark.parametrize("algo", ALGO_NAMES)
+@pytest.mark.parametrize(("algo", "env_id"), RUNS)
 def test_training_writes_complete_run_dir(runs, algo, env_id):
     run_dir = runs[algo, env_id]
     assert run_dir == run_dir_for(run_dir.parents[1], env_id, algo, 7)
@@ -292,6 +313,7 @@ def test_training_writes_complete_run_dir(runs, algo, env_id):
     normalized = TINY[algo].get("normalize", False) is not False
     assert (run_dir / "vecnormalize.pkl").is_file() == normalized
     assert (run_dir / "best_vecnormalize.pkl").is_file() == normalized
+    assert (run_dir / "lagrangian.csv").is_file() == (algo in COST_ALGOS)
 
     resolved = yaml.safe_load((run_dir / "config.yml").read_text())
     assert resolved["algo"] == algo and resolved["env_id"] == env_id and resolved["seed"] == 7
@@ -314,8 +336,7 @@ def test_training_writes_complete_run_dir(runs, algo, env_id):
     assert len(command) == 1 and f"--algo {algo}" in command[0]
 
 
-@pytest.mark.parametrize("env_id", [e for e, _ in TEST_ENVS])
-@pytest.mark.parametrize("algo", ALGO_NAMES)
+@pytest.mark.parametrize(("algo", "env_id"), RUNS)
 def test_round_trip_gives_identical_actions(runs, tmp_path, algo, env_id):
     run_dir = runs[algo, env_id]
     env_kwargs = dict(TEST_ENVS)[env_id]

@@ -131,6 +131,16 @@ SHRUNK: dict[str, Shrunk] = {
             creates=("runs/uvdms_Transport-v0/ppo_0/final_model.zip",),
         )
     ),
+    "uvdms train --algo ppo_lagrangian --env uvdms/CircleTrack-v1 --hyperparams cost_limit=5.0 --seed 0": Shrunk(
+        "train",
+        "uvdms train --algo ppo_lagrangian --env uvdms/CircleTrack-v1 --env-kwargs max_episode_steps=20 "
+        f"--hyperparams cost_limit=5.0 {TINY_PPO} --seed 0 --total-timesteps 256 --no-progress",
+        creates=(
+            "runs/uvdms_CircleTrack-v1/ppo_lagrangian_0/final_model.zip",
+            "runs/uvdms_CircleTrack-v1/ppo_lagrangian_0/lagrangian.csv",
+        ),
+        contains=(("runs/uvdms_CircleTrack-v1/ppo_lagrangian_0/lagrangian.csv", "cost_limit,lambda"),),
+    ),
     "uvdms train --resume runs/uvdms_CircleTrack-v0/sac_0 --total-timesteps 20000": Shrunk(
         "train",
         "uvdms train --resume runs/uvdms_CircleTrack-v0/sac_0 --total-timesteps 200 --no-progress",

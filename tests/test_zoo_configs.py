@@ -66,7 +66,11 @@ ADDED_SINCE = {f"{algo}/uvdms/{task}-v1" for algo in ("ppo", "sac") for task in 
 
 
 def test_before_values_cover_every_entry():
-    now = {f"{path.stem}/{name}" for path in CONFIGS for name in validate_config_file(path)}
+    """Every entry of the files that existed at the rewrite (files added later, e.g. ppo_lagrangian.yml, aside)."""
+    before_files = {key.split("/", 1)[0] for key in BEFORE}
+    assert before_files <= {path.stem for path in CONFIGS}
+    files = [path for path in CONFIGS if path.stem in before_files]
+    now = {f"{path.stem}/{name}" for path in files for name in validate_config_file(path)}
     assert now - ADDED_SINCE == set(BEFORE)
     assert ADDED_SINCE <= now
 
