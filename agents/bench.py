@@ -9,11 +9,13 @@ steps in the trainer's process while the other steps in a worker (:class:`agents
 (``case=1``) with the configurations of ``train_configs/<algo>.yml``. SAC's ``learning_starts`` is lowered
 to 100 steps so that its blocks include the gradient steps of steady-state training.
 
-The three models are built first, then timed in alternating blocks (PPO: one rollout of
+The four models are built first, then timed in alternating blocks (PPO: one rollout of
 ``n_steps x n_envs`` steps and its update; SAC: a fixed number of environment steps), so a change in machine
 load affects all alike; the figures are medians over blocks and ``speedup_2_vs_1`` is the ratio of the
-medians (``speedup_2_dummy_vs_1`` and ``speedup_2_hybrid_vs_1`` likewise). The load average before and
-after is part of the result: timings taken beside other jobs are only indicative.
+medians (``speedup_2_dummy_vs_1`` and ``speedup_2_hybrid_vs_1`` likewise). ``speedup_2_vs_1_paired`` (and
+``_dummy``/``_hybrid``) is the median over rounds of the ratio of the two models' blocks of the same round
+(seconds apart), which cancels the machine's slower drifts (a shared VM's speed can change 2x within minutes).
+The load average before and after is part of the result: timings taken beside other jobs are only indicative.
 
 Threads (:mod:`agents.threads`, as :func:`agents.train.train` sets them): one torch thread in the trainer while
 the envs step and the policy acts, and each env worker sets one too (:class:`agents.envs.EnvFactory`). PPO's
@@ -35,6 +37,8 @@ import numpy as np
 BENCH_ENV = "uvdms/CircleTrack-v0"
 BENCH_ENV_KWARGS: dict[str, Any] = {"case": 1}
 SAC_LEARNING_STARTS = 100
+DEFAULT_BLOCKS: dict[str, int] = {"ppo": 5, "sac": 3}
+"""Timed blocks per model (PPO's blocks are short, and its 2-env ratio is the noisier figure on a shared VM)."""
 
 
 CONFIGURATIONS: tuple[tuple[str, int, str], ...] = (
@@ -98,7 +102,7 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
 
     Args:
         quick: Fewer and shorter blocks.
-        blocks: Timed blocks per model (default 3, quick 1).
+        blocks: Timed blocks per model (default :data:`DEFAULT_BLOCKS` per algorithm, quick 1).
         sac_block_steps: Environment steps per SAC block (default 1000, quick 200).
 
     Returns:
@@ -113,7 +117,6 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
     from agents.threads import update_threads
 
     torch.set_num_threads(1)
-    blocks = blocks if blocks is not None else (1 if quick else 3)
     sac_steps = sac_block_steps if sac_block_steps is not None else (200 if quick else 1000)
     result: dict[str, Any] = {
         "env_id": BENCH_ENV,
@@ -123,7 +126,8 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
         "load_avg_before": list(os.getloadavg()),
     }
     for algo in ("ppo", "sac"):
-        total = (blocks + 1) * sac_steps + SAC_LEARNING_STARTS + 2
+        n_blocks = blocks if blocks is not None else (1 if quick else DEFAULT_BLOCKS[algo])
+        total = (n_blocks + 1) * sac_steps + SAC_LEARNING_STARTS + 2
         models = {key: _build(algo, n, vec_env, total) for key, n, vec_env in CONFIGURATIONS}
         n_envs = {key: n for key, n, _ in CONFIGURATIONS}
         threads = {key: update_threads(n, vec_env, not is_off_policy(algo)) for key, n, vec_env in CONFIGURATIONS}
@@ -133,7 +137,7 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
             for key, model in models.items():  # warm-up: past SAC's learning_starts, PPO's first update
                 _block(model, sizes[key] if algo == "ppo" else max(sac_steps, SAC_LEARNING_STARTS + 2), threads[key])
             rates: dict[str, list[float]] = {key: [] for key in models}
-            for _ in range(blocks):
+            for _ in range(n_blocks):
                 for key, model in models.items():
                     steps, seconds = _block(model, sizes[key], threads[key])
                     rates[key].append(steps / seconds)
@@ -150,9 +154,10 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
                 "steps_per_s": float(np.median(rates[key])),
                 "blocks_steps_per_s": rates[key],
             }
-        entry["speedup_2_vs_1"] = entry["2"]["steps_per_s"] / entry["1"]["steps_per_s"]
-        entry["speedup_2_dummy_vs_1"] = entry["2_dummy"]["steps_per_s"] / entry["1"]["steps_per_s"]
-        entry["speedup_2_hybrid_vs_1"] = entry["2_hybrid"]["steps_per_s"] / entry["1"]["steps_per_s"]
+        for key, suffix in (("2", ""), ("2_dummy", "_dummy"), ("2_hybrid", "_hybrid")):
+            entry[f"speedup_2{suffix}_vs_1"] = entry[key]["steps_per_s"] / entry["1"]["steps_per_s"]
+            paired = [two / one for two, one in zip(rates[key], rates["1"], strict=True)]
+            entry[f"speedup_2{suffix}_vs_1_paired"] = float(np.median(paired))
         result[algo] = entry
     result["load_avg_after"] = list(os.getloadavg())
     return result
