@@ -77,6 +77,13 @@ def test_wheel_holds_code_configs_and_shipped_agents(wheel):
             if (folder / name).is_file() or name in ("model.zip", "config.yml", "meta.json", "README.md"):
                 assert f"agents/trained_agents/{folder.name}/{name}" in names, f"{folder.name}/{name}"
         assert (folder / "model.zip").stat().st_size < MAX_MODEL_BYTES
+    export_files = ("agent.json", "policy.pt", "normalization.npz", "learning_curve.json")
+    for seed_folder in sorted((REPO / "trained_agents").glob("*/seed_*")):  # multi-seed entries' exports
+        entry = seed_folder.parent.name
+        for name in export_files:
+            if (seed_folder / name).is_file():
+                assert f"agents/trained_agents/{entry}/{seed_folder.name}/{name}" in names, f"{seed_folder}/{name}"
+        assert sum(f.stat().st_size for f in seed_folder.iterdir() if f.is_file()) < MAX_MODEL_BYTES
     assert not [n for n in names if "training_logs" in n or n.endswith(".png")]  # logs and plots stay in git
     assert "License-Expression: MIT" in metadata
     assert any(line.startswith("Requires-Dist: rich") for line in metadata.splitlines())

@@ -35,8 +35,9 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
     """Connect to Ray for the duration of a ``with`` block and yield the ``ray`` module.
 
     Args:
-        address: ``None`` starts a local instance; otherwise the address of a running cluster (``"auto"``,
-            ``"ray://host:port"``, ``"host:port"``).
+        address: ``None`` starts a new local instance (also when ``RAY_ADDRESS`` is set or another cluster runs on
+            this machine); otherwise the address of a running cluster (``"auto"``, ``"ray://host:port"``,
+            ``"host:port"``).
         num_cpus: CPUs of the local instance (default: every core of this machine). Ignored with ``address``:
             a cluster's CPUs are those its nodes were started with.
 
@@ -54,7 +55,11 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
     if num_cpus is not None and num_cpus < 1:
         raise ValueError(f"num_cpus must be >= 1, got {num_cpus}")
     if address is None:
-        ray.init(num_cpus=num_cpus or os.cpu_count() or 1, include_dashboard=False, logging_level="WARNING")
+        # "local": a new instance even when RAY_ADDRESS is set or a `ray start` cluster runs on this machine
+        # (ray.init() without an address would join that one, and refuse num_cpus)
+        ray.init(
+            address="local", num_cpus=num_cpus or os.cpu_count() or 1, include_dashboard=False, logging_level="WARNING"
+        )
     else:
         probe_address(address)
         try:
