@@ -25,7 +25,7 @@ import json
 import logging
 import re
 import zipfile
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -418,13 +418,12 @@ def _read_structured(path: Path) -> Any:
     return json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
 
 
-def agent_env(path: str | Path) -> tuple[str | None, dict[str, Any]]:
-    """The training environment id and keyword arguments of an agent, from ``agent.json`` or ``config.yml``.
+def _agent_config_docs(path: Path) -> Iterator[tuple[Path, dict[str, Any]]]:
+    """``(file, mapping)`` of every readable configuration file of an agent (``agent.json``, ``config.yml``), in order.
 
-    Returns:
-        ``(env_id, env_kwargs)``; ``(None, {})`` if no configuration file is found.
+    An unreadable file is logged and skipped; a file that does not hold a mapping is skipped.
     """
-    for folder in _agent_folders(Path(path)):
+    for folder in _agent_folders(path):
         for name in _AGENT_CONFIG_NAMES:
             file = folder / name
             if not file.is_file():
@@ -434,13 +433,22 @@ def agent_env(path: str | Path) -> tuple[str | None, dict[str, Any]]:
             except (OSError, ValueError, yaml.YAMLError) as exc:
                 log.warning("cannot read %s: %s", file, exc)
                 continue
-            if not isinstance(doc, dict):
-                continue
-            config = doc.get("config") if isinstance(doc.get("config"), dict) else {}
-            env_kwargs = doc.get("env_kwargs") or config.get("env_kwargs") or {}
-            env_id = doc.get("env_id") or config.get("env_id")
-            if env_id is not None:
-                return str(env_id).split(":")[-1], dict(env_kwargs)
+            if isinstance(doc, dict):
+                yield file, doc
+
+
+def agent_env(path: str | Path) -> tuple[str | None, dict[str, Any]]:
+    """The training environment id and keyword arguments of an agent, from ``agent.json`` or ``config.yml``.
+
+    Returns:
+        ``(env_id, env_kwargs)``; ``(None, {})`` if no configuration file is found.
+    """
+    for _file, doc in _agent_config_docs(Path(path)):
+        config = doc.get("config") if isinstance(doc.get("config"), dict) else {}
+        env_kwargs = doc.get("env_kwargs") or config.get("env_kwargs") or {}
+        env_id = doc.get("env_id") or config.get("env_id")
+        if env_id is not None:
+            return str(env_id).split(":")[-1], dict(env_kwargs)
     return None, {}
 
 
@@ -452,22 +460,12 @@ def agent_composition(path: str | Path) -> ActionComposition:
     Raises:
         ValueError: The recorded values are invalid (the message names the file).
     """
-    for folder in _agent_folders(Path(path)):
-        for name in _AGENT_CONFIG_NAMES:
-            file = folder / name
-            if not file.is_file():
-                continue
-            try:
-                doc = _read_structured(file)
-            except (OSError, ValueError, yaml.YAMLError):
-                continue  # (agent_env has logged it)
-            if not isinstance(doc, dict):
-                continue
-            record = doc["config"] if isinstance(doc.get("config"), dict) else doc
-            try:
-                return ActionComposition.from_record(record)
-            except ValueError as exc:
-                raise ValueError(f"{file}: {exc}") from None
+    for file, doc in _agent_config_docs(Path(path)):
+        record = doc["config"] if isinstance(doc.get("config"), dict) else doc
+        try:
+            return ActionComposition.from_record(record)
+        except ValueError as exc:
+            raise ValueError(f"{file}: {exc}") from None
     return ActionComposition()
 
 
