@@ -66,6 +66,14 @@ def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_ME
                 "row's episodes (other processes shared the CPU): the timing reads long."
             )
             lines.append("")
+        versions = sorted({row.entry.task_spec(row.task)["env_id"].rsplit("-", 1)[-1] for row in rows})
+        if "return" in metrics and len(versions) > 1:
+            lines.append(
+                f"Returns are in the reward of the environment version each entry runs ({', '.join(versions)}: an "
+                "agent runs the version it was trained on, baselines v0); v0 rewards are <= 0, v1 rewards >= 0 but "
+                "for the contact penalty. The ranking does not use them."
+            )
+            lines.append("")
     return "\n".join(lines)
 
 

@@ -506,3 +506,33 @@ def test_agents_of_another_env_version_run_the_tasks_on_their_version():
         circle.spec("velocity", "uvdms/Transport-v1")
     material = lb.cache.cache_material(v1, circle, 2_000_000_000, False)
     assert material["task"]["env_id"] == "uvdms/CircleTrack-v1"
+
+
+def test_a_v1_agent_runs_its_version_and_the_table_says_whose_return_it_is(tmp_path):
+    from test_multiseed import FAKE, TINY_TASKS, _agent_folder, _fake_episode
+
+    seen: list[tuple[str, str]] = []
+
+    def recording_episode(env, controller, seed, save_trajectory):
+        seen.append((Path(controller.spec).name, env.spec_["env_id"]))
+        return _fake_episode(env, controller, seed, save_trajectory)
+
+    backend = lb.Backend(make_env=FAKE.make_env, make_controller=FAKE.make_controller, run_episode=recording_episode)
+    _agent_folder(tmp_path / "agents" / "sac_v1", 5, env_id="uvdms/CircleTrack-v1")
+    entries = lb.resolve_entries(["agents", "mpc"], agents_dir=tmp_path / "agents", trust=True)
+    result = lb.run_leaderboard(
+        entries, out_dir=tmp_path / "out", tasks=TINY_TASKS, episodes=2, progress=False, plots=False, backend=backend
+    )
+    assert {env_id for name, env_id in seen if name == "sac_v1"} == {"uvdms/CircleTrack-v1"}
+    assert {env_id for name, env_id in seen if name == "mpc"} == {"uvdms/CircleTrack-v0"}
+    assert "Returns are in the reward of the environment version each entry runs (v0, v1" in lb.markdown_tables(result)
+    alone = lb.run_leaderboard(
+        entries[1:],
+        out_dir=tmp_path / "out",
+        tasks=TINY_TASKS,
+        episodes=2,
+        progress=False,
+        plots=False,
+        backend=backend,
+    )
+    assert "Returns are in the reward" not in lb.markdown_tables(alone)  # one version: no note
