@@ -1,0 +1,78 @@
+"""Can a residual of scale ``s`` over plain ``mpc`` do what CAMPC does? An oracle residual, per scale (JSON).
+
+    python benchmarks/residual_reach.py [--episodes 10] [--scales 0.1 0.3 1.0] [--task circle|transport]
+
+The oracle residual is CAMPC's correction of plain MPC, clipped to what a residual agent of scale ``s`` can
+send: ``a = clip(a_mpc + s * clip((a_campc - a_mpc) / s, -1, 1), -1, 1)`` (``uvdms_gym.residual``'s formula with
+the policy output ``clip((a_campc - a_mpc) / s, -1, 1)``). Both MPCs see the same state every step. ``s = inf``
+(reported as the CAMPC row) sends CAMPC's action itself. If the oracle of scale ``s`` is not contact-free, no
+residual agent of that scale can learn CAMPC's avoidance by imitating it; the rows give contact-free rate,
+success rate and position RMSE on the leaderboard's randomised task (held-out seeds, hydro +-30 %), and the
+largest correction CAMPC needed, ``max |a_campc - a_mpc|``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import uvdms_gym  # noqa: F401  (registers the ids)
+from baselines.controllers import make_baseline
+from leaderboard.tasks import SEED_BASE, TASKS
+from uvdms_gym.evaluation import run_episode, summarize
+from uvdms_gym.residual import compose_residual
+
+
+class OracleResidual:
+    """``mpc`` plus CAMPC's correction clipped to a residual of scale ``scale`` (``None``: CAMPC itself)."""
+
+    def __init__(self, env: Any, scale: float | None) -> None:
+        self.mpc = make_baseline("mpc", env)
+        self.campc = make_baseline("campc", env)
+        self.scale = scale
+        self.max_correction = 0.0
+
+    def reset(self, seed: int | None = None) -> None:
+        self.mpc.reset(seed)
+        self.campc.reset(seed)
+
+    def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        a_mpc = np.asarray(self.mpc.predict(obs, info), dtype=np.float64)
+        a_campc = np.asarray(self.campc.predict(obs, info), dtype=np.float64)
+        self.max_correction = max(self.max_correction, float(np.max(np.abs(a_campc - a_mpc))))
+        if self.scale is None:
+            return a_campc.astype(np.float32)
+        policy = np.clip((a_campc - a_mpc) / self.scale, -1.0, 1.0)
+        action, _clipped = compose_residual(a_mpc, policy, self.scale)
+        return action
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--episodes", type=int, default=10)
+    parser.add_argument("--scales", type=float, nargs="+", default=[0.1, 0.3, 1.0])
+    parser.add_argument("--task", choices=("circle", "transport"), default="circle")
+    args = parser.parse_args()
+    task = next(t for t in TASKS if t.name == f"{args.task}-random")
+    out: dict[str, Any] = {"task": task.name, "episodes": args.episodes, "rows": {}}
+    for scale in [*args.scales, None]:
+        env = gym.make(task.env_id, **task.spec("velocity")["env_kwargs"])
+        controller = OracleResidual(env, scale)
+        results = [run_episode(env, controller, SEED_BASE + i) for i in range(args.episodes)]
+        env.close()
+        summary = summarize(results)
+        out["rows"]["campc" if scale is None else f"s={scale:g}"] = {
+            "contact_free_rate": float(np.mean([r["contacts"] == 0 for r in results])),
+            "success_rate": summary.get("success"),
+            "rmse_pos_mm": None if summary.get("rmse_pos") is None else 1000.0 * summary["rmse_pos"],
+            "max_correction": controller.max_correction,
+        }
+    print(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()
