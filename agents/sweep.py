@@ -46,7 +46,7 @@ import yaml
 from agents.algos import ALGOS
 from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
 from agents.config import ConfigError, default_config_path
-from agents.envs import check_env_id
+from agents.envs import ActionComponents, check_env_id
 from agents.rundir import RunDirError, latest_checkpoint, run_dir_for, utc_now
 from agents.sweep_report import evaluation_summary, write_summary
 from agents.sweep_worker import CheckpointStore, RunJob, StoreClient, relocate_records, run_job, unpack_run_dir
@@ -149,15 +149,19 @@ def plan_sweep(
     n_envs: int | None = None,
     vec_env: str = "dummy",
     gym_packages: Sequence[str] = DEFAULT_GYM_PACKAGES,
+    components: ActionComponents | None = None,
 ) -> list[RunJob]:
     """Check the arguments and every run's configuration, and return the runs (seeds vary fastest).
+
+    ``components`` are the base and filter factories a residual or filtered configuration needs (``uvdms sweep``
+    passes the composition layer's); without them such a configuration is refused here, before any run starts.
 
     Raises:
         ConfigError: Unknown algorithm, bad configuration, key in both ``hyperparams`` and ``grid``, ...
         EnvironmentNotFoundError: The env id is not registered.
         ValueError: Bad seeds or ``env_kwargs`` keys the environment does not take.
     """
-    from agents.train import resolve_config
+    from agents.train import composition_factories, resolve_config
 
     if algo not in ALGOS:
         raise ConfigError(f"unknown algorithm {algo!r}; choose one of {sorted(ALGOS)}")
@@ -184,6 +188,7 @@ def plan_sweep(
         where = f"grid point {index} ({_point_label(point)})" if axes else "the configuration"
         try:
             cfg = resolve_config(config_path, algo, env_id, overrides, env_kwargs, n_envs, total_timesteps)
+            composition_factories(cfg, components)  # a residual or the filter needs the components
         except ConfigError as exc:
             raise ConfigError(f"{where}: {exc}") from None
         assert config_text is not None  # resolve_config read the file
@@ -208,6 +213,7 @@ def plan_sweep(
                     num_cpus=run_cpus(cfg.n_envs, vec_env),
                     grid_index=index if axes else None,
                     grid_point=point,
+                    components=None if cfg.composition.is_plain else components,
                 )
             )
     return jobs
@@ -238,6 +244,7 @@ def sweep(
     num_cpus: int | None = None,
     max_retries: int = 3,
     out_dir: str | Path = "sweeps",
+    components: ActionComponents | None = None,
 ) -> SweepResult:
     """Train one run per seed and grid point and write the summary (see the module docstring).
 
@@ -258,6 +265,7 @@ def sweep(
         num_cpus: CPUs of the local Ray instance (``ray`` backend without ``address``).
         max_retries: Retries of a run whose worker dies (``ray`` backend).
         out_dir: Where the run directories and the summary go.
+        components: Base and filter factories of residual or filtered configurations (:func:`plan_sweep`).
 
     Returns:
         The summary rows.
@@ -285,6 +293,7 @@ def sweep(
         n_envs=n_envs,
         vec_env=vec_env,
         gym_packages=gym_packages,
+        components=components,
     )
     out_dir = Path(out_dir)
     if (out_dir / "sweep.json").exists():

@@ -10,10 +10,14 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from agents.args import ALGO_NAMES, DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
+
+if TYPE_CHECKING:
+    from agents.envs import ActionComponents
 
 _SWEEP_HELP = "train one run per seed (and grid point), locally or as Ray tasks, and summarise them"
 _TUNE_HELP = "search hyperparameters with Ray Tune and Optuna's TPE sampler; write the best config"
@@ -51,11 +55,15 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--num-cpus", type=int, help="CPUs of the local Ray instance (default: all cores)")
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(
+    subparsers: argparse._SubParsersAction, *, components: Callable[[], ActionComponents] | None = None
+) -> None:
     """Add ``sweep`` and ``tune`` to the ``uvdms`` subcommands.
 
     Args:
         subparsers: The ``add_subparsers()`` object of the ``uvdms`` parser.
+        components: Returns the base and filter factories that residual and filtered sweeps need (called only
+            when a sweep runs; ``uvdms_cli`` passes the composition layer's). ``uvdms tune`` does not compose.
     """
     sweep = subparsers.add_parser("sweep", help=_SWEEP_HELP, description=_SWEEP_HELP, epilog=_SWEEP_EPILOG)
     _common(sweep)
@@ -73,7 +81,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sweep.add_argument("--backend", choices=("local", "ray"), default="local", help="where runs train (local)")
     sweep.add_argument("--max-retries", type=int, default=3, help="retries of a run whose Ray worker dies (3)")
     sweep.add_argument("--out", type=Path, default=Path("sweeps"), help="run directories and summary (sweeps)")
-    sweep.set_defaults(func=_cmd_sweep)
+    sweep.set_defaults(func=_cmd_sweep, _components=components)
 
     tune = subparsers.add_parser("tune", help=_TUNE_HELP, description=_TUNE_HELP, epilog=_TUNE_EPILOG)
     _common(tune)
@@ -139,6 +147,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         num_cpus=args.num_cpus,
         max_retries=args.max_retries,
         out_dir=args.out,
+        components=args._components() if args._components is not None else None,
     )
     sys.stdout.write(format_table(result.rows) + "\n")
     sys.stdout.write(f"summary: {args.out / 'sweep.csv'}, {args.out / 'sweep.json'}\n")

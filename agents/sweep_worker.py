@@ -60,6 +60,8 @@ class RunJob:
         num_cpus: CPUs the run declares (:func:`agents.sweep.run_cpus`).
         grid_index: Index of the grid point (``None`` without ``--grid``).
         grid_point: The grid point's values.
+        components: The composition layer's base and filter factories (:class:`agents.envs.ActionComponents`)
+            for a residual or filtered configuration (``None``: none; picklable, they travel to Ray workers).
     """
 
     key: str
@@ -78,6 +80,7 @@ class RunJob:
     num_cpus: int
     grid_index: int | None
     grid_point: Mapping[str, Any]
+    components: Any = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -356,13 +359,14 @@ def run_job(job: RunJob, store: StoreClient) -> RunOutcome:
                 vec_env=job.vec_env,
                 gym_packages=job.gym_packages,
                 callbacks=[ship],
+                components=job.components,
             )
         else:
             archive, previous_root = checkpoint
             unpack_run_dir(archive, run_dir)
             relocate_records(run_dir, previous_root, str(root))
             mark_lost_segments(run_dir, f"the worker died; attempt {attempt} resumed from the newest checkpoint")
-            train(resume_dir=run_dir, progress=False, vec_env=job.vec_env, callbacks=[ship])
+            train(resume_dir=run_dir, progress=False, vec_env=job.vec_env, callbacks=[ship], components=job.components)
         return RunOutcome(job.key, pack_run_dir(run_dir), str(root), attempt, node_id)
     finally:
         shutil.rmtree(root, ignore_errors=True)

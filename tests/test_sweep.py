@@ -383,3 +383,20 @@ def test_a_failing_run_is_recorded_and_the_exit_status_is_1(tiny_config, tmp_pat
     assert row["status"] == "failed" and "unknown circle case 7" in row["error"]
     assert "failed" in capsys.readouterr().err
     assert not list(out.glob("*/ppo_*"))
+
+
+def test_residual_sweep_trains_the_composition_and_needs_the_components(tiny_config, tmp_path, capsys):
+    residual = ["--hyperparams", "residual_base=mpc", "residual_scale=0.5", "--total-timesteps", "128"]
+    assert main(sweep_argv(tiny_config, tmp_path / "out", *residual, seeds=("4",))) == 0
+    row = json.loads((tmp_path / "out" / "sweep.json").read_text(encoding="utf-8"))["runs"][0]
+    assert row["status"] == "completed"
+    run = tmp_path / "out" / row["run"]
+    resolved = yaml.safe_load((run / "config.yml").read_text(encoding="utf-8"))
+    assert (resolved["config"]["residual_base"], resolved["config"]["residual_scale"]) == ("mpc", 0.5)
+    meta = json.loads((run / "meta.json").read_text(encoding="utf-8"))
+    assert meta["segments"][0]["action_composition"]["residual_base"] == "mpc"
+    # the agents package alone (no composition layer) refuses it before any run starts
+    with pytest.raises(ConfigError, match="uvdms train"):
+        sweep("ppo", ENV, [5], env_kwargs={"case": 1}, config_path=tiny_config,
+              hyperparams={"residual_base": "mpc", "residual_scale": 0.5}, out_dir=tmp_path / "bare")  # fmt: skip
+    assert not (tmp_path / "bare").exists()

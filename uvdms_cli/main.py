@@ -118,7 +118,7 @@ def _register_commands(sub: argparse._SubParsersAction) -> None:
     evaluate.register(sub)
     baselines_cli.register(sub)
     agents_cli.register(sub, components=_action_components)  # uvdms train composes residuals and the filter
-    sweep_cli.register(sub)
+    sweep_cli.register(sub, components=_action_components)  # so do residual and filtered sweeps
     leaderboard_cli.register(sub)
 
 
