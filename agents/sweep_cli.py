@@ -62,8 +62,8 @@ def register(
 
     Args:
         subparsers: The ``add_subparsers()`` object of the ``uvdms`` parser.
-        components: Returns the base and filter factories that residual and filtered sweeps need (called only
-            when a sweep runs; ``uvdms_cli`` passes the composition layer's). ``uvdms tune`` does not compose.
+        components: Returns the base and filter factories that residual and filtered sweeps and searches need
+            (called only when one runs; ``uvdms_cli`` passes the composition layer's).
     """
     sweep = subparsers.add_parser("sweep", help=_SWEEP_HELP, description=_SWEEP_HELP, epilog=_SWEEP_EPILOG)
     _common(sweep)
@@ -97,7 +97,7 @@ def register(
     tune.add_argument("--max-concurrent", type=int, help="trials at a time (default: as the CPUs allow)")
     tune.add_argument("--backend", choices=("ray",), default="ray", help="Ray Tune (the only backend)")
     tune.add_argument("--out", type=Path, default=Path("tune"), help="best config and trial records (tune)")
-    tune.set_defaults(func=_cmd_tune)
+    tune.set_defaults(func=_cmd_tune, _components=components)
 
 
 def _seeds(items: list[str]) -> list[int]:
@@ -200,4 +200,5 @@ def _run_tune(args: argparse.Namespace, tune: Any, env_kwargs: dict, hyperparams
         address=args.address,
         num_cpus=args.num_cpus,
         out_dir=args.out,
+        components=args._components() if args._components is not None else None,
     )

@@ -74,6 +74,8 @@ class TrialSetup:
         vec_env: Vectorised env type.
         gym_packages: Packages imported to register the env id.
         seed: Training seed of every trial.
+        components: Base and filter factories of a residual or filtered configuration
+            (:class:`agents.envs.ActionComponents`; ``None``: none).
     """
 
     algo: str
@@ -89,6 +91,7 @@ class TrialSetup:
     vec_env: str
     gym_packages: tuple[str, ...]
     seed: int
+    components: Any = None
 
     def hyperparams(self, sample: Mapping[str, Any]) -> dict[str, Any]:
         """The config overrides of a trial: the fixed keys and the sample's."""
@@ -168,6 +171,7 @@ def run_trial(config: dict[str, Any], setup: TrialSetup) -> None:
             vec_env=setup.vec_env,
             gym_packages=setup.gym_packages,
             after_eval=[reporter],
+            components=setup.components,
         )
         if reporter.last is None:
             raise ConfigError("the trial never evaluated (eval_freq larger than --total-timesteps)")
@@ -228,6 +232,7 @@ def tune(
     address: str | None = None,
     num_cpus: int | None = None,
     out_dir: str | Path = "tune",
+    components: Any = None,
 ) -> TuneResult:
     """Search hyperparameters and write the best configuration (see the module docstring).
 
@@ -251,13 +256,16 @@ def tune(
         address: Ray cluster address (``None``: a local instance).
         num_cpus: CPUs of the local Ray instance.
         out_dir: Output folder.
+        components: Base and filter factories (:class:`agents.envs.ActionComponents`) of a residual or filtered
+            configuration (``uvdms tune`` passes the composition layer's); without them such a configuration is
+            refused before Ray starts.
 
     Raises:
         ConfigError, ValueError: Bad arguments, configuration or search space (before Ray starts).
         RunDirError: ``out_dir`` already holds a search.
         NoTrialCompletedError: No trial completed.
     """
-    from agents.train import resolve_config
+    from agents.train import composition_factories, resolve_config
 
     if algo not in ALGOS:
         raise ConfigError(f"unknown algorithm {algo!r}; choose one of {sorted(ALGOS)}")
@@ -277,6 +285,7 @@ def tune(
     fixed = dict(hyperparams or {})
     config_path = Path(config_path) if config_path is not None else default_config_path(algo)
     cfg = resolve_config(config_path, algo, env_id, fixed, env_kwargs, n_envs, total_timesteps)
+    composition_factories(cfg, components)  # a residual or the filter needs the components
     budget = cfg.n_timesteps
     if not 0 < cfg.eval_freq <= budget:
         raise ConfigError(
@@ -303,6 +312,7 @@ def tune(
         vec_env=vec_env,
         gym_packages=gym_packages,
         seed=seed,
+        components=None if cfg.composition.is_plain else components,
     )
 
     def check(sample: Mapping[str, Any]) -> None:

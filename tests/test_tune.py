@@ -144,6 +144,8 @@ def _tune_argv(config: Path, out: Path, *extra: str) -> list[str]:
         (["--grace-period", "500"], "--grace-period must be in 1 .. --total-timesteps (400)"),
         (["--reduction-factor", "1"], "--reduction-factor must be > 1"),
         (["--env", "uvdms/Nope-v0"], "is not registered"),
+        # the command passes the composition layer's factories: a residual is checked by them, before Ray starts
+        (["--hyperparams", "n_steps=64", "residual_base=campc-di", "residual_scale=0.5"], "is a torque-mode"),
     ],
 )
 def test_bad_input_is_one_line(tiny_config, tmp_path, capsys, extra, message):  # noqa: F811
@@ -207,3 +209,13 @@ def test_tune_writes_a_config_that_trains(tiny_config, tmp_path, capsys, ray_pro
     assert main(argv) == 0
     with zipfile.ZipFile(runs / "uvdms_CircleTrack-v0" / "ppo_0" / "final_model.zip") as archive:
         assert json.loads(archive.read("data"))["num_timesteps"] == 128
+
+
+def test_tune_without_the_composition_layer_refuses_a_residual(tiny_config, tmp_path):  # noqa: F811
+    from agents.tune import tune
+
+    with pytest.raises(ConfigError, match="uvdms train"):
+        residual = {"n_steps": 64, "residual_base": "mpc", "residual_scale": 0.5}
+        tune("ppo", ENV, 2, env_kwargs={"case": 1}, config_path=tiny_config, total_timesteps=400,
+             hyperparams=residual, out_dir=tmp_path / "out")  # fmt: skip
+    assert not (tmp_path / "out").exists()
