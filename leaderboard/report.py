@@ -14,7 +14,7 @@ from leaderboard.cache import PACKAGE_VERSION
 from leaderboard.entries import Entry
 from leaderboard.plots import write_plots
 from leaderboard.stats import METRICS, RATE_METRICS, RankedRow, timing_summary
-from leaderboard.tasks import TRACKS
+from leaderboard.tasks import TRACKS, env_version
 from uvdms_gym.io import write_json_atomic
 
 if TYPE_CHECKING:
@@ -66,7 +66,7 @@ def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_ME
                 "row's episodes (other processes shared the CPU): the timing reads long."
             )
             lines.append("")
-        versions = sorted({row.entry.task_spec(row.task)["env_id"].rsplit("-", 1)[-1] for row in rows})
+        versions = sorted({env_version(row.entry.task_spec(row.task)["env_id"]) for row in rows})
         if "return" in metrics and len(versions) > 1:
             lines.append(
                 f"Returns are in the reward of the environment version each entry runs ({', '.join(versions)}: an "

@@ -68,6 +68,12 @@ def env_family(env_id: str) -> str:
     return f"{namespace}/{name}" if namespace else name
 
 
+def env_version(env_id: str) -> str:
+    """The version tag of an environment id (``uvdms/CircleTrack-v1`` -> ``v1``; ``""`` without a version)."""
+    _namespace, _name, version = parse_env_id(env_id.split(":")[-1])
+    return "" if version is None else f"v{version}"
+
+
 CIRCLE_ID, TRANSPORT_ID = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"
 HYDRO_RANDOMIZATION = 0.3
 TASKS: tuple[Task, ...] = (
