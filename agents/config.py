@@ -72,7 +72,7 @@ from agents.typecheck import (
 )
 from agents.wrappers import is_unit_scale
 from agents.zoo import TRAIN_OPTIONS, flatten_entry, train_options
-from uvdms_gym.residual import ActionComposition
+from uvdms_gym.residual import ActionComposition, is_residual_penalty
 
 DEFAULT_ENTRY = "default"
 
@@ -168,6 +168,10 @@ class TrainConfig:
             (:mod:`uvdms_gym.residual`). Only ``uvdms train`` can build the base (``python -m agents.train``
             refuses); which names are valid is checked there.
         residual_scale: Bound of the residual, in (0, 1]; required with ``residual_base``, not allowed without.
+        residual_penalty: Training-side shaping of a residual agent (only with ``residual_base``; 0: none): the
+            reward gains ``-residual_penalty * |a|^2 / 18`` (``a``: the policy's output), so that the residual
+            stays at zero where the base needs no correction (:class:`uvdms_gym.residual.ResidualAction`).
+            Evaluation and the exported agent are unaffected.
         safety_filter: The training envs' velocity command (after the residual, if any) goes through the safety
             filter (``baselines.safety.SafetyFilter``, injected by ``uvdms train``); evaluation composes the same.
     """
@@ -194,6 +198,7 @@ class TrainConfig:
     action_scale: float = 1.0
     residual_base: str | None = None
     residual_scale: float | None = None
+    residual_penalty: float = 0.0
     safety_filter: bool = False
 
     # ----------------------------------------------------------------------------------------------
@@ -474,6 +479,9 @@ def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
         raise ConfigError(f"{where}: key 'action_init_scale' must be in (0, 1] or null, got {scale}")
     if not is_unit_scale(values.get("action_scale", 1.0)):
         raise ConfigError(f"{where}: key 'action_scale' must be in (0, 1], got {values['action_scale']}")
+    penalty = values.get("residual_penalty", 0.0)
+    if not is_residual_penalty(penalty):
+        raise ConfigError(f"{where}: key 'residual_penalty' must be a finite number >= 0, got {penalty}")
     if not math.isfinite(values.get("alive_bonus", 0.0)):
         raise ConfigError(f"{where}: key 'alive_bonus' must be a finite number")
     if values.get("n_envs", 1) > 1000:

@@ -118,6 +118,7 @@ class EnvFactory:
         scalar_info: Drop the array entries of ``info`` (:class:`agents.wrappers.ScalarInfo`; training envs).
         base_factory: Base controller of a residual agent (``None``: no residual; :class:`ResidualAction`).
         residual_scale: Bound of the residual (with ``base_factory``).
+        residual_penalty: Shaping of the residual's magnitude in the reward (with ``base_factory``; 0: none).
         filter_factory: Safety filter of the velocity command, applied after the residual (``None``: none;
             :class:`FilteredAction`).
         episode_metrics: Put each episode's benchmark metrics into its last ``info``
@@ -134,6 +135,7 @@ class EnvFactory:
     scalar_info: bool = False
     base_factory: ControllerFactory | None = None
     residual_scale: float | None = None
+    residual_penalty: float = 0.0
     filter_factory: FilterFactory | None = None
     episode_metrics: bool = False
 
@@ -161,7 +163,7 @@ class EnvFactory:
         if self.base_factory is not None:
             if self.residual_scale is None:
                 raise ValueError("a residual base needs residual_scale")
-            env = ResidualAction(env, self.base_factory, self.residual_scale)
+            env = ResidualAction(env, self.base_factory, self.residual_scale, self.residual_penalty)
         if self.action_scale != 1.0:
             env = ScaledAction(env, self.action_scale)
         if self.alive_bonus:

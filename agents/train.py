@@ -455,10 +455,15 @@ def composition_factories(
         ``(base_factory, filter_factory)``, each ``None`` when not configured.
 
     Raises:
-        ConfigError: A residual base or the filter without ``components`` (the message names ``uvdms train``), or
-            a base name the components reject.
+        ConfigError: A residual base or the filter without ``components`` (the message names ``uvdms train``), a
+            base name the components reject, or a ``residual_penalty`` without a residual base.
     """
     composition = cfg.composition
+    if cfg.residual_penalty and not composition.is_residual:
+        raise ConfigError(
+            f"residual_penalty={cfg.residual_penalty} shapes a residual agent's reward, but the configuration has no "
+            "residual_base (--residual)"
+        )
     if composition.is_plain:
         return None, None
     if components is None:
@@ -514,6 +519,7 @@ def _run_segment(
     composed = {
         "base_factory": base_factory,
         "residual_scale": cfg.residual_scale if base_factory is not None else None,
+        "residual_penalty": cfg.residual_penalty if base_factory is not None else 0.0,
         "filter_factory": filter_factory,
     }
     train_factories = [

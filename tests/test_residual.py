@@ -131,6 +131,29 @@ def test_wrapper_sends_the_clipped_sum_of_an_independent_base_and_the_scaled_act
         assert clipped_steps > 0  # the clip is exercised (at 0.2 too: the MPC's command sits on its box at times)
 
 
+def test_residual_penalty_adds_its_term_to_the_environment_reward_and_changes_nothing_else():
+    """reward = env reward - penalty * |a|^2 / 18, reported as reward_residual; the actions sent are unchanged."""
+    steps, penalty = 12, 0.7
+    plain_recorder, shaped_recorder = Recorder(_circle(steps)), Recorder(_circle(steps))
+    plain = ResidualAction(plain_recorder, BaselineFactory("mpc"), SCALE)
+    shaped = ResidualAction(shaped_recorder, BaselineFactory("mpc"), SCALE, penalty=penalty)
+    plain.reset(seed=SEED)
+    shaped.reset(seed=SEED)
+    rng = np.random.default_rng(3)
+    for _ in range(steps):
+        action = rng.uniform(-1.0, 1.0, ACTION_DIM).astype(np.float32)
+        _, r_plain, *_, info_plain = plain.step(action)
+        _, r_shaped, *_, info = shaped.step(action)
+        expected_term = -penalty * sum(float(x) ** 2 for x in action) / ACTION_DIM  # elementwise, independently
+        assert "reward_residual" not in info_plain
+        assert info["reward_residual"] == pytest.approx(expected_term, rel=1e-12)
+        assert r_shaped == pytest.approx(r_plain + expected_term, rel=1e-12, abs=1e-12)
+        np.testing.assert_array_equal(shaped_recorder.actions[-1], plain_recorder.actions[-1])
+    for bad in (-0.1, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="residual_penalty must be a finite number >= 0"):
+            ResidualAction(_circle(5), BaselineFactory("mpc"), SCALE, penalty=bad)
+
+
 def test_training_wrappers_and_evaluation_controller_send_identical_actions():
     """Residual then filter: the wrappers of training and SafetyFilter(ResidualController) of evaluation."""
     steps = 110  # plain mpc reaches the frame in Case 1 after about 70 steps: the filter must act
@@ -349,6 +372,10 @@ _ENTRY = {"n_timesteps": 10, "env_kwargs": {"action_mode": "velocity"}}
             "'residual_base' composes velocity commands, but env_kwargs has action_mode='torque'",
         ),
         ({"safety_filter": True, "env_kwargs": {"action_mode": "torque"}}, "'safety_filter' composes velocity"),
+        (
+            {"residual_base": "mpc", "residual_scale": 0.2, "residual_penalty": -1.0},
+            "key 'residual_penalty' must be a finite number >= 0",
+        ),
     ],
 )
 def test_bad_residual_configs_are_config_errors(extra, message):
@@ -373,6 +400,7 @@ def test_bad_bases_are_refused_by_name():
         (["--residual", "nope", "--residual-scale", "0.2"], "unknown residual base 'nope'"),
         (["--residual", "mpc", "--residual-scale", "0"], r"residual_scale must be a number in \(0, 1\]"),
         (["--residual", "mpc"], r"residual_scale must be a number in \(0, 1\]"),
+        (["--hyperparams", "residual_penalty=0.5"], "residual_penalty=0.5 shapes a residual agent's reward"),
     ],
 )
 def test_uvdms_train_refuses_bad_residuals_before_creating_a_run(flags, message, tmp_path, capsys):

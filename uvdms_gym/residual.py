@@ -155,6 +155,13 @@ def compose_residual(base_action: np.ndarray, policy_action: np.ndarray, scale: 
     return action.astype(np.float32), bool(np.any(action != raw))
 
 
+def is_residual_penalty(value: Any) -> bool:
+    """Whether ``value`` is a finite real number >= 0 (a valid ``residual_penalty``)."""
+    return (
+        isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value) and float(value) >= 0.0
+    )
+
+
 def residual_observation(obs: np.ndarray, base_action: np.ndarray) -> np.ndarray:
     """What a residual policy observes: ``[obs; base_action]`` in the observation's dtype."""
     obs = np.asarray(obs)
@@ -198,17 +205,25 @@ class ResidualAction(gym.Wrapper):
         env: A velocity-mode environment with the action space ``Box(-1, 1)``.
         base_factory: Builds the base controller for ``env``.
         scale: ``residual_scale``, in (0, 1].
+        penalty: ``residual_penalty``, a training-side shaping term (0: none): ``reward_residual =
+            -penalty * |action|^2 / dim`` is added to the reward (and reported in ``info``), so that the policy
+            keeps the residual at zero where the base needs no correction. ``action`` is the policy's output in
+            ``[-1, 1]``, so the term lies in ``[-penalty, 0]``.
 
     Raises:
-        ValueError: A scale outside (0, 1], an action space other than ``Box(-1, 1)``, or what the factory raises.
+        ValueError: A scale outside (0, 1], a negative or non-finite penalty, an action space other than
+            ``Box(-1, 1)``, or what the factory raises.
     """
 
-    def __init__(self, env: gym.Env, base_factory: ControllerFactory, scale: float) -> None:
+    def __init__(self, env: gym.Env, base_factory: ControllerFactory, scale: float, penalty: float = 0.0) -> None:
         super().__init__(env)
         if not is_residual_scale(scale):
             raise ValueError(f"residual_scale must be a number in (0, 1], got {scale!r}")
+        if not is_residual_penalty(penalty):
+            raise ValueError(f"residual_penalty must be a finite number >= 0, got {penalty!r}")
         _check_unit_box(env, "a residual agent")
         self.scale = float(scale)
+        self.penalty = float(penalty)
         self.base = base_factory(env)
         self.observation_space = residual_observation_space(env.observation_space, env.action_space)
         self._base_action: np.ndarray | None = None
@@ -229,6 +244,10 @@ class ResidualAction(gym.Wrapper):
         obs, reward, terminated, truncated, info = self.env.step(sent)
         self._base_action = np.asarray(self.base.predict(obs, info))
         info = {**info, "residual_clipped": clipped, "residual_base_action": base_action, "residual_action": sent}
+        if self.penalty:
+            residual = np.asarray(action, dtype=np.float64)
+            info["reward_residual"] = -self.penalty * float(residual @ residual) / residual.size
+            reward = float(reward) + info["reward_residual"]
         return residual_observation(obs, self._base_action), reward, terminated, truncated, info
 
 
