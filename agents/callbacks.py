@@ -127,3 +127,56 @@ class ScaleInitialActions(BaseCallback):
 
     def _on_step(self) -> bool:
         return True
+
+
+class DelayActorUpdates(BaseCallback):
+    """Keeps an off-policy learner's actor fixed until ``steps`` environment steps (``actor_warmup_steps``).
+
+    A critic burn-in (Silver et al., "Residual Policy Learning", 2018): from ``learning_starts`` the critic learns
+    the value of the behaviour it sees, while the actor, and with it the behaviour, stays the initial one (with
+    ``action_init_scale``: a near-zero action, i.e. the base controller alone for a residual agent, plus the
+    exploration noise). An actor that climbs the gradient of an untrained critic drives the behaviour toward
+    the action bounds within a few thousand steps (for a residual agent, into contacts that the base alone
+    avoids). The actor's optimizer skips its ``step`` while ``model.num_timesteps < steps`` (the loss is still
+    computed, so the algorithm's code path is unchanged); the target networks follow an unchanged actor. A
+    resumed run past ``steps`` is unaffected. Named in a config as RL Zoo names callbacks
+    (``callback: [{agents.callbacks.DelayActorUpdates: {steps: 20000}}]``).
+
+    Args:
+        steps: Environment steps before the actor's first update (>= 0).
+
+    Raises:
+        ValueError: A negative or non-integer ``steps``; at training start, a model without ``actor.optimizer``
+            (not an off-policy actor-critic algorithm).
+    """
+
+    def __init__(self, steps: int) -> None:
+        super().__init__()
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
+            raise ValueError(f"DelayActorUpdates: steps must be an integer >= 0, got {steps!r}")
+        self.steps = steps
+        self.skipped = 0
+        """Actor updates skipped so far."""
+
+    def _init_callback(self) -> None:
+        optimizer = getattr(getattr(self.model, "actor", None), "optimizer", None)
+        if optimizer is None:
+            raise ValueError(
+                f"actor_warmup_steps needs an off-policy actor-critic model, not {type(self.model).__name__}"
+            )
+        if self.model.num_timesteps >= self.steps or getattr(optimizer, "_uvdms_delayed", False):
+            return
+        step = optimizer.step
+        model = self.model
+
+        def delayed_step(*args: Any, **kwargs: Any) -> Any:
+            if model.num_timesteps < self.steps:
+                self.skipped += 1
+                return None
+            return step(*args, **kwargs)
+
+        optimizer.step = delayed_step
+        optimizer._uvdms_delayed = True
+
+    def _on_step(self) -> bool:
+        return True

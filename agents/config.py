@@ -157,6 +157,10 @@ class TrainConfig:
             return; the environment's return is ``r - alive_bonus * l``.
         action_init_scale: Multiply the freshly initialised last action layer by this (``None``: no change),
             so that the untrained policy starts near the zero command.
+        actor_warmup_steps: Off-policy actor-critic algorithms only: the actor is not updated before this many
+            environment steps, while the critic learns from ``learning_starts`` (a critic burn-in,
+            :class:`agents.callbacks.DelayActorUpdates`; 0: none). With ``action_init_scale`` the behaviour until
+            then is the near-zero initial action plus the exploration noise.
         action_scale: Part of the policy, not of the environment: the network's output ``a`` in [-1, 1] is
             sent to the environment as ``action_scale * a`` (a wrapper in training, applied again by
             :class:`agents.policy.AgentController` at evaluation and recorded in exports). The tasks need
@@ -195,6 +199,7 @@ class TrainConfig:
     max_episode_steps: int | None = None
     alive_bonus: float = 0.0
     action_init_scale: float | None = None
+    actor_warmup_steps: int = 0
     action_scale: float = 1.0
     residual_base: str | None = None
     residual_scale: float | None = None
@@ -479,6 +484,11 @@ def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
         raise ConfigError(f"{where}: key 'action_init_scale' must be in (0, 1] or null, got {scale}")
     if not is_unit_scale(values.get("action_scale", 1.0)):
         raise ConfigError(f"{where}: key 'action_scale' must be in (0, 1], got {values['action_scale']}")
+    warmup = values.get("actor_warmup_steps", 0)
+    if warmup < 0:
+        raise ConfigError(f"{where}: key 'actor_warmup_steps' must be >= 0, got {warmup}")
+    if warmup and not is_off_policy(algo):
+        raise ConfigError(f"{where}: key 'actor_warmup_steps' is only for off-policy algorithms, not {algo}")
     penalty = values.get("residual_penalty", 0.0)
     if not is_residual_penalty(penalty):
         raise ConfigError(f"{where}: key 'residual_penalty' must be a finite number >= 0, got {penalty}")

@@ -78,7 +78,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 from agents.algos import ALGOS, is_off_policy
 from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
-from agents.callbacks import LatestBufferCheckpointCallback, SaveBestExtras, SeededEvalCallback
+from agents.callbacks import DelayActorUpdates, LatestBufferCheckpointCallback, SaveBestExtras, SeededEvalCallback
 from agents.config import ConfigError, TrainConfig, default_config_path, load_config, parse_entry
 from agents.envs import (
     EVAL_SEED_OFFSET,
@@ -680,6 +680,8 @@ def _run_segment(
             callbacks.append(UpdateThreads(record["torch_update_threads"]))
         if isinstance(model, PPOLagrangian):
             callbacks.append(LagrangianHistory(run_dir / HISTORY_FILE, segment))
+        if cfg.actor_warmup_steps > model.num_timesteps:
+            callbacks.append(DelayActorUpdates(cfg.actor_warmup_steps))
         callbacks.extend(extra_callbacks)
 
         model.learn(

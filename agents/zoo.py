@@ -9,7 +9,8 @@ training-side options are written the way RL Zoo writes them:
 
 * ``env_wrapper: [{agents.wrappers.ScaledAction: {scale: 0.3}}, {agents.wrappers.AliveBonus: {bonus: 2.0}}]``
   -> ``action_scale: 0.3``, ``alive_bonus: 2.0``;
-* ``callback: [{agents.callbacks.ScaleInitialActions: {scale: 0.01}}]`` -> ``action_init_scale: 0.01``;
+* ``callback: [{agents.callbacks.ScaleInitialActions: {scale: 0.01}}]`` -> ``action_init_scale: 0.01``, and
+  ``{agents.callbacks.DelayActorUpdates: {steps: 20000}}`` -> ``actor_warmup_steps: 20000``;
 * ``env_kwargs`` is an RL Zoo key already (the ``gymnasium.make`` keyword arguments);
 * options RL Zoo takes only from its command line (``--eval-freq``, ``--eval-episodes``, ``--n-eval-envs``,
   ``--save-freq``, ``--eval-env-kwargs``, ``--save-replay-buffer``) sit in the top-level mapping
@@ -17,7 +18,7 @@ training-side options are written the way RL Zoo writes them:
   looks up the env id, else ``default``): ``eval_freq``, ``n_eval_episodes``, ``n_eval_envs``,
   ``checkpoint_freq``, ``eval_env_kwargs``, ``save_replay_buffer``, ``max_episode_steps``.
 
-Only the three class names above are accepted (nothing named in a config is imported here; RL Zoo imports
+Only the four class names above are accepted (nothing named in a config is imported here; RL Zoo imports
 them itself). The flat keys (``alive_bonus``, ``eval_freq``, ...) stay valid in an entry, in ``--hyperparams``
 and in a run's ``config.yml``; giving one both ways is an error.
 """
@@ -49,6 +50,7 @@ WRAPPERS: dict[str, tuple[str, str]] = {
 """``env_wrapper`` class name -> (its keyword argument, the ``TrainConfig`` field it sets)."""
 CALLBACKS: dict[str, tuple[str, str]] = {
     "agents.callbacks.ScaleInitialActions": ("scale", "action_init_scale"),
+    "agents.callbacks.DelayActorUpdates": ("steps", "actor_warmup_steps"),
 }
 """``callback`` class name -> (its keyword argument, the ``TrainConfig`` field it sets)."""
 
@@ -137,7 +139,12 @@ def train_options(data: Mapping[str, Any], name: str, default: str, where: str) 
     return merged
 
 
-_FIELD_DEFAULTS: dict[str, Any] = {"action_scale": 1.0, "alive_bonus": 0.0, "action_init_scale": None}
+_FIELD_DEFAULTS: dict[str, Any] = {
+    "action_scale": 1.0,
+    "alive_bonus": 0.0,
+    "action_init_scale": None,
+    "actor_warmup_steps": 0,
+}
 """Values of the ``env_wrapper``/``callback`` fields that need no list item (no wrapper, no callback)."""
 
 

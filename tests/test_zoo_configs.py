@@ -268,3 +268,49 @@ def test_kv_parser_names_option_and_key():
         parse_key_values(["radius={"], "--env-kwargs")
     with pytest.raises(ConfigError, match="--hyperparams: the value of 'lr'"):
         agents_parser(["lr=[1"], "--hyperparams")
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3"])
+def test_delay_actor_updates_keeps_the_actor_and_trains_the_critic(algo):
+    """actor_warmup_steps: no actor change before the step count (critic updated meanwhile), changes after."""
+    import gymnasium as gym
+    import torch
+
+    from agents.callbacks import DelayActorUpdates
+
+    def fresh():
+        kwargs = {"learning_starts": 10, "policy_kwargs": {"net_arch": [8]}, "seed": 5}
+        return ALGOS[algo]("MlpPolicy", gym.make("Pendulum-v1"), **kwargs)
+
+    def params(module: torch.nn.Module) -> list[torch.Tensor]:
+        return [p.detach().clone() for p in module.parameters()]
+
+    model = fresh()
+    actor0, critic0 = params(model.actor), params(model.critic)
+    callback = DelayActorUpdates(61)  # the update after step 60 sees num_timesteps == 60 < 61
+    model.learn(60, callback=callback)
+    assert model.num_timesteps == 60 and callback.skipped > 0
+    assert all(torch.equal(a, b) for a, b in zip(actor0, params(model.actor), strict=True))
+    assert not all(torch.equal(a, b) for a, b in zip(critic0, params(model.critic), strict=True))
+    model.learn(20, callback=DelayActorUpdates(61), reset_num_timesteps=False)  # past the warm-up: the actor learns
+    assert not all(torch.equal(a, b) for a, b in zip(actor0, params(model.actor), strict=True))
+    undelayed = fresh()  # and without the callback the actor moves within the same 60 steps
+    undelayed.learn(60)
+    assert not all(torch.equal(a, b) for a, b in zip(actor0, params(undelayed.actor), strict=True))
+    with pytest.raises(ValueError, match="steps must be an integer >= 0"):
+        DelayActorUpdates(-1)
+    ppo = ALGOS["ppo"]("MlpPolicy", gym.make("Pendulum-v1"), n_steps=16, batch_size=16, seed=0)
+    with pytest.raises(ValueError, match="needs an off-policy actor-critic model"):
+        ppo.learn(16, callback=DelayActorUpdates(10))
+
+
+def test_actor_warmup_steps_reads_from_the_zoo_callback_and_is_refused_for_ppo(tmp_path):
+    path = tmp_path / "zoo.yml"
+    entry = {"n_timesteps": 10, "callback": [{"agents.callbacks.DelayActorUpdates": {"steps": 500}}]}
+    path.write_text(yaml.safe_dump({"Pendulum-v1": entry}), encoding="utf-8")
+    assert load_config(path, "sac", "Pendulum-v1").actor_warmup_steps == 500
+    with pytest.raises(ConfigError, match="'actor_warmup_steps' is only for off-policy algorithms, not ppo"):
+        load_config(path, "ppo", "Pendulum-v1")
+    path.write_text(yaml.safe_dump({"Pendulum-v1": {"n_timesteps": 10, "actor_warmup_steps": -3}}), encoding="utf-8")
+    with pytest.raises(ConfigError, match="'actor_warmup_steps' must be >= 0"):
+        load_config(path, "sac", "Pendulum-v1")
