@@ -123,5 +123,6 @@ print(json.dumps({
     for key in ("agents", "uvdms_gym", "config", "trusted", "space"):
         assert Path(found[key]).is_relative_to(site), (key, found[key])
     assert found["n_timesteps"] > 0 and found["agent_env"].startswith("uvdms/") and found["space_params"] > 0
-    expected = [p.name for p in shipped_folders()]
-    assert found["folders"] == expected and found["entries"] == expected
+    multi_seed = {p.parent.name for p in (REPO / "trained_agents").glob("*/seed_*")}
+    expected = sorted([p.name for p in shipped_folders()] + sorted(multi_seed))
+    assert found["folders"] == expected and sorted(found["entries"]) == expected
