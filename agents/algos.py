@@ -1,7 +1,8 @@
 """The reinforcement-learning algorithms available to the training scripts.
 
 SB3's PPO, SAC, TD3, sb3-contrib's TQC, and the project's PPO-Lagrangian (:mod:`agents.ppo_lagrangian`: PPO under a
-per-episode budget on ``info["cost"]``).
+per-episode budget on ``info["cost"]``) and TD3-prior (:mod:`agents.td3_prior`: TD3 whose actor is held near the
+zero action, TD3+BC's loss; for residual agents).
 """
 
 from sb3_contrib import TQC
@@ -10,12 +11,14 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 from agents.ppo_lagrangian import PPOLagrangian
+from agents.td3_prior import TD3Prior
 
 ALGOS: dict[str, type[BaseAlgorithm]] = {
     "ppo": PPO,
     "ppo_lagrangian": PPOLagrangian,
     "sac": SAC,
     "td3": TD3,
+    "td3_prior": TD3Prior,
     "tqc": TQC,
 }
 """Algorithm name (as used in ``--algo`` and in ``train_configs/<algo>.yml``) -> SB3 class."""
