@@ -18,8 +18,8 @@ Everything else (critics, target smoothing, delayed updates, exploration noise) 
 ``prior_coef = 0`` the actor's update direction is TD3's, its step scaled by ``1 / mean|Q|``.
 """
 
-from __future__ import annotations
-
+# NOTE: no ``from __future__ import annotations`` here: agents.config validates YAML keys against the evaluated
+# annotations of ``TD3Prior.__init__`` (as for agents.ppo_lagrangian).
 import math
 from collections.abc import Mapping
 from typing import Any
