@@ -96,6 +96,17 @@ TINY = {
         "noise_std": 0.2,
         "policy_kwargs": {"net_arch": [16]},
     },
+    "td3_prior": {
+        **_COMMON,
+        "buffer_size": 1000,
+        "batch_size": 32,
+        "learning_starts": 50,
+        "noise_type": "normal",
+        "noise_std": 0.2,
+        "prior_coef": 0.4,
+        "actor_warmup_steps": 100,
+        "policy_kwargs": {"net_arch": [16]},
+    },
     "tqc": {
         **_COMMON,
         "normalize": True,
