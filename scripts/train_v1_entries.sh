@@ -11,7 +11,7 @@
 # Runs go to $OUT/<entry>/ (default runs/v1), logs to $OUT/logs/. Every run's budget is set so that it takes at
 # most 60 minutes on an idle 2-core VM (README, "Learned entries"). The families:
 #   sac-*                  end-to-end SAC (train_configs/sac.yml, v1 entry: action_scale 0.3)
-#   residual-mpc-sac-*     SAC learning a residual of at most 0.5 (circles) / 0.3 (transport) of the action range
+#   residual-mpc-*         a residual of at most 0.5 (circles, TD3-prior) / 0.3 (transport, SAC) of the action range
 #                          over plain `mpc`
 #                          (no collision rows: whatever avoidance it shows, it learned)
 #   ppo-lagrangian-*       PPO-Lagrangian on info["cost"] (train_configs/ppo_lagrangian.yml), 2 envs (hybrid)
@@ -32,14 +32,19 @@ E2E="track_scale=0.5"
 PPO_LAGRANGIAN="--vec-env hybrid --hyperparams action_scale=0.3"
 # Residual scales: benchmarks/residual_reach.py (CAMPC's correction of mpc clipped to a residual of scale s, random
 # circles, 8 held-out seeds): contact-free 6/8 at s = 0.3, 8/8 at s = 0.5; on transport mpc and campc agree.
-RESIDUAL_CIRCLE="--residual mpc --residual-scale 0.5 --hyperparams action_scale=1.0"
+# The circle residual learns with TD3-prior (agents/td3_prior.py: TD3+BC's actor loss toward the zero residual,
+# and a 10k-step critic burn-in); SAC and plain TD3 residuals drove the arms into contacts early in training
+# (README, "Learned entries"). Its training reward drops the effort term (it penalises the composed command, so
+# it pulls the residual against the base) and weighs the clearance term 5x.
+RESIDUAL_CIRCLE="--residual mpc --residual-scale 0.5 --hyperparams actor_warmup_steps=10000"
+RESIDUAL_CIRCLE_KWARGS="effort_weight=0.0 proximity_weight=1.0"
 RESIDUAL_TRANSPORT="--residual mpc --residual-scale 0.3 --hyperparams action_scale=1.0"
 
 # entry | algo | env id | env kwargs | extra training arguments | budget (env steps)
 ENTRIES=(
   "sac-circle-v1|sac|uvdms/CircleTrack-v1|$CIRCLE $E2E||150000"
   "sac-transport-v1|sac|uvdms/Transport-v1|$TRANSPORT $E2E||150000"
-  "residual-mpc-sac-circle-v1|sac|uvdms/CircleTrack-v1|$CIRCLE|$RESIDUAL_CIRCLE|150000"
+  "residual-mpc-td3prior-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE $RESIDUAL_CIRCLE_KWARGS|$RESIDUAL_CIRCLE|150000"
   "residual-mpc-sac-transport-v1|sac|uvdms/Transport-v1|$TRANSPORT|$RESIDUAL_TRANSPORT|150000"
   "ppo-lagrangian-circle-v1|ppo_lagrangian|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PPO_LAGRANGIAN|2000000"
   "ppo-lagrangian-transport-v1|ppo_lagrangian|uvdms/Transport-v1|$TRANSPORT $E2E|$PPO_LAGRANGIAN|2000000"
