@@ -437,9 +437,33 @@ def test_committed_leaderboard_is_reproduced_from_its_episodes():
     rows = []
     for path in sorted((root / "entries").glob("*.json")):
         doc = json.loads(path.read_text(encoding="utf-8"))
-        entry = lb.Entry(name=doc["name"], kind=doc["kind"], spec=doc["spec"], track=doc["track"], env_id=doc["env_id"])
+        seeds = [s["training_seed"] for s in doc.get("seeds") or []]
+        members = tuple(
+            lb.Entry(
+                name=f"{doc['name']}/seed_{k}",
+                kind=doc["kind"],
+                spec=doc["spec"],
+                track=doc["track"],
+                env_id=doc["env_id"],
+                training_seed=k,
+            )
+            for k in seeds
+        )
+        entry = lb.Entry(
+            name=doc["name"],
+            kind=doc["kind"],
+            spec=doc["spec"],
+            track=doc["track"],
+            env_id=doc["env_id"],
+            members=members,
+        )
         for name, cell in doc["tasks"].items():
-            stats = lb.aggregate(cell["episodes"])
+            if seeds:  # a multi-seed entry: its own aggregation (IQM, stratified bootstrap) over seeds x episodes
+                runs = [[e for e in cell["episodes"] if e["training_seed"] == k] for k in seeds]
+                assert all(len(run) == len(runs[0]) > 0 for run in runs), (doc["name"], name)
+                stats = lb.aggregate_runs(runs)
+            else:
+                stats = lb.aggregate(cell["episodes"])
             assert {m: s.to_json() for m, s in stats.items()} == cell["stats"], (doc["name"], name)
             rows.append(lb.RankedRow(entry, tasks[name], stats, cell["episodes"]))
     assert len(rows) > 20
