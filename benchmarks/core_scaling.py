@@ -23,12 +23,12 @@ from __future__ import annotations
 import argparse
 import json
 import multiprocessing as mp
-import os
-import platform
 import statistics
 import sys
 import time
 from typing import Any
+
+from uvdms_gym.provenance import load_average, machine_info
 
 ENV_ID = "uvdms/CircleTrack-v0"
 ENV_KWARGS: dict[str, Any] = {"case": 1}
@@ -89,7 +89,7 @@ def throughput(workload: str, processes: int, seconds: float) -> float:
 
 def measure(rounds: int, seconds: float) -> dict[str, Any]:
     """Per workload: the 1- and 2-process throughputs of every round and the median per-round ratio."""
-    load_before = os.getloadavg()[0]
+    load_before = load_average()
     result: dict[str, Any] = {}
     for workload in WORKLOADS:
         one, two = [], []
@@ -104,15 +104,12 @@ def measure(rounds: int, seconds: float) -> dict[str, Any]:
             "ratio_min": min(ratios),
             "ratio_max": max(ratios),
         }
-    cpu = next(
-        (line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name")),
-        platform.processor(),
-    )
+    machine = machine_info()
     result["machine"] = {
-        "cpu": cpu,
-        "cores": os.cpu_count(),
+        "cpu": machine["cpu_model"],
+        "cores": machine["cpu_count"],
         "load_1min_before": load_before,
-        "load_1min_after": os.getloadavg()[0],
+        "load_1min_after": load_average(),
     }
     return result
 
@@ -130,9 +127,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.write("\n")
         return 0
     m = result["machine"]
-    sys.stdout.write(
-        f"{m['cpu']}, {m['cores']} cores, load {m['load_1min_before']:.2f} -> {m['load_1min_after']:.2f}\n"
-    )
+    sys.stdout.write(f"{m['cpu']}, {m['cores']} cores, load {m['load_1min_before']} -> {m['load_1min_after']}\n")
     for workload in WORKLOADS:
         r = result[workload]
         sys.stdout.write(
