@@ -12,6 +12,8 @@ ALGO_NAMES: tuple[str, ...] = ("ppo", "ppo_lagrangian", "sac", "td3", "td3_prior
 """Names of :data:`agents.algos.ALGOS` (kept equal to its keys; checked by the tests)."""
 DEFAULT_GYM_PACKAGES: tuple[str, ...] = ("uvdms_gym",)
 """Packages imported by default so that the env ids are registered."""
+RESIDUAL_OBSERVATION_NAMES: tuple[str, ...] = ("base", "clearance")
+"""Choices of ``--residual-observation``: :data:`uvdms_gym.residual.RESIDUAL_OBSERVATIONS` (checked by the tests)."""
 VEC_ENV_TYPES: tuple[str, ...] = ("dummy", "subproc", "hybrid")
 """Vectorised environment types of ``--vec-env`` (:func:`agents.envs.make_vec_env`)."""
 
@@ -70,6 +72,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--residual-scale", type=float, metavar="S", help="bound S of the residual, in (0, 1] (with --residual)"
+    )
+    parser.add_argument(
+        "--residual-observation",
+        choices=RESIDUAL_OBSERVATION_NAMES,
+        help="what the residual policy observes besides the env's observation (with --residual): base (default: "
+        "the base's action) or clearance (also the 36 clearance features of uvdms_gym.residual.ClearanceFeatures)",
     )
     parser.add_argument(
         "--safety-filter",

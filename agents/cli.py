@@ -88,6 +88,8 @@ def _train_argv(args: argparse.Namespace) -> list[str]:
         argv += ["--residual", args.residual]
     if args.residual_scale is not None:
         argv += ["--residual-scale", repr(args.residual_scale)]
+    if args.residual_observation is not None:
+        argv += ["--residual-observation", args.residual_observation]
     if args.safety_filter:
         argv.append("--safety-filter")
     if args.no_progress:

@@ -178,6 +178,11 @@ class TrainConfig:
             Evaluation and the exported agent are unaffected.
         safety_filter: The training envs' velocity command (after the residual, if any) goes through the safety
             filter (``baselines.safety.SafetyFilter``, injected by ``uvdms train``); evaluation composes the same.
+        residual_observation: What a residual policy observes besides the environment's observation (only with
+            ``residual_base``): ``"base"`` (default), the base's action; ``"clearance"``, the base's action and
+            36 clearance features (the direction that opens the clearances below ``d2`` and the clearance rates
+            under the base's command, :class:`uvdms_gym.residual.ClearanceFeatures`). Recorded in the export, so
+            evaluation computes the same observation.
     """
 
     algo: str
@@ -205,6 +210,7 @@ class TrainConfig:
     residual_scale: float | None = None
     residual_penalty: float = 0.0
     safety_filter: bool = False
+    residual_observation: str = "base"
 
     # ----------------------------------------------------------------------------------------------
     def to_entry(self) -> dict[str, Any]:
@@ -220,7 +226,9 @@ class TrainConfig:
     @property
     def composition(self) -> ActionComposition:
         """The residual base and safety filter of the run (:class:`uvdms_gym.residual.ActionComposition`)."""
-        return ActionComposition(self.residual_base, self.residual_scale, self.safety_filter)
+        return ActionComposition(
+            self.residual_base, self.residual_scale, self.safety_filter, residual_observation=self.residual_observation
+        )
 
     def normalize_kwargs(self) -> dict[str, Any] | None:
         """Keyword arguments for ``VecNormalize`` or ``None`` when normalisation is off.

@@ -119,6 +119,8 @@ class EnvFactory:
         base_factory: Base controller of a residual agent (``None``: no residual; :class:`ResidualAction`).
         residual_scale: Bound of the residual (with ``base_factory``).
         residual_penalty: Shaping of the residual's magnitude in the reward (with ``base_factory``; 0: none).
+        residual_observation: What the residual policy observes besides the env's observation (with
+            ``base_factory``; :data:`uvdms_gym.residual.RESIDUAL_OBSERVATIONS`).
         filter_factory: Safety filter of the velocity command, applied after the residual (``None``: none;
             :class:`FilteredAction`).
         episode_metrics: Put each episode's benchmark metrics into its last ``info``
@@ -136,6 +138,7 @@ class EnvFactory:
     base_factory: ControllerFactory | None = None
     residual_scale: float | None = None
     residual_penalty: float = 0.0
+    residual_observation: str = "base"
     filter_factory: FilterFactory | None = None
     episode_metrics: bool = False
 
@@ -163,7 +166,9 @@ class EnvFactory:
         if self.base_factory is not None:
             if self.residual_scale is None:
                 raise ValueError("a residual base needs residual_scale")
-            env = ResidualAction(env, self.base_factory, self.residual_scale, self.residual_penalty)
+            env = ResidualAction(
+                env, self.base_factory, self.residual_scale, self.residual_penalty, self.residual_observation
+            )
         if self.action_scale != 1.0:
             env = ScaledAction(env, self.action_scale)
         if self.alive_bonus:

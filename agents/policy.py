@@ -218,9 +218,14 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
     composition = getattr(agent, "composition", None) or ActionComposition()
     expected = env.observation_space
     if composition.is_residual:
-        expected = residual_observation_space(env.observation_space, env.action_space)
+        expected = residual_observation_space(env.observation_space, env.action_space, composition.residual_observation)
     if tuple(agent.observation_space.shape) != tuple(expected.shape):
-        what = f" (with the residual base's {env.action_space.shape[0]} actions)" if composition.is_residual else ""
+        what = ""
+        if composition.is_residual:
+            what = f" (with the residual base's {env.action_space.shape[0]} actions"
+            if composition.residual_observation != "base":
+                what += f" and the {composition.residual_observation} features"
+            what += ")"
         raise ValueError(
             f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "
             f"{expected.shape}{what}"

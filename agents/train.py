@@ -179,6 +179,7 @@ def train(
     residual_scale: float | None = None,
     safety_filter: bool | None = None,
     components: ActionComponents | None = None,
+    residual_observation: str | None = None,
 ) -> Path:
     """Train (or resume training of) an agent and return its run directory.
 
@@ -210,6 +211,8 @@ def train(
         residual_base: Train a residual on this base controller (overrides the config's ``residual_base``;
             ``--residual``). Resume: must equal the run's, if given.
         residual_scale: Bound of the residual in (0, 1] (``--residual-scale``; same rules).
+        residual_observation: What the residual policy observes besides the env's observation
+            (``--residual-observation``; same rules; :data:`uvdms_gym.residual.RESIDUAL_OBSERVATIONS`).
         safety_filter: Filter the training envs' velocity command (``--safety-filter``; ``None``: the config's).
         components: The base and filter factories of the composition layer; required when the configuration
             has a residual base or the safety filter.
@@ -231,7 +234,12 @@ def train(
                 "--resume takes its configuration from the run's config.yml; do not pass "
                 "--config, --env-kwargs or --hyperparams"
             )
-        given = {"residual_base": residual_base, "residual_scale": residual_scale, "safety_filter": safety_filter}
+        given = {
+            "residual_base": residual_base,
+            "residual_scale": residual_scale,
+            "residual_observation": residual_observation,
+            "safety_filter": safety_filter,
+        }
         return _resume(
             Path(resume_dir),
             algo,
@@ -259,6 +267,7 @@ def train(
         for key, value in (
             ("residual_base", residual_base),
             ("residual_scale", residual_scale),
+            ("residual_observation", residual_observation),
             ("safety_filter", safety_filter),
         )
         if value is not None
@@ -300,6 +309,8 @@ def train(
         command += ["--residual", residual_base]
     if residual_scale is not None:
         command += ["--residual-scale", repr(float(residual_scale))]
+    if residual_observation is not None:
+        command += ["--residual-observation", residual_observation]
     if safety_filter:
         command.append("--safety-filter")
     try:
@@ -347,8 +358,8 @@ def resolve_config(
         env_kwargs: Merged into the entry's ``env_kwargs`` (``--env-kwargs``).
         n_envs: Overrides ``n_envs`` (``--n-envs``).
         total_timesteps: Overrides ``n_timesteps`` (``--total-timesteps``).
-        composition: Overrides of ``residual_base``, ``residual_scale``, ``safety_filter`` (``--residual``,
-            ``--residual-scale``, ``--safety-filter``).
+        composition: Overrides of ``residual_base``, ``residual_scale``, ``residual_observation``,
+            ``safety_filter`` (``--residual``, ``--residual-scale``, ``--residual-observation``, ``--safety-filter``).
 
     Raises:
         ConfigError: An invalid file, key or value.
@@ -520,6 +531,7 @@ def _run_segment(
         "base_factory": base_factory,
         "residual_scale": cfg.residual_scale if base_factory is not None else None,
         "residual_penalty": cfg.residual_penalty if base_factory is not None else 0.0,
+        "residual_observation": cfg.residual_observation if base_factory is not None else "base",
         "filter_factory": filter_factory,
     }
     train_factories = [
@@ -765,6 +777,7 @@ def main(argv: Sequence[str] | None = None, *, components: ActionComponents | No
             verbose=args.verbose,
             residual_base=args.residual,
             residual_scale=args.residual_scale,
+            residual_observation=args.residual_observation,
             safety_filter=True if args.safety_filter else None,
             components=components,
         )

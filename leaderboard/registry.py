@@ -147,13 +147,18 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
     Raises:
         ValueError: The recorded base is not a velocity-mode baseline, or an action-mode mismatch.
     """
-    from uvdms_gym.residual import ActionComposition
+    from uvdms_gym.residual import ActionComposition, residual_features
 
     composition = getattr(agent, "composition", None) or ActionComposition()
     controller = agent
     if composition.is_residual:
         base = BaselineFactory(str(composition.residual_base))(env)
-        controller = ResidualController(base, agent, float(composition.residual_scale))  # type: ignore[arg-type]
+        controller = ResidualController(
+            base,
+            agent,
+            float(composition.residual_scale),
+            residual_features(composition, env),  # type: ignore[arg-type]
+        )
     if composition.safety_filter or safety_filter:
         controller = with_safety_filter(controller, env)
     return controller

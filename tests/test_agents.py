@@ -601,6 +601,13 @@ def test_algo_names_of_the_light_parser_match_algos():
     assert list(PARSER_ALGOS) == ALGO_NAMES
 
 
+def test_residual_observation_choices_of_the_light_parser_match_the_composition():
+    from agents.args import RESIDUAL_OBSERVATION_NAMES
+    from uvdms_gym.residual import RESIDUAL_OBSERVATIONS
+
+    assert RESIDUAL_OBSERVATION_NAMES == RESIDUAL_OBSERVATIONS
+
+
 def test_max_episode_steps_and_alive_bonus(tmp_path, config_dir):
     """Both fields reach the training/evaluation envs; Monitor logs hold the shaped return."""
     env_id = "Pendulum-v1"

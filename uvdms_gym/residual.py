@@ -9,6 +9,10 @@ Residual agent. A learned policy corrects a base controller's velocity command b
 any), so the residual moves each normalised command by at most ``residual_scale``. The policy observes
 ``[obs; a_base]``: the environment's observation followed by the base's action at the same state (18 entries in
 ``[-1, 1]``), so it knows what it corrects (:func:`residual_observation`, :func:`residual_observation_space`).
+With ``residual_observation="clearance"`` it also observes 36 clearance features (:class:`ClearanceFeatures`): the
+direction in action space that opens the clearances closer than ``d2``, and the rate at which the base's command
+changes each clearance. They are computed from ``info`` with the environment's explicit kinematic model, the same
+way in training and at evaluation; they tell the policy where the obstacles are, not what to do about them.
 :func:`compose_residual` is the one implementation of the formula: :class:`ResidualAction` applies it in training
 (a Gymnasium wrapper around the training and evaluation-callback environments) and :class:`ResidualController`
 at evaluation (around the trained agent's controller), so that for the same inputs both send the same action,
@@ -37,7 +41,10 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from uvdms_gym.distances import compute_distances, distance_jacobian, velocity_damper
 from uvdms_gym.evaluation import Controller
+from uvdms_gym.kinematics import KinematicModel
+from uvdms_gym.params import D1, D2
 
 ControllerFactory = Callable[[Any], Controller]
 """``(env) -> controller``: builds a base controller for an environment (picklable in training)."""
@@ -48,8 +55,15 @@ ACTION_LOW = -1.0
 """Lower bound of the normalised action space (the composed action is clipped to it)."""
 ACTION_HIGH = 1.0
 """Upper bound of the normalised action space."""
-RECORD_KEYS: tuple[str, ...] = ("residual_base", "residual_scale", "safety_filter")
+RECORD_KEYS: tuple[str, ...] = ("residual_base", "residual_scale", "residual_observation", "safety_filter")
 """The keys of an :class:`ActionComposition` in a run's config entry and in an export's ``agent.json``."""
+RESIDUAL_OBSERVATIONS: tuple[str, ...] = ("base", "clearance")
+"""What a residual policy observes besides the environment's observation: ``"base"``, the base's action;
+``"clearance"``, the base's action and the :class:`ClearanceFeatures`."""
+CLEARANCE_RATE_SCALE = 0.1
+"""Scale (m/s) of the clearance rates among the :class:`ClearanceFeatures` (a rate of 0.1 m/s observes as 1)."""
+FEATURE_CLIP = 10.0
+"""The clearance features are clipped to ``[-FEATURE_CLIP, FEATURE_CLIP]`` (the environments' observation clip)."""
 
 
 def is_residual_scale(value: Any) -> bool:
@@ -74,15 +88,20 @@ class ActionComposition:
             Which names are valid (velocity-mode baselines) is the composition layer's to check.
         residual_scale: Bound of the residual, in (0, 1]; given exactly when ``residual_base`` is.
         safety_filter: The (composed) velocity command goes through the safety filter.
+        residual_observation: What the residual policy observes besides the environment's observation (one of
+            :data:`RESIDUAL_OBSERVATIONS`; anything but ``"base"`` needs a residual base). Records written before
+            this key existed are ``"base"``.
 
     Raises:
-        ValueError: A scale outside (0, 1], a scale without a base or a base without a scale, or a base that is
-            not a non-empty string.
+        ValueError: A scale outside (0, 1], a scale without a base or a base without a scale, a base that is
+            not a non-empty string, or an unknown residual observation (or one other than ``"base"`` without a
+            base).
     """
 
     residual_base: str | None = None
     residual_scale: float | None = None
     safety_filter: bool = False
+    residual_observation: str = "base"
 
     def __post_init__(self) -> None:
         if self.residual_base is not None and (not isinstance(self.residual_base, str) or not self.residual_base):
@@ -96,6 +115,15 @@ class ActionComposition:
             )
         if not isinstance(self.safety_filter, bool):
             raise ValueError(f"safety_filter must be true or false, got {self.safety_filter!r}")
+        if self.residual_observation not in RESIDUAL_OBSERVATIONS:
+            raise ValueError(
+                f"residual_observation must be one of {RESIDUAL_OBSERVATIONS}, got {self.residual_observation!r}"
+            )
+        if self.residual_observation != "base" and self.residual_base is None:
+            raise ValueError(
+                f"residual_observation={self.residual_observation!r} is what a residual policy observes, but there is "
+                "no residual_base"
+            )
 
     @property
     def is_residual(self) -> bool:
@@ -108,9 +136,14 @@ class ActionComposition:
         return not self.is_residual and not self.safety_filter
 
     def to_record(self) -> dict[str, Any]:
-        """The record: ``{"residual_base": ..., "residual_scale": ..., "safety_filter": ...}``."""
+        """The record: ``{"residual_base": ..., "residual_scale": ..., "residual_observation": ..., ...}``."""
         scale = None if self.residual_scale is None else float(self.residual_scale)
-        return {"residual_base": self.residual_base, "residual_scale": scale, "safety_filter": self.safety_filter}
+        return {
+            "residual_base": self.residual_base,
+            "residual_scale": scale,
+            "residual_observation": self.residual_observation,
+            "safety_filter": self.safety_filter,
+        }
 
     @classmethod
     def from_record(cls, record: Mapping[str, Any] | None) -> ActionComposition:
@@ -122,10 +155,12 @@ class ActionComposition:
         record = record or {}
         scale = record.get("residual_scale")
         safety_filter = record.get("safety_filter")
+        observation = record.get("residual_observation")
         return cls(
             residual_base=record.get("residual_base"),
             residual_scale=float(scale) if is_residual_scale(scale) else scale,
             safety_filter=False if safety_filter is None else safety_filter,
+            residual_observation="base" if observation is None else observation,
         )
 
     def describe(self, name: str) -> str:
@@ -162,25 +197,102 @@ def is_residual_penalty(value: Any) -> bool:
     )
 
 
-def residual_observation(obs: np.ndarray, base_action: np.ndarray) -> np.ndarray:
-    """What a residual policy observes: ``[obs; base_action]`` in the observation's dtype."""
+class ClearanceFeatures:
+    """The 36 clearance features of ``residual_observation="clearance"``, from ``info`` and a kinematic model.
+
+    With ``d`` the 18 clearances (m), ``G = -J_dis diag(zeta_max)`` (18 x 18: the rate of each clearance per unit
+    of normalised action, since ``d_dot = -J_dis zeta`` and ``zeta = a * zeta_max``) and ``w = 1 - S(d)`` (0
+    beyond ``d2``, 1 inside ``d1``)::
+
+        direction = sum_i w_i G_i / |G_i|                 (18): opens the clearances closer than d2
+        rate      = G a_base / CLEARANCE_RATE_SCALE        (18): each clearance's rate under the base's command
+
+    both clipped to ``[-FEATURE_CLIP, FEATURE_CLIP]``. The direction is zero when every clearance is beyond
+    ``d2``. The features are a function of ``info``'s configuration (``eta``, ``q``) and of ``a_base`` only,
+    evaluated on a kinematic model built from the environment's parameters, so training and evaluation compute
+    the same values for the same inputs.
+
+    Args:
+        kin: A kinematic model of the environment's vehicle (its state is overwritten on every call).
+        zeta_max: The velocity-mode action scale (18).
+    """
+
+    size = 36
+    """Number of features."""
+
+    def __init__(self, kin: Any, zeta_max: np.ndarray) -> None:
+        self.kin = kin
+        self.zeta_max = np.asarray(zeta_max, dtype=np.float64).copy()
+        if self.zeta_max.shape != (18,):
+            raise ValueError(f"zeta_max must have 18 entries, got shape {self.zeta_max.shape}")
+
+    @classmethod
+    def for_env(cls, env: Any) -> ClearanceFeatures:
+        """The features of a UVDMS environment (through wrappers).
+
+        They use a kinematic model of their own, built from the environment's ``params`` (not shared with the
+        base controller), and the environment's ``zeta_max``.
+
+        Raises:
+            ValueError: ``env`` is not a UVDMS environment.
+        """
+        base = getattr(env, "unwrapped", env)
+        if not hasattr(base, "params") or not hasattr(base, "zeta_max"):
+            raise ValueError(
+                f"residual_observation='clearance' needs a UVDMS environment (params, zeta_max), got {base!r}"
+            )
+        return cls(KinematicModel(base.params), base.zeta_max)
+
+    def __call__(self, info: Mapping[str, Any], base_action: np.ndarray) -> np.ndarray:
+        """``[direction; rate]`` (36, float64) at the configuration of ``info``."""
+        self.kin.set_state(np.asarray(info["eta"], dtype=np.float64), np.asarray(info["q"], dtype=np.float64))
+        res = compute_distances(self.kin, "exact")
+        gain = -distance_jacobian(self.kin, res) * self.zeta_max
+        weight = 1.0 - velocity_damper(res.d, D1, D2)
+        norms = np.sqrt(np.einsum("ij,ij->i", gain, gain))
+        direction = (weight / np.maximum(norms, 1e-12)) @ gain
+        rate = gain @ np.asarray(base_action, dtype=np.float64) / CLEARANCE_RATE_SCALE
+        return np.clip(np.concatenate([direction, rate]), -FEATURE_CLIP, FEATURE_CLIP)
+
+
+def residual_features(composition: ActionComposition, env: Any) -> ClearanceFeatures | None:
+    """The extra features a composition's residual policy observes on ``env`` (``None``: only the base's action)."""
+    if composition.residual_observation == "clearance":
+        return ClearanceFeatures.for_env(env)
+    return None
+
+
+def residual_observation(obs: np.ndarray, base_action: np.ndarray, features: np.ndarray | None = None) -> np.ndarray:
+    """What a residual policy observes: ``[obs; base_action]`` (and ``features``, if any) in the observation's dtype."""
     obs = np.asarray(obs)
-    return np.concatenate([obs, np.asarray(base_action, dtype=obs.dtype)])
+    parts = [obs, np.asarray(base_action, dtype=obs.dtype)]
+    if features is not None:
+        parts.append(np.asarray(features, dtype=obs.dtype))
+    return np.concatenate(parts)
 
 
-def residual_observation_space(observation_space: gym.spaces.Box, action_space: gym.spaces.Box) -> gym.spaces.Box:
+def residual_observation_space(
+    observation_space: gym.spaces.Box, action_space: gym.spaces.Box, observation: str = "base"
+) -> gym.spaces.Box:
     """The observation space of a residual policy: the environment's, extended by the action box.
 
+    With ``observation="clearance"``, also by the 36 clearance features, in ``[-FEATURE_CLIP, FEATURE_CLIP]``.
+
     Raises:
-        ValueError: Either space is not a one-dimensional ``Box``.
+        ValueError: Either space is not a one-dimensional ``Box``, or an unknown ``observation``.
     """
+    if observation not in RESIDUAL_OBSERVATIONS:
+        raise ValueError(f"residual_observation must be one of {RESIDUAL_OBSERVATIONS}, got {observation!r}")
     for what, space in (("observation", observation_space), ("action", action_space)):
         if not isinstance(space, gym.spaces.Box) or len(space.shape) != 1:
             raise ValueError(f"a residual agent needs a one-dimensional Box {what} space, got {space}")
     dtype = observation_space.dtype
-    low = np.concatenate([observation_space.low, action_space.low.astype(dtype)])
-    high = np.concatenate([observation_space.high, action_space.high.astype(dtype)])
-    return gym.spaces.Box(low=low, high=high, dtype=dtype)  # type: ignore[arg-type]
+    lows = [observation_space.low, action_space.low.astype(dtype)]
+    highs = [observation_space.high, action_space.high.astype(dtype)]
+    if observation == "clearance":
+        lows.append(np.full(ClearanceFeatures.size, -FEATURE_CLIP, dtype))
+        highs.append(np.full(ClearanceFeatures.size, FEATURE_CLIP, dtype))
+    return gym.spaces.Box(low=np.concatenate(lows), high=np.concatenate(highs), dtype=dtype)  # type: ignore[arg-type]
 
 
 def _check_unit_box(env: gym.Env, what: str) -> None:
@@ -209,13 +321,23 @@ class ResidualAction(gym.Wrapper):
             -penalty * |action|^2 / dim`` is added to the reward (and reported in ``info``), so that the policy
             keeps the residual at zero where the base needs no correction. ``action`` is the policy's output in
             ``[-1, 1]``, so the term lies in ``[-penalty, 0]``.
+        observation: ``residual_observation`` (:data:`RESIDUAL_OBSERVATIONS`): ``"clearance"`` appends the
+            :class:`ClearanceFeatures` of the new state (after the base's action at it) to every observation.
 
     Raises:
         ValueError: A scale outside (0, 1], a negative or non-finite penalty, an action space other than
-            ``Box(-1, 1)``, or what the factory raises.
+            ``Box(-1, 1)``, an unknown observation (or ``"clearance"`` on a non-UVDMS environment), or what the
+            factory raises.
     """
 
-    def __init__(self, env: gym.Env, base_factory: ControllerFactory, scale: float, penalty: float = 0.0) -> None:
+    def __init__(
+        self,
+        env: gym.Env,
+        base_factory: ControllerFactory,
+        scale: float,
+        penalty: float = 0.0,
+        observation: str = "base",
+    ) -> None:
         super().__init__(env)
         if not is_residual_scale(scale):
             raise ValueError(f"residual_scale must be a number in (0, 1], got {scale!r}")
@@ -225,15 +347,20 @@ class ResidualAction(gym.Wrapper):
         self.scale = float(scale)
         self.penalty = float(penalty)
         self.base = base_factory(env)
-        self.observation_space = residual_observation_space(env.observation_space, env.action_space)
+        self.observation_space = residual_observation_space(env.observation_space, env.action_space, observation)
+        self.features = ClearanceFeatures.for_env(env) if observation == "clearance" else None
         self._base_action: np.ndarray | None = None
 
+    def _observation(self, obs: Any, info: Mapping[str, Any]) -> np.ndarray:
+        features = None if self.features is None else self.features(info, self._base_action)  # type: ignore[arg-type]
+        return residual_observation(obs, self._base_action, features)  # type: ignore[arg-type]
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
-        """Reset the environment and the base; the observation is ``[obs; a_base]``."""
+        """Reset the environment and the base; the observation is ``[obs; a_base]`` (and the features)."""
         obs, info = self.env.reset(seed=seed, options=options)
         self.base.reset(seed)
         self._base_action = np.asarray(self.base.predict(obs, info))
-        return residual_observation(obs, self._base_action), info
+        return self._observation(obs, info), info
 
     def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
         """Send ``clip(a_base + scale * action)``; the next observation is ``[obs; a_base(next state)]``."""
@@ -243,12 +370,13 @@ class ResidualAction(gym.Wrapper):
         sent, clipped = compose_residual(base_action, action, self.scale)
         obs, reward, terminated, truncated, info = self.env.step(sent)
         self._base_action = np.asarray(self.base.predict(obs, info))
+        observation = self._observation(obs, info)
         info = {**info, "residual_clipped": clipped, "residual_base_action": base_action, "residual_action": sent}
         if self.penalty:
             residual = np.asarray(action, dtype=np.float64)
             info["reward_residual"] = -self.penalty * float(residual @ residual) / residual.size
             reward = float(reward) + info["reward_residual"]
-        return residual_observation(obs, self._base_action), reward, terminated, truncated, info
+        return observation, reward, terminated, truncated, info
 
 
 class ResidualController:
@@ -262,8 +390,10 @@ class ResidualController:
 
     Args:
         base: The base controller (velocity action mode).
-        policy: The trained policy's controller; it receives ``[obs; a_base]``.
+        policy: The trained policy's controller; it receives ``[obs; a_base]`` (and ``features(info, a_base)``).
         scale: ``residual_scale``, in (0, 1].
+        features: The :class:`ClearanceFeatures` of an agent trained with ``residual_observation="clearance"``
+            (:func:`residual_features`; ``None``: none).
 
     Raises:
         ValueError: A scale outside (0, 1].
@@ -271,12 +401,15 @@ class ResidualController:
 
     action_mode = "velocity"
 
-    def __init__(self, base: Controller, policy: Controller, scale: float) -> None:
+    def __init__(
+        self, base: Controller, policy: Controller, scale: float, features: ClearanceFeatures | None = None
+    ) -> None:
         if not is_residual_scale(scale):
             raise ValueError(f"residual_scale must be a number in (0, 1], got {scale!r}")
         self.base = base
         self.policy = policy
         self.residual_scale = float(scale)
+        self.features = features
         self.last_record: dict[str, Any] = {}
         for attr in ("algo", "env_id", "num_timesteps", "source"):  # what evaluation records of an agent
             if hasattr(policy, attr):
@@ -296,7 +429,8 @@ class ResidualController:
         record = dict(getattr(self.base, "last_record", None) or {})
         if "zeta_cmd" in record:
             record["base_zeta_cmd"] = record.pop("zeta_cmd")
-        policy_action = self.policy.predict(residual_observation(obs, base_action), info)
+        features = None if self.features is None else self.features(info, base_action)
+        policy_action = self.policy.predict(residual_observation(obs, base_action, features), info)
         action, clipped = compose_residual(base_action, policy_action, self.residual_scale)
         self.last_record = {**record, "residual_clipped": clipped}
         return action
