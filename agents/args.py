@@ -14,7 +14,7 @@ DEFAULT_GYM_PACKAGES: tuple[str, ...] = ("uvdms_gym",)
 """Packages imported by default so that the env ids are registered."""
 RESIDUAL_OBSERVATION_NAMES: tuple[str, ...] = ("base", "clearance")
 """Choices of ``--residual-observation``: :data:`uvdms_gym.residual.RESIDUAL_OBSERVATIONS` (checked by the tests)."""
-VEC_ENV_TYPES: tuple[str, ...] = ("dummy", "subproc", "hybrid")
+VEC_ENV_TYPES: tuple[str, ...] = ("dummy", "subproc", "hybrid", "rollout")
 """Vectorised environment types of ``--vec-env`` (:func:`agents.envs.make_vec_env`)."""
 
 
@@ -54,8 +54,9 @@ def build_parser() -> argparse.ArgumentParser:
         choices=VEC_ENV_TYPES,
         default="dummy",
         help="vectorised env type: dummy (all envs in the trainer's process), subproc (each in a worker), "
-        "hybrid (env 0 in the trainer's process, the others in workers, all stepping at once: fastest with "
-        "n_envs free cores; same results as dummy)",
+        "hybrid (env 0 in the trainer's process, the others in workers, all stepping at once; same results as "
+        "dummy), rollout (PPO only: as hybrid, and each env collects its part of every rollout with its own "
+        "policy copy: PPO's fastest with n_envs free cores; reproducible, not identical to dummy)",
     )
     parser.add_argument(
         "--gym-packages",

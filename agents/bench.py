@@ -5,16 +5,18 @@ gradient updates; no evaluation or checkpoint callbacks) for PPO and SAC, each w
 (``DummyVecEnv``), 2 envs in worker processes (``SubprocVecEnv``, key ``"2"``), 2 envs stepped in the
 trainer's process (``DummyVecEnv``, key ``"2_dummy"``, the ``--vec-env`` default) and 2 envs of which one
 steps in the trainer's process while the other steps in a worker (:class:`agents.vecenv.HybridVecEnv`, key
-``"2_hybrid"``, ``--vec-env hybrid``), on ``uvdms/CircleTrack-v0``
+``"2_hybrid"``, ``--vec-env hybrid``) and, for PPO, 2 envs each collecting its part of every rollout with its own
+policy copy (:mod:`agents.rollouts`, key ``"2_rollout"``, ``--vec-env rollout``), on ``uvdms/CircleTrack-v0``
 (``case=1``) with the configurations of ``train_configs/<algo>.yml``. SAC's ``learning_starts`` is lowered
 to 100 steps so that its blocks include the gradient steps of steady-state training.
 
-The four models are built first, then timed in alternating blocks (PPO: one rollout of
+The models (five for PPO, four for SAC) are built first, then timed in alternating blocks (PPO: one rollout of
 ``n_steps x n_envs`` steps and its update; SAC: a fixed number of environment steps), so a change in machine
 load affects all alike; the figures are medians over blocks and ``speedup_2_vs_1`` is the ratio of the
-medians (``speedup_2_dummy_vs_1`` and ``speedup_2_hybrid_vs_1`` likewise). ``speedup_2_vs_1_paired`` (and
-``_dummy``/``_hybrid``) is the median over rounds of the ratio of the two models' blocks of the same round
-(seconds apart), which cancels the machine's slower drifts (a shared VM's speed can change 2x within minutes).
+medians (``speedup_2_dummy_vs_1``, ``speedup_2_hybrid_vs_1`` and ``speedup_2_rollout_vs_1`` likewise).
+``speedup_2_vs_1_paired`` (and ``_dummy``/``_hybrid``/``_rollout``) is the median over rounds of the ratio of the
+two models' blocks of the same round (seconds apart), which cancels the machine's slower drifts (a shared VM's
+speed can change 2x within minutes).
 The load average before and after is part of the result: timings taken beside other jobs are only indicative.
 
 Threads (:mod:`agents.threads`, as :func:`agents.train.train` sets them): one torch thread in the trainer while
@@ -46,8 +48,9 @@ CONFIGURATIONS: tuple[tuple[str, int, str], ...] = (
     ("2", 2, "subproc"),
     ("2_dummy", 2, "dummy"),
     ("2_hybrid", 2, "hybrid"),
+    ("2_rollout", 2, "rollout"),
 )
-"""(result key, n_envs, vec_env) of the timed models."""
+"""(result key, n_envs, vec_env) of the timed models (``rollout``: PPO only, :mod:`agents.rollouts`)."""
 
 
 def _build(algo: str, n_envs: int, vec_env: str, total_steps: int, seed: int = 0) -> Any:
@@ -114,6 +117,7 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
     import torch
 
     from agents.algos import is_off_policy
+    from agents.rollouts import ROLLOUT_ALGOS
     from agents.threads import update_threads
 
     torch.set_num_threads(1)
@@ -128,9 +132,10 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
     for algo in ("ppo", "sac"):
         n_blocks = blocks if blocks is not None else (1 if quick else DEFAULT_BLOCKS[algo])
         total = (n_blocks + 1) * sac_steps + SAC_LEARNING_STARTS + 2
-        models = {key: _build(algo, n, vec_env, total) for key, n, vec_env in CONFIGURATIONS}
-        n_envs = {key: n for key, n, _ in CONFIGURATIONS}
-        threads = {key: update_threads(n, vec_env, not is_off_policy(algo)) for key, n, vec_env in CONFIGURATIONS}
+        configurations = [c for c in CONFIGURATIONS if c[2] != "rollout" or algo in ROLLOUT_ALGOS]
+        models = {key: _build(algo, n, vec_env, total) for key, n, vec_env in configurations}
+        n_envs = {key: n for key, n, _ in configurations}
+        threads = {key: update_threads(n, vec_env, not is_off_policy(algo)) for key, n, vec_env in configurations}
         try:
             # PPO: one rollout of n_steps x n_envs and its update per block; SAC: sac_steps environment steps
             sizes = {key: int(m.n_steps) * n_envs[key] if algo == "ppo" else sac_steps for key, m in models.items()}
@@ -145,7 +150,7 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
             for model in models.values():
                 model.get_env().close()
         entry: dict[str, Any] = {}
-        for key, n, vec_env in CONFIGURATIONS:
+        for key, n, vec_env in configurations:
             entry[key] = {
                 "n_envs": n,
                 "vec_env": vec_env,
@@ -154,7 +159,10 @@ def bench_train(quick: bool = False, *, blocks: int | None = None, sac_block_ste
                 "steps_per_s": float(np.median(rates[key])),
                 "blocks_steps_per_s": rates[key],
             }
-        for key, suffix in (("2", ""), ("2_dummy", "_dummy"), ("2_hybrid", "_hybrid")):
+        for key in models:
+            if key == "1":
+                continue
+            suffix = key[1:]  # "2" -> "", "2_hybrid" -> "_hybrid"
             entry[f"speedup_2{suffix}_vs_1"] = entry[key]["steps_per_s"] / entry["1"]["steps_per_s"]
             paired = [two / one for two, one in zip(rates[key], rates["1"], strict=True)]
             entry[f"speedup_2{suffix}_vs_1_paired"] = float(np.median(paired))

@@ -25,6 +25,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
 from agents.learning_curve import EpisodeMetrics, has_tracking_metrics
+from agents.rollouts import RolloutVecEnv
 from agents.vecenv import HybridVecEnv
 from agents.wrappers import AliveBonus, ScalarInfo, ScaledAction
 from uvdms_gym.residual import ControllerFactory, FilteredAction, FilterFactory, ResidualAction
@@ -183,7 +184,9 @@ def make_vec_env(factories: list[Callable[[], gym.Env]], vec_env: str) -> VecEnv
 
     ``"dummy"``: every env in this process (``DummyVecEnv``); ``"subproc"``: every env in a worker process
     (``SubprocVecEnv``); ``"hybrid"``: env 0 in this process, the others in workers, stepped at the same time
-    (:class:`agents.vecenv.HybridVecEnv`; with a single factory, ``DummyVecEnv``).
+    (:class:`agents.vecenv.HybridVecEnv`; with a single factory, ``DummyVecEnv``); ``"rollout"``: as ``"hybrid"``,
+    and PPO collects each env's part of a rollout in that env's process (:class:`agents.rollouts.RolloutVecEnv`;
+    with a single factory, ``DummyVecEnv``).
     """
     if vec_env not in VEC_ENV_TYPES:
         raise ValueError(f"unknown vec_env {vec_env!r}: expected one of {', '.join(VEC_ENV_TYPES)}")
@@ -191,6 +194,8 @@ def make_vec_env(factories: list[Callable[[], gym.Env]], vec_env: str) -> VecEnv
         return SubprocVecEnv(factories)
     if vec_env == "hybrid" and len(factories) > 1:
         return HybridVecEnv(factories)
+    if vec_env == "rollout" and len(factories) > 1:
+        return RolloutVecEnv(factories)
     return DummyVecEnv(factories)
 
 
