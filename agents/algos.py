@@ -1,6 +1,6 @@
 """The reinforcement-learning algorithms available to the training scripts.
 
-SB3's PPO (as :class:`agents.rollouts.ParallelRolloutPPO`: SB3's PPO, which also collects parallel rollouts on
+SB3's PPO (as :class:`agents.rollouts.PPO`: SB3's PPO, which also collects parallel rollouts on
 ``--vec-env rollout``), SAC, TD3, sb3-contrib's TQC, and the project's PPO-Lagrangian
 (:mod:`agents.ppo_lagrangian`: PPO under a per-episode budget on ``info["cost"]``) and TD3-prior
 (:mod:`agents.td3_prior`: TD3 whose actor is held near the zero action, TD3+BC's loss; for residual agents).
@@ -12,11 +12,11 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 from agents.ppo_lagrangian import PPOLagrangian
-from agents.rollouts import ParallelRolloutPPO
+from agents.rollouts import PPO
 from agents.td3_prior import TD3Prior
 
 ALGOS: dict[str, type[BaseAlgorithm]] = {
-    "ppo": ParallelRolloutPPO,
+    "ppo": PPO,
     "ppo_lagrangian": PPOLagrangian,
     "sac": SAC,
     "td3": TD3,

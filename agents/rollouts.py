@@ -27,7 +27,7 @@ with each other):
   ``ep_info_buffer`` when the rollout ends. A callback that stops training stops env 0's collection; the workers'
   parts of that rollout are received and discarded.
 
-Only PPO (:class:`ParallelRolloutPPO`, registered as ``ppo``) collects this way, without gSDE; with any other
+Only PPO (:class:`PPO`, SB3's PPO subclassed and registered as ``ppo``) collects this way, without gSDE; with any other
 vector env it is SB3's PPO, unchanged. PPO-Lagrangian and the off-policy learners refuse ``--vec-env rollout``
 (:func:`check_rollout_vec_env`).
 """
@@ -44,7 +44,7 @@ import gymnasium as gym
 import numpy as np
 import torch as th
 from gymnasium import spaces
-from stable_baselines3 import PPO
+from stable_baselines3 import PPO as SB3PPO
 from stable_baselines3.common.buffers import RolloutBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.policies import ActorCriticPolicy
@@ -273,7 +273,7 @@ class RolloutVecEnv(HybridVecEnv):
     """:class:`agents.vecenv.HybridVecEnv` whose envs also collect whole rollout parts (module docstring).
 
     As a vector env it behaves as ``HybridVecEnv`` (env 0 here, the others in workers, the same results as
-    ``DummyVecEnv``); :class:`ParallelRolloutPPO` drives it through :meth:`start_parts` / :meth:`finish_parts`.
+    ``DummyVecEnv``); :class:`PPO` drives it through :meth:`start_parts` / :meth:`finish_parts`.
 
     Args:
         env_fns: At least 2 picklable env constructors.
@@ -352,11 +352,11 @@ def is_rollout_env(env: VecEnv | None) -> bool:
     return isinstance(env, RolloutVecEnv) or (isinstance(env, VecNormalize) and isinstance(env.venv, RolloutVecEnv))
 
 
-class ParallelRolloutPPO(PPO):
+class PPO(SB3PPO):
     """SB3's PPO that collects its rollouts in parallel on a :class:`RolloutVecEnv` (module docstring).
 
     With any other vector env it is SB3's PPO, unchanged (it only overrides ``collect_rollouts``, and defers to
-    SB3's there).
+    SB3's there). It keeps SB3's class name, which configuration errors and logs show.
     """
 
     def collect_rollouts(

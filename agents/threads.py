@@ -3,7 +3,7 @@
 The rule (documented in ``docs/CLUSTER_TRAINING.md`` and the README's Performance section):
 
 - A run *holds* :func:`run_cpus` CPUs: 1 with ``--vec-env dummy`` (the trainer steps every env itself),
-  ``n_envs`` with ``subproc`` or ``hybrid`` (one process per env is busy while the envs step). Sweeps and
+  ``n_envs`` with ``subproc``, ``hybrid`` or ``rollout`` (one process per env is busy while the envs step). Sweeps and
   ``uvdms tune`` declare this number to Ray.
 - While the envs step and the policy picks actions, the trainer uses **one** torch thread: the other CPUs the
   run holds are stepping envs, so a second thread would oversubscribe them.
@@ -36,7 +36,7 @@ def available_cpus() -> int:
 
 
 def run_cpus(n_envs: int, vec_env: str) -> int:
-    """CPUs a run keeps busy: 1 with ``dummy`` envs (stepped by the trainer), ``n_envs`` with ``subproc``/``hybrid``."""
+    """CPUs a run keeps busy: 1 with ``dummy`` envs (stepped by the trainer), ``n_envs`` otherwise."""
     return 1 if vec_env == "dummy" else max(int(n_envs), 1)
 
 
@@ -45,7 +45,7 @@ def update_threads(n_envs: int, vec_env: str, on_policy: bool) -> int:
 
     Args:
         n_envs: Training envs.
-        vec_env: ``dummy``, ``subproc`` or ``hybrid``.
+        vec_env: ``dummy``, ``subproc``, ``hybrid`` or ``rollout``.
         on_policy: Whether the algorithm updates after whole rollouts (PPO, A2C).
 
     Returns:

@@ -178,9 +178,7 @@ def test_training_and_evaluation_give_the_policy_the_same_observation():
     train_env.close()
 
     eval_env = gym.make(CIRCLE, case=1, max_episode_steps=steps)
-    controller = ResidualController(
-        make_baseline("mpc", eval_env), policy, SCALE, ClearanceFeatures.for_env(eval_env)
-    )
+    controller = ResidualController(make_baseline("mpc", eval_env), policy, SCALE, ClearanceFeatures.for_env(eval_env))
     run_episode(eval_env, controller, SEED)
     eval_env.close()
     assert len(train_seen) == len(policy.seen) > 60
@@ -226,9 +224,9 @@ def test_uvdms_train_records_it_and_evaluation_composes_it_from_the_export(tmp_p
     run_dir = run_dir_for(tmp_path / "runs", CIRCLE, "sac", 0)
     config = yaml.safe_load((run_dir / "config.yml").read_text())["config"]
     assert config["residual_observation"] == "clearance"
-    assert "--residual-observation clearance" in json.loads((run_dir / "meta.json").read_text())["segments"][0][
-        "command"
-    ]
+    assert (
+        "--residual-observation clearance" in json.loads((run_dir / "meta.json").read_text())["segments"][0]["command"]
+    )
     export = tmp_path / "export"
     assert uvdms(["export-agent", str(run_dir), str(export), "--trust"]) == 0
     doc = json.loads((export / "agent.json").read_text())

@@ -16,14 +16,14 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch as th
-from stable_baselines3 import PPO
+from stable_baselines3 import PPO as SB3PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.running_mean_std import RunningMeanStd
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from agents.config import ConfigError
 from agents.envs import EnvFactory, make_vec_env
-from agents.rollouts import COLLECT_METHOD, ObsNormalization, ParallelRolloutPPO, RolloutVecEnv
+from agents.rollouts import COLLECT_METHOD, PPO, ObsNormalization, RolloutVecEnv
 from agents.threads import run_cpus
 from agents.train import train
 
@@ -64,7 +64,7 @@ def test_a_parallel_rollout_is_the_replay_of_its_envs_and_of_vecnormalize():
     env = _venv("rollout")
     try:
         assert isinstance(env.venv, RolloutVecEnv)
-        model = ParallelRolloutPPO("MlpPolicy", env, seed=SEED, **PPO_KWARGS)
+        model = PPO("MlpPolicy", env, seed=SEED, **PPO_KWARGS)
         _, callback = model._setup_learn(N_STEPS * 2, None)  # resets the envs (one VecNormalize update)
         mean0, var0, count0 = env.obs_rms.mean.copy(), env.obs_rms.var.copy(), env.obs_rms.count
         assert model.collect_rollouts(env, callback, model.rollout_buffer, N_STEPS)
@@ -129,7 +129,7 @@ def test_a_parallel_rollout_is_the_replay_of_its_envs_and_of_vecnormalize():
         env.close()
 
 
-def _trained(kind: str, algo_cls: type = ParallelRolloutPPO, seed: int = SEED) -> list[np.ndarray]:
+def _trained(kind: str, algo_cls: type = PPO, seed: int = SEED) -> list[np.ndarray]:
     env = _venv(kind)
     try:
         model = algo_cls("MlpPolicy", env, seed=seed, **PPO_KWARGS)
@@ -147,7 +147,7 @@ def test_a_parallel_run_is_reproducible_from_its_seed():
 
 
 def test_on_other_vector_envs_it_is_sb3_ppo_bit_for_bit():
-    for a, b in zip(_trained("dummy"), _trained("dummy", PPO), strict=True):
+    for a, b in zip(_trained("dummy"), _trained("dummy", SB3PPO), strict=True):
         np.testing.assert_array_equal(a, b)
     assert isinstance(make_vec_env([_factory()], "rollout"), DummyVecEnv)  # one env: nothing to parallelise
     assert run_cpus(2, "rollout") == 2
@@ -156,7 +156,7 @@ def test_on_other_vector_envs_it_is_sb3_ppo_bit_for_bit():
 def test_a_stopping_callback_ends_the_rollout_and_the_envs_stay_usable():
     env = _venv("rollout")
     try:
-        model = ParallelRolloutPPO("MlpPolicy", env, seed=SEED, **PPO_KWARGS)
+        model = PPO("MlpPolicy", env, seed=SEED, **PPO_KWARGS)
         stop = _Stop(after=5)
         model.learn(4 * N_STEPS, callback=stop)
         assert stop.calls == 5 and model.num_timesteps == 10
