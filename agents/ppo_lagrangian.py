@@ -11,7 +11,9 @@ reference algorithms (OmniSafe's ``PPOLag``), with a plain (not Adam) dual step:
   ``cost_contact + cost_zone``). It is taken from the ``infos`` of the vector env the trainer steps, above any
   ``VecNormalize`` (which normalises rewards and observations, never ``infos``), so it is the raw cost; with
   ``subproc``/``hybrid`` vector envs it reaches the trainer with the step's ``infos``
-  (:class:`agents.wrappers.ScalarInfo` keeps scalar entries). An env without ``info["cost"]`` is an error.
+  (:class:`agents.wrappers.ScalarInfo` keeps scalar entries), with ``--vec-env rollout`` with each env's part of
+  the rollout (:mod:`agents.rollouts`; the merged steps are recorded in step order). An env without
+  ``info["cost"]`` is an error.
 * Cost critic. The policy (:class:`CostActorCriticPolicy`) is SB3's ``ActorCriticPolicy`` plus a separate cost
   value network ``V_c`` (the ``vf`` layer sizes of ``net_arch``, no layers shared). Cost advantages ``A_c`` and
   returns come from the same GAE (``gamma``, ``gae_lambda``) as the reward ones, truncated episodes bootstrapped
@@ -56,7 +58,6 @@ from typing import Any, ClassVar
 import numpy as np
 import torch as th
 from gymnasium import spaces
-from stable_baselines3 import PPO
 from stable_baselines3.common.buffers import RolloutBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
@@ -66,6 +67,8 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvStepReturn
 from torch import nn
 from torch.nn import functional as F
+
+from agents.rollouts import PPO, is_rollout_env
 
 # NOTE: no ``from __future__ import annotations`` here: agents.config validates YAML keys against the evaluated
 # annotations of PPOLagrangian.__init__ (as it does for SB3's classes).
@@ -263,6 +266,11 @@ class _CostTap(VecEnvWrapper):
     def step_wait(self) -> VecEnvStepReturn:
         """Step the wrapped env and record the step's costs and ended episodes."""
         obs, rewards, dones, infos = self.venv.step_wait()
+        self.record(infos, dones)
+        return obs, rewards, dones, infos
+
+    def record(self, infos: list[dict[str, Any]], dones: np.ndarray) -> None:
+        """Record one vector step's costs and ended episodes (from ``step_wait``, or a merged parallel rollout)."""
         costs = step_costs(infos)
         self.costs[self.step_index] = costs
         self.episode_sums += costs
@@ -273,7 +281,6 @@ class _CostTap(VecEnvWrapper):
             if terminal is not None and infos[i].get("TimeLimit.truncated", False):
                 self.truncations.append((self.step_index, int(i), terminal))
         self.step_index += 1
-        return obs, rewards, dones, infos
 
 
 @dataclass(frozen=True)
@@ -481,11 +488,18 @@ class PPOLagrangian(PPO):
             self._cost_tap = _CostTap(env)
         tap = self._cost_tap
         tap.start(n_rollout_steps)
-        if not super().collect_rollouts(tap, callback, rollout_buffer, n_rollout_steps):
+        # a parallel rollout (--vec-env rollout) is not stepped through the tap: its merged steps are recorded
+        source = env if is_rollout_env(env) else tap
+        if not super().collect_rollouts(source, callback, rollout_buffer, n_rollout_steps):
             return False
         self._cost_gae(rollout_buffer, tap)
         self._dual_update(tap.finished)
         return True
+
+    def _on_merged_step(self, infos: list[dict[str, Any]], dones: np.ndarray) -> None:
+        """A merged step of a parallel rollout: record its costs (:meth:`agents.rollouts.PPO._on_merged_step`)."""
+        assert self._cost_tap is not None
+        self._cost_tap.record(infos, dones)
 
     def _cost_gae(self, buffer: RolloutBuffer, tap: _CostTap) -> None:
         n_steps, n_envs = buffer.buffer_size, buffer.n_envs

@@ -27,8 +27,9 @@ with each other):
   ``ep_info_buffer`` when the rollout ends. A callback that stops training stops env 0's collection; the workers'
   parts of that rollout are received and discarded.
 
-Only PPO (:class:`PPO`, SB3's PPO subclassed and registered as ``ppo``) collects this way, without gSDE; with any other
-vector env it is SB3's PPO, unchanged. PPO-Lagrangian and the off-policy learners refuse ``--vec-env rollout``
+PPO (:class:`PPO`, SB3's PPO subclassed and registered as ``ppo``) and PPO-Lagrangian (its subclass, which reads
+each merged step's ``info["cost"]`` through :meth:`PPO._on_merged_step`) collect this way, without gSDE; with any
+other vector env they are unchanged. The off-policy learners refuse ``--vec-env rollout``
 (:func:`check_rollout_vec_env`).
 """
 
@@ -55,7 +56,7 @@ from agents.vecenv import DEFAULT_SPIN_S, HybridVecEnv, _spin_until_readable
 
 COLLECT_METHOD = "collect_rollout_part"
 """Name of :class:`RolloutCollector`'s method that the workers run (through SB3's ``env_method`` command)."""
-ROLLOUT_ALGOS: tuple[str, ...] = ("ppo",)
+ROLLOUT_ALGOS: tuple[str, ...] = ("ppo", "ppo_lagrangian")
 """Algorithms that can train with ``--vec-env rollout``."""
 _SEED_HIGH = 2**31 - 1
 
@@ -121,8 +122,10 @@ class RolloutPart:
     """(n, *obs_shape) the raw observation after each step (the reset observation after an episode end)."""
     terminal_values: np.ndarray
     """(n,) the value of the terminal observation of a truncated episode, else 0."""
+    terminal_obs: dict[int, np.ndarray]
+    """Step -> the terminal observation of the episode the step ended (normalised as ``obs``)."""
     infos: list[dict[str, Any]]
-    """(n) the step infos (``DummyVecEnv``'s ``TimeLimit.truncated``; no ``terminal_observation``)."""
+    """(n) the step infos (``DummyVecEnv``'s ``TimeLimit.truncated``; the merge adds ``terminal_observation``)."""
     last_value: float = 0.0
     """The value of the observation after the last step."""
     last_raw_obs: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -165,6 +168,7 @@ def collect_part(
         dones=np.empty(n_steps, bool),
         new_raw_obs=np.empty((n_steps, *obs_shape), collector.last_obs.dtype),
         terminal_values=np.zeros(n_steps, np.float32),
+        terminal_obs={},
         infos=[],
     )
     for t in range(n_steps):
@@ -185,10 +189,12 @@ def collect_part(
         part.rewards[t] = reward
         part.dones[t] = done
         part.new_raw_obs[t] = collector.last_obs
-        if terminal is not None and info.get("TimeLimit.truncated", False):
-            with th.no_grad():
-                tv = policy.predict_values(obs_as_tensor(normalization(terminal)[None], policy.device))
-            part.terminal_values[t] = float(tv[0, 0])
+        if terminal is not None:
+            part.terminal_obs[t] = normalization(terminal)
+            if info.get("TimeLimit.truncated", False):
+                with th.no_grad():
+                    tv = policy.predict_values(obs_as_tensor(part.terminal_obs[t][None], policy.device))
+                part.terminal_values[t] = float(tv[0, 0])
         part.infos.append(info)
         if on_step is not None and not on_step(info, done):
             return None
@@ -390,6 +396,9 @@ class PPO(SB3PPO):
         callback.on_rollout_end()
         return True
 
+    def _on_merged_step(self, infos: list[dict[str, Any]], dones: np.ndarray) -> None:
+        """Called for every vector step of a merged parallel rollout, in step order (subclasses read ``infos``)."""
+
     def _merge(
         self,
         rollout_buffer: RolloutBuffer,
@@ -412,7 +421,12 @@ class PPO(SB3PPO):
             else:
                 rewards = raw_rewards.copy()
             rewards = rewards + self.gamma * np.array([p.terminal_values[t] for p in parts], np.float32)
-            self._update_info_buffer([p.infos[t] for p in parts], dones)
+            infos = [p.infos[t] for p in parts]
+            for info, p in zip(infos, parts, strict=True):  # as VecNormalize hands them on
+                if t in p.terminal_obs:
+                    info["terminal_observation"] = p.terminal_obs[t]
+            self._update_info_buffer(infos, dones)
+            self._on_merged_step(infos, dones)
             rollout_buffer.add(
                 np.stack([p.obs[t] for p in parts]),
                 np.stack([p.actions[t] for p in parts]),

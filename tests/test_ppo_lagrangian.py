@@ -26,7 +26,7 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.buffers import RolloutBuffer
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.monitor import Monitor
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
 from agents.config import ConfigError, load_config, validate_config_file
 from agents.policy import export_agent, load_agent, load_weights_only
@@ -40,6 +40,7 @@ from agents.ppo_lagrangian import (
     lagrangian_advantages,
     read_history,
 )
+from agents.rollouts import RolloutVecEnv
 from agents.train import latest_checkpoint, run_dir_for, train
 
 REPO = Path(__file__).resolve().parents[1]
@@ -111,17 +112,23 @@ def _venv(n_envs: int = 2, **kwargs) -> DummyVecEnv:
     return DummyVecEnv([lambda: Monitor(CostlyPush(**kwargs)) for _ in range(n_envs)])
 
 
-def _episode_logs(venv: DummyVecEnv) -> list[list[tuple[int, float]]]:
-    return [env.unwrapped.log for env in venv.envs]
+def _episode_logs(venv: VecEnv) -> list[list[tuple[int, float]]]:
+    return venv.get_attr("log")  # (also from worker processes)
 
 
-def _train_toy(tmp_path: Path, algo: type, name: str, steps: int = STEPS, **kwargs):
-    """A run on CostlyPush with reward normalisation on (the cost must still be the raw one)."""
-    venv = VecNormalize(_venv(), norm_obs=False, norm_reward=True)
+def _train_toy(tmp_path: Path, algo: type, name: str, steps: int = STEPS, parallel: bool = False, **kwargs):
+    """A run on CostlyPush with reward normalisation on (the cost must still be the raw one).
+
+    ``parallel``: the envs collect their parts of every rollout themselves (``--vec-env rollout``, env 1 in a
+    worker process), else ``DummyVecEnv``.
+    """
+    envs = RolloutVecEnv([lambda: Monitor(CostlyPush()) for _ in range(2)]) if parallel else _venv()
+    venv = VecNormalize(envs, norm_obs=False, norm_reward=True)
     model = algo("MlpPolicy", venv, seed=0, **{**SMALL, **kwargs})
     history = tmp_path / f"{name}.csv"
     model.learn(steps, callback=[LagrangianHistory(history)] if algo is PPOLagrangian else [])
     logs = _episode_logs(venv.venv)
+    venv.close()
     return model, logs, (read_history(history) if algo is PPOLagrangian else None)
 
 
@@ -133,6 +140,9 @@ def toy_runs(tmp_path_factory):
         "ppo": _train_toy(folder, PPO, "ppo", normalize_advantage=True),
         "binding": _train_toy(folder, PPOLagrangian, "binding", cost_limit=BUDGET, lagrangian_lr=0.1),
         "loose": _train_toy(folder, PPOLagrangian, "loose", cost_limit=LOOSE_BUDGET, lagrangian_lr=0.1),
+        "binding_parallel": _train_toy(
+            folder, PPOLagrangian, "binding_parallel", parallel=True, cost_limit=BUDGET, lagrangian_lr=0.1
+        ),
     }
 
 
@@ -230,8 +240,9 @@ def test_unconstrained_ppo_exceeds_the_budget(toy_runs):
     assert _tail_cost(logs, STEPS // 2) > 3 * BUDGET
 
 
-def test_binding_budget_ends_near_the_budget_with_a_positive_multiplier(toy_runs):
-    model, logs, history = toy_runs["binding"]
+@pytest.mark.parametrize("run", ["binding", "binding_parallel"])
+def test_binding_budget_ends_near_the_budget_with_a_positive_multiplier(toy_runs, run):
+    model, logs, history = toy_runs[run]
     tail = [row["episode_cost"] for row in history[-TAIL:]]
     assert 0.6 * BUDGET < np.mean(tail) < 1.3 * BUDGET  # near the budget (PPO: 4x)
     assert model.lagrangian_multiplier > 0 and history[-1]["lambda"] == model.lagrangian_multiplier
@@ -245,9 +256,13 @@ def test_loose_budget_keeps_lambda_at_zero_and_learns_like_ppo(toy_runs):
     assert _tail_cost(logs, STEPS // 2) == pytest.approx(ppo_cost, rel=0.1)
 
 
-def test_multiplier_updates_match_an_independent_computation(toy_runs):
-    """lambda recomputed from the env's own episode log (rollout k holds the episodes ending in its steps)."""
-    _, logs, history = toy_runs["binding"]
+@pytest.mark.parametrize("run", ["binding", "binding_parallel"])
+def test_multiplier_updates_match_an_independent_computation(toy_runs, run):
+    """lambda recomputed from the env's own episode log (rollout k holds the episodes ending in its steps).
+
+    ``binding_parallel``: with parallel rollouts the costs of env 1 come from its worker's part of each rollout.
+    """
+    _, logs, history = toy_runs[run]
     n_steps = SMALL["n_steps"]
     assert [row["update"] for row in history] == list(range(1, ROLLOUTS + 1))
     multiplier = 0.0

@@ -181,8 +181,7 @@ def test_a_failing_worker_reports_its_traceback():
 @pytest.mark.parametrize(
     ("algo", "hyperparams", "message"),
     [
-        ("sac", {}, "for ppo only, not sac"),
-        ("ppo_lagrangian", {}, "for ppo only, not ppo_lagrangian"),
+        ("sac", {}, "for ppo, ppo_lagrangian only, not sac"),
         ("ppo", {"use_sde": True}, "does not support gSDE"),
     ],
 )
