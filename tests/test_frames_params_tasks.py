@@ -1,5 +1,6 @@
 import math
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -130,6 +131,33 @@ def test_random_circles_are_seeded_and_feasible():
     assert np.array_equal(a[0].right_center, a[1].right_center) and a[0].radius == a[1].radius
     for seed in range(50):
         tasks.make_circle_task("random", np.random.default_rng(seed), arm_bases_body=bases)
+
+
+def test_mixed_circles_draw_the_paper_cases_and_random_circles_in_equal_parts():
+    bases = (np.array(UVDMSParams().arm_base_left), np.array(UVDMSParams().arm_base_right))
+    drawn = []
+    for seed in range(300):
+        rng = np.random.default_rng(seed)
+        task = tasks.make_circle_task("mix", rng, arm_bases_body=bases)
+        pick = tasks.MIXED_CASES[int(np.random.default_rng(seed).integers(3))]  # the draw, made independently
+        replay = np.random.default_rng(seed)
+        replay.integers(3)
+        expected = tasks.make_circle_task(pick, replay, arm_bases_body=bases)
+        assert np.array_equal(task.right_center, expected.right_center) and task.radius == expected.radius
+        drawn.append(pick)
+    counts = {case: drawn.count(case) for case in (1, 2, "random")}
+    assert all(70 <= n <= 130 for n in counts.values()), counts  # 100 each expected (binomial sd 8)
+    with pytest.raises(ValueError, match="'mix' needs"):
+        tasks.make_circle_task("mix", arm_bases_body=bases)
+    env = gym.make("uvdms/CircleTrack-v1", case="mix")
+    try:
+        radii = set()
+        for seed in range(12):
+            env.reset(seed=seed)
+            radii.add(env.unwrapped.task.radius)
+        assert {0.18, 0.14} <= radii and len(radii) > 2  # both paper cases and random radii
+    finally:
+        env.close()
 
 
 def test_transport_reference_passes_waypoints_and_holds():

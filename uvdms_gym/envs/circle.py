@@ -52,7 +52,7 @@ class CircleTrackEnv(UVDMSEnv):
 
     ## Starting State
     Vehicle at ``[2, 0, 3, 0, 0, 0]``, at rest; joints at the paper's initial angles with the project's signs
-    (``params.CIRCLE_Q0_*``), at rest. Deterministic; ``case="random"`` draws the circles.
+    (``params.CIRCLE_Q0_*``), at rest. Deterministic; ``case="random"`` (and ``"mix"``) draws the circles.
 
     ## Episode End
     Terminated on physical contact (``terminate_on_contact=True``), when the mean tracking error exceeds
@@ -60,7 +60,8 @@ class CircleTrackEnv(UVDMSEnv):
     ``max_episode_steps`` (500 steps of 0.04 s = 20 s: the transient plus 1.5 circle periods).
 
     ## Arguments
-    ``case`` (1, 2 or ``"random"``), ``left_center``/``right_center`` (NED m), ``radius`` (m), ``period``
+    ``case`` (1, 2, ``"random"``, or ``"mix"``: each episode draws Case 1, Case 2 or a random circle with equal
+    probability), ``left_center``/``right_center`` (NED m), ``radius`` (m), ``period``
     (s, default 10) override the case; an infeasible request raises ``ValueError``. Common arguments:
     ``action_mode``, ``control_dt`` (0.04 s), ``physics_dt`` (0.01 s), ``hydro_randomization`` (s in [0, 1):
     added mass, damping, buoyancy and link drag scaled per episode by factors in [1 - s, 1 + s]),

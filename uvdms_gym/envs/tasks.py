@@ -55,6 +55,9 @@ RANDOM_CIRCLE_ENVELOPE: dict[str, tuple[float, float]] = {
 }
 """[D] Envelope of ``case="random"`` circles (relative to the initial vehicle pose), sampled uniformly."""
 
+MIXED_CASES: tuple[int | str, ...] = (1, 2, "random")
+"""[D] The cases ``case="mix"`` draws from, with equal probability."""
+
 RANDOM_GOAL_ENVELOPE: dict[str, tuple[float, float]] = {
     "dx": (-1.5, 1.5),
     "dy": (-1.5, 1.5),
@@ -104,10 +107,18 @@ def make_circle_task(
 ) -> CircleTask:
     """Build a circle task from a paper case (1, 2), ``"random"`` (needs ``rng``) and explicit overrides.
 
+    ``"mix"`` (needs ``rng``) draws one of Case 1, Case 2 and ``"random"`` with equal probability (one
+    ``rng.integers`` draw, then the drawn case as given): a training distribution with the paper's two cases as
+    often as random circles, which rarely come as close to a collision as the paper's cases do.
+
     Raises:
         ValueError: unknown case, non-positive or too large radius or period, a centre that is not a finite
             3-vector, circles out of reach of the arms or too close to each other.
     """
+    if case == "mix":
+        if rng is None:
+            raise ValueError("case='mix' needs the environment's seeded generator")
+        case = MIXED_CASES[int(rng.integers(len(MIXED_CASES)))]
     if case in CIRCLE_CASES:
         spec = CIRCLE_CASES[int(case)]
         lc, rc, rad = np.array(spec["left_center"]), np.array(spec["right_center"]), float(spec["radius"])
@@ -123,7 +134,7 @@ def make_circle_task(
         rad = float(rng.uniform(*env["radius"]))
         rad = min(rad, 0.5 * (2.0 * half - CIRCLE_MIN_GAP) - 1e-3)
     else:
-        raise ValueError(f"unknown circle case {case!r}: expected 1, 2 or 'random'")
+        raise ValueError(f"unknown circle case {case!r}: expected 1, 2, 'random' or 'mix'")
     if left_center is not None:
         lc = _vec3(left_center, "left_center")
     if right_center is not None:
