@@ -14,7 +14,8 @@
 #   residual-mpc-*         a residual of at most 0.5 (circles, TD3-prior) / 0.3 (transport, SAC) of the action range
 #                          over plain `mpc`
 #                          (no collision rows: whatever avoidance it shows, it learned)
-#   ppo-lagrangian-*       PPO-Lagrangian on info["cost"] (train_configs/ppo_lagrangian.yml), 2 envs (hybrid)
+#   ppo-lagrangian-*       PPO-Lagrangian on info["cost"] (train_configs/ppo_lagrangian.yml), 2 envs (--vec-env rollout:
+#                          each env collects its part of every rollout, agents/rollouts.py)
 # All train on the randomised tasks with hydro_randomization=0.3 (the leaderboard's held-out variants use other
 # seeds); the leaderboard also runs them on the paper's fixed tasks.
 set -euo pipefail
@@ -29,7 +30,7 @@ TRANSPORT="goal=random hydro_randomization=0.3"
 # a first end-to-end circle run drifted to 1-1.6 m RMSE at 100k steps. PPO-Lagrangian also gets SAC's
 # action_scale 0.3 (commands of a few percent of zeta_max suffice; full-range exploration hits the frame).
 E2E="track_scale=0.5"
-PPO_LAGRANGIAN="--vec-env hybrid --hyperparams action_scale=0.3"
+PPO_LAGRANGIAN="--vec-env rollout --hyperparams action_scale=0.3"
 # Residual scales: benchmarks/residual_reach.py (CAMPC's correction of mpc clipped to a residual of scale s, random
 # circles, 8 held-out seeds): contact-free 6/8 at s = 0.3, 8/8 at s = 0.5; on transport mpc and campc agree.
 # The circle residual learns with TD3-prior (agents/td3_prior.py: TD3+BC's actor loss toward the zero residual,
