@@ -55,7 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="dummy",
         help="vectorised env type: dummy (all envs in the trainer's process), subproc (each in a worker), "
         "hybrid (env 0 in the trainer's process, the others in workers, all stepping at once; same results as "
-        "dummy), rollout (PPO only: as hybrid, and each env collects its part of every rollout with its own "
+        "dummy), rollout (PPO, PPO-Lagrangian: as hybrid, each env collects its part of every rollout with its own "
         "policy copy: PPO's fastest with n_envs free cores; reproducible, not identical to dummy)",
     )
     parser.add_argument(
