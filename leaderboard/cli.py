@@ -60,6 +60,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--force", action="store_true", help="recompute every episode instead of using the cache")
     p.add_argument(
+        "--reuse",
+        default=None,
+        metavar="DIR",
+        help="a previous leaderboard output (e.g. docs/leaderboard) whose recorded episodes are reused for "
+        "the same entry, task and seeds instead of recomputing them (the first episode of the paper circle "
+        "tasks, whose distance trajectory is plotted, is always run)",
+    )
+    p.add_argument(
         "--trust",
         action="store_true",
         help="allow loading full SB3 zips (pickles) from outside the repository's trained_agents/ folder",
@@ -112,16 +120,19 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         address=args.address,
         num_cpus=args.num_cpus,
         max_retries=args.max_retries,
+        reuse_from=args.reuse,
         progress=not args.no_progress,
         plots=not args.no_plots,
         command=_command_line(args),
     )
     sys.stdout.write(lb.markdown_tables(result) + "\n")
     log.info(
-        "wrote %s (%d episodes computed, %d from cache%s)",
+        "wrote %s (%d episodes computed, %d from cache, %d reused from %s%s)",
         result.out_dir / "leaderboard.md",
         result.computed,
         result.cached,
+        result.reused,
+        args.reuse,
         f", {len(result.corrupt)} corrupt cache files recomputed" if result.corrupt else "",
     )
     return 0

@@ -106,7 +106,8 @@ def timing_text(result: LeaderboardResult) -> str:
     text = (
         f"Timings (`Ctrl ms`, `controller_ms_median`) were taken on {machines}; 1-minute load average "
         f"{run.get('load_1min_start')} at the start and {run.get('load_1min_end')} at the end of this run "
-        f"(episodes from the cache keep the record of the run that computed them), highest seen in an episode "
+        f"(episodes from the cache or reused from an earlier output, `--reuse`, keep the record of the run that "
+        f"computed them; {result.computed} were computed in this run), highest seen in an episode "
         f"{summary['load_1min_max']}; {summary['overloaded']} of {n} episodes ran with a load above the core count"
     )
     if summary["unknown"]:

@@ -19,6 +19,7 @@ from typing import Any
 from leaderboard.cache import CorruptCacheError, cache_key, cache_material, cache_path, compact_result, read_cached
 from leaderboard.entries import Entry, check_seed_disjointness
 from leaderboard.report import write_outputs
+from leaderboard.reuse import CACHE_KEY_FIELD, reusable_results
 from leaderboard.stats import RankedRow, aggregate, aggregate_runs, rank_rows
 from leaderboard.tasks import DEFAULT_EPISODES, TASKS, TRACKS, Task, evaluation_seeds
 from uvdms_gym.io import write_json_atomic
@@ -207,6 +208,7 @@ class LeaderboardResult:
     out_dir: Path
     markdown: str = ""
     timing: dict[str, Any] = field(default_factory=dict)
+    reused: int = 0
 
 
 def plan_jobs(
@@ -265,6 +267,7 @@ def run_leaderboard(
     address: str | None = None,
     num_cpus: int | None = None,
     max_retries: int | None = None,
+    reuse_from: str | Path | None = None,
 ) -> LeaderboardResult:
     """Evaluate ``entries`` on ``tasks`` (cached), rank them per track and task, and write the outputs.
 
@@ -288,13 +291,16 @@ def run_leaderboard(
         num_cpus: CPUs of the local Ray instance (``ray`` executor without ``address``; default: every core).
         max_retries: Re-runs of an episode whose Ray worker dies (default
             :data:`leaderboard.distributed.DEFAULT_MAX_RETRIES`).
+        reuse_from: A previous leaderboard output folder whose recorded episodes are reused for the episodes not
+            in the cache (:mod:`leaderboard.reuse`); they are stored in the cache and count as ``reused``.
 
     Returns:
         The ranked rows and run statistics.
 
     Raises:
         ValueError: No entries, ``episodes < 1``, evaluation seeds that clash with training seeds, an unknown
-            executor, or Ray options without the ``ray`` executor.
+            executor, Ray options without the ``ray`` executor, or ``reuse_from`` with ``force``.
+        FileNotFoundError: ``reuse_from`` is not a leaderboard output folder.
         ConnectionError: The Ray cluster at ``address`` cannot be reached.
     """
     from tqdm.auto import tqdm
@@ -310,6 +316,8 @@ def run_leaderboard(
         raise ValueError("address, num_cpus and max_retries are options of the ray backend")
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
+    if force and reuse_from is not None:
+        raise ValueError("force recomputes every episode: it cannot be combined with reuse_from")
     out = Path(out_dir)
     cache = Path(cache_dir) if cache_dir is not None else out / "cache"
     seeds = evaluation_seeds(episodes)
@@ -334,22 +342,31 @@ def run_leaderboard(
             log.warning("corrupt cached result %s (%s): recomputing", job.path, exc)
             corrupt.append(job.path)
             todo.append(job)
-    n_cached = len(all_jobs) - len(todo)
+    n_reused = 0
+    if reuse_from is not None and todo:
+        reused = reusable_results(todo, entries, reuse_from)
+        for job in todo:
+            if job.path in reused:
+                results[job.path] = store_result(job, reused[job.path])
+        todo = [job for job in todo if job.path not in reused]
+        n_reused = len(reused)
+    n_cached = len(all_jobs) - len(todo) - n_reused
     # the model-based baselines' episodes first: they are the long ones (an MPC QP per step), and workers that
     # finish the short agent episodes last leave less idle time at the end (the results do not depend on order)
     todo.sort(key=lambda job: job.entry.kind != "baseline")
     log.info(
-        "leaderboard: %d entries, %d tasks, %d episodes each: %d cached, %d to compute",
+        "leaderboard: %d entries, %d tasks, %d episodes each: %d cached, %d reused, %d to compute",
         len(entries),
         len(tasks),
         episodes,
         n_cached,
+        n_reused,
         len(todo),
     )
     with timing_record() as run_record:  # the run's machine and load (each episode has its own record)
         bar = tqdm(
             total=len(all_jobs),
-            initial=n_cached,
+            initial=n_cached + n_reused,
             desc="leaderboard",
             unit="ep",
             disable=not progress,
@@ -365,8 +382,8 @@ def run_leaderboard(
             bar.close()
 
     by_run: dict[tuple[Entry, str], list[dict[str, Any]]] = {}
-    for job in all_jobs:
-        by_run.setdefault((job.entry, job.task.name), []).append(results[job.path])
+    for job in all_jobs:  # each episode with its cache key, so that a later run can reuse it from the documents
+        by_run.setdefault((job.entry, job.task.name), []).append({**results[job.path], CACHE_KEY_FIELD: job.key})
     rows = []
     for entry in entries:
         for task in tasks:
@@ -386,6 +403,7 @@ def run_leaderboard(
         seeds=seeds,
         computed=len(todo),
         cached=n_cached,
+        reused=n_reused,
         corrupt=corrupt,
         out_dir=out,
         timing=run_record,
