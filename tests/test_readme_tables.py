@@ -1,0 +1,29 @@
+"""The README's leaderboard tables are the committed leaderboard's (``scripts/readme_leaderboard_tables.py``)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+_spec = importlib.util.spec_from_file_location("readme_tables", REPO / "scripts" / "readme_leaderboard_tables.py")
+tables = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(tables)
+
+
+def test_readme_tables_equal_the_committed_leaderboard():
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    board = (REPO / "docs" / "leaderboard" / "leaderboard.md").read_text(encoding="utf-8")
+    assert tables.update_readme(readme, board) == readme, "run scripts/readme_leaderboard_tables.py"
+
+
+def test_a_changed_cell_is_rewritten_and_missing_columns_are_named():
+    board = (REPO / "docs" / "leaderboard" / "leaderboard.md").read_text(encoding="utf-8")
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    row = next(line for line in readme.splitlines() if line.startswith("| Case 1 | 1 | campc |"))
+    stale = readme.replace(row, row.replace("| 0.5 ± 0.0 |", "| 9.9 ± 0.0 |"), 1)
+    assert stale != readme and tables.update_readme(stale, board) == readme
+    with pytest.raises(ValueError, match=r"no column\(s\) \['Ctrl ms'\]"):
+        tables.readme_table(board.replace("| Ctrl ms |", "| Ctrl |"), "Velocity track")
