@@ -14,6 +14,8 @@ DEFAULT_GYM_PACKAGES: tuple[str, ...] = ("uvdms_gym",)
 """Packages imported by default so that the env ids are registered."""
 RESIDUAL_OBSERVATION_NAMES: tuple[str, ...] = ("base", "clearance")
 """Choices of ``--residual-observation``: :data:`uvdms_gym.residual.RESIDUAL_OBSERVATIONS` (checked by the tests)."""
+RESIDUAL_SPACE_NAMES: tuple[str, ...] = ("full", "nullspace")
+"""Choices of ``--residual-space``: :data:`uvdms_gym.residual.RESIDUAL_SPACES` (checked by the tests)."""
 VEC_ENV_TYPES: tuple[str, ...] = ("dummy", "subproc", "hybrid", "rollout")
 """Vectorised environment types of ``--vec-env`` (:func:`agents.envs.make_vec_env`)."""
 
@@ -79,6 +81,13 @@ def build_parser() -> argparse.ArgumentParser:
         choices=RESIDUAL_OBSERVATION_NAMES,
         help="what the residual policy observes besides the env's observation (with --residual): base (default: "
         "the base's action) or clearance (also the 36 clearance features of uvdms_gym.residual.ClearanceFeatures)",
+    )
+    parser.add_argument(
+        "--residual-space",
+        choices=RESIDUAL_SPACE_NAMES,
+        help="where the residual acts (with --residual): full (default: the whole command) or nullspace (the "
+        "policy's output projected onto the null space of both end-effector positions first, "
+        "uvdms_gym.residual.NullspaceProjection)",
     )
     parser.add_argument(
         "--safety-filter",

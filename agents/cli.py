@@ -90,6 +90,8 @@ def _train_argv(args: argparse.Namespace) -> list[str]:
         argv += ["--residual-scale", repr(args.residual_scale)]
     if args.residual_observation is not None:
         argv += ["--residual-observation", args.residual_observation]
+    if args.residual_space is not None:
+        argv += ["--residual-space", args.residual_space]
     if args.safety_filter:
         argv.append("--safety-filter")
     if args.no_progress:

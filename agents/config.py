@@ -183,6 +183,9 @@ class TrainConfig:
             36 clearance features (the direction that opens the clearances below ``d2`` and the clearance rates
             under the base's command, :class:`uvdms_gym.residual.ClearanceFeatures`). Recorded in the export, so
             evaluation computes the same observation.
+        residual_space: Where a residual acts (only with ``residual_base``): ``"full"`` (default), the whole
+            command; ``"nullspace"``, the policy's output projected onto the null space of the two end-effector
+            positions first (:class:`uvdms_gym.residual.NullspaceProjection`). Recorded in the export.
     """
 
     algo: str
@@ -211,6 +214,7 @@ class TrainConfig:
     residual_penalty: float = 0.0
     safety_filter: bool = False
     residual_observation: str = "base"
+    residual_space: str = "full"
 
     # ----------------------------------------------------------------------------------------------
     def to_entry(self) -> dict[str, Any]:
@@ -227,7 +231,11 @@ class TrainConfig:
     def composition(self) -> ActionComposition:
         """The residual base and safety filter of the run (:class:`uvdms_gym.residual.ActionComposition`)."""
         return ActionComposition(
-            self.residual_base, self.residual_scale, self.safety_filter, residual_observation=self.residual_observation
+            self.residual_base,
+            self.residual_scale,
+            self.safety_filter,
+            residual_observation=self.residual_observation,
+            residual_space=self.residual_space,
         )
 
     def normalize_kwargs(self) -> dict[str, Any] | None:

@@ -122,6 +122,7 @@ class EnvFactory:
         residual_penalty: Shaping of the residual's magnitude in the reward (with ``base_factory``; 0: none).
         residual_observation: What the residual policy observes besides the env's observation (with
             ``base_factory``; :data:`uvdms_gym.residual.RESIDUAL_OBSERVATIONS`).
+        residual_space: Where the residual acts (with ``base_factory``; :data:`uvdms_gym.residual.RESIDUAL_SPACES`).
         filter_factory: Safety filter of the velocity command, applied after the residual (``None``: none;
             :class:`FilteredAction`).
         episode_metrics: Put each episode's benchmark metrics into its last ``info``
@@ -140,6 +141,7 @@ class EnvFactory:
     residual_scale: float | None = None
     residual_penalty: float = 0.0
     residual_observation: str = "base"
+    residual_space: str = "full"
     filter_factory: FilterFactory | None = None
     episode_metrics: bool = False
 
@@ -168,7 +170,12 @@ class EnvFactory:
             if self.residual_scale is None:
                 raise ValueError("a residual base needs residual_scale")
             env = ResidualAction(
-                env, self.base_factory, self.residual_scale, self.residual_penalty, self.residual_observation
+                env,
+                self.base_factory,
+                self.residual_scale,
+                self.residual_penalty,
+                self.residual_observation,
+                self.residual_space,
             )
         if self.action_scale != 1.0:
             env = ScaledAction(env, self.action_scale)

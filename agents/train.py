@@ -181,6 +181,7 @@ def train(
     safety_filter: bool | None = None,
     components: ActionComponents | None = None,
     residual_observation: str | None = None,
+    residual_space: str | None = None,
 ) -> Path:
     """Train (or resume training of) an agent and return its run directory.
 
@@ -216,6 +217,8 @@ def train(
         residual_scale: Bound of the residual in (0, 1] (``--residual-scale``; same rules).
         residual_observation: What the residual policy observes besides the env's observation
             (``--residual-observation``; same rules; :data:`uvdms_gym.residual.RESIDUAL_OBSERVATIONS`).
+        residual_space: Where the residual acts (``--residual-space``; same rules;
+            :data:`uvdms_gym.residual.RESIDUAL_SPACES`).
         safety_filter: Filter the training envs' velocity command (``--safety-filter``; ``None``: the config's).
         components: The base and filter factories of the composition layer; required when the configuration
             has a residual base or the safety filter.
@@ -241,6 +244,7 @@ def train(
             "residual_base": residual_base,
             "residual_scale": residual_scale,
             "residual_observation": residual_observation,
+            "residual_space": residual_space,
             "safety_filter": safety_filter,
         }
         return _resume(
@@ -271,6 +275,7 @@ def train(
             ("residual_base", residual_base),
             ("residual_scale", residual_scale),
             ("residual_observation", residual_observation),
+            ("residual_space", residual_space),
             ("safety_filter", safety_filter),
         )
         if value is not None
@@ -315,6 +320,8 @@ def train(
         command += ["--residual-scale", repr(float(residual_scale))]
     if residual_observation is not None:
         command += ["--residual-observation", residual_observation]
+    if residual_space is not None:
+        command += ["--residual-space", residual_space]
     if safety_filter:
         command.append("--safety-filter")
     try:
@@ -363,7 +370,8 @@ def resolve_config(
         n_envs: Overrides ``n_envs`` (``--n-envs``).
         total_timesteps: Overrides ``n_timesteps`` (``--total-timesteps``).
         composition: Overrides of ``residual_base``, ``residual_scale``, ``residual_observation``,
-            ``safety_filter`` (``--residual``, ``--residual-scale``, ``--residual-observation``, ``--safety-filter``).
+            ``residual_space``, ``safety_filter`` (``--residual``, ``--residual-scale``, ``--residual-observation``,
+            ``--residual-space``, ``--safety-filter``).
 
     Raises:
         ConfigError: An invalid file, key or value.
@@ -546,6 +554,7 @@ def _run_segment(
         "residual_scale": cfg.residual_scale if base_factory is not None else None,
         "residual_penalty": cfg.residual_penalty if base_factory is not None else 0.0,
         "residual_observation": cfg.residual_observation if base_factory is not None else "base",
+        "residual_space": cfg.residual_space if base_factory is not None else "full",
         "filter_factory": filter_factory,
     }
     train_factories = [
@@ -792,6 +801,7 @@ def main(argv: Sequence[str] | None = None, *, components: ActionComponents | No
             residual_base=args.residual,
             residual_scale=args.residual_scale,
             residual_observation=args.residual_observation,
+            residual_space=args.residual_space,
             safety_filter=True if args.safety_filter else None,
             components=components,
         )

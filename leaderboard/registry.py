@@ -147,7 +147,7 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
     Raises:
         ValueError: The recorded base is not a velocity-mode baseline, or an action-mode mismatch.
     """
-    from uvdms_gym.residual import ActionComposition, residual_features
+    from uvdms_gym.residual import ActionComposition, residual_features, residual_projection
 
     composition = getattr(agent, "composition", None) or ActionComposition()
     controller = agent
@@ -158,6 +158,7 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
             agent,
             float(composition.residual_scale),
             residual_features(composition, env),  # type: ignore[arg-type]
+            residual_projection(composition, env),
         )
     if composition.safety_filter or safety_filter:
         controller = with_safety_filter(controller, env)

@@ -148,9 +148,9 @@ def test_the_direction_is_defined_by_its_weighted_rates_and_vanishes_far_from_ob
 class LinearPolicy:
     """A deterministic stand-in for a trained residual policy on ``[obs; a_base; features]``."""
 
-    def __init__(self, seed: int = 0) -> None:
+    def __init__(self, seed: int = 0, n_inputs: int = OBS_DIM + ACTION_DIM + N_FEATURES) -> None:
         rng = np.random.default_rng(seed)
-        self.w = rng.normal(0.0, 0.3, (ACTION_DIM, OBS_DIM + ACTION_DIM + N_FEATURES)).astype(np.float32)
+        self.w = rng.normal(0.0, 0.3, (ACTION_DIM, n_inputs)).astype(np.float32)
         self.seen: list[np.ndarray] = []
 
     def reset(self, seed: int | None = None) -> None:

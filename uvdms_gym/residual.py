@@ -13,6 +13,10 @@ With ``residual_observation="clearance"`` it also observes 36 clearance features
 direction in action space that opens the clearances closer than ``d2``, and the rate at which the base's command
 changes each clearance. They are computed from ``info`` with the environment's explicit kinematic model, the same
 way in training and at evaluation; they tell the policy where the obstacles are, not what to do about them.
+With ``residual_space="nullspace"`` the policy's output is first projected onto the null space of the two
+end-effector positions (:class:`NullspaceProjection`): ``a_env = clip(a_base + residual_scale * clip(P a_policy,
+-1, 1), -1, 1)``, so that, to first order, the residual moves the vehicle and the arms without moving the hands
+and leaves the tracking to the base; what to move, and when, is still learned.
 :func:`compose_residual` is the one implementation of the formula: :class:`ResidualAction` applies it in training
 (a Gymnasium wrapper around the training and evaluation-callback environments) and :class:`ResidualController`
 at evaluation (around the trained agent's controller), so that for the same inputs both send the same action,
@@ -55,11 +59,20 @@ ACTION_LOW = -1.0
 """Lower bound of the normalised action space (the composed action is clipped to it)."""
 ACTION_HIGH = 1.0
 """Upper bound of the normalised action space."""
-RECORD_KEYS: tuple[str, ...] = ("residual_base", "residual_scale", "residual_observation", "safety_filter")
+RECORD_KEYS: tuple[str, ...] = (
+    "residual_base",
+    "residual_scale",
+    "residual_observation",
+    "residual_space",
+    "safety_filter",
+)
 """The keys of an :class:`ActionComposition` in a run's config entry and in an export's ``agent.json``."""
 RESIDUAL_OBSERVATIONS: tuple[str, ...] = ("base", "clearance")
 """What a residual policy observes besides the environment's observation: ``"base"``, the base's action;
 ``"clearance"``, the base's action and the :class:`ClearanceFeatures`."""
+RESIDUAL_SPACES: tuple[str, ...] = ("full", "nullspace")
+"""Where a residual acts: ``"full"``, on the whole command; ``"nullspace"``, projected onto the null space of the
+end-effector positions first (:class:`NullspaceProjection`)."""
 CLEARANCE_RATE_SCALE = 0.1
 """Scale (m/s) of the clearance rates among the :class:`ClearanceFeatures` (a rate of 0.1 m/s observes as 1)."""
 FEATURE_CLIP = 10.0
@@ -91,17 +104,20 @@ class ActionComposition:
         residual_observation: What the residual policy observes besides the environment's observation (one of
             :data:`RESIDUAL_OBSERVATIONS`; anything but ``"base"`` needs a residual base). Records written before
             this key existed are ``"base"``.
+        residual_space: Where the residual acts (one of :data:`RESIDUAL_SPACES`; ``"nullspace"`` needs a residual
+            base). Records written before this key existed are ``"full"``.
 
     Raises:
         ValueError: A scale outside (0, 1], a scale without a base or a base without a scale, a base that is
-            not a non-empty string, or an unknown residual observation (or one other than ``"base"`` without a
-            base).
+            not a non-empty string, or an unknown residual observation or space (or one other than ``"base"`` /
+            ``"full"`` without a base).
     """
 
     residual_base: str | None = None
     residual_scale: float | None = None
     safety_filter: bool = False
     residual_observation: str = "base"
+    residual_space: str = "full"
 
     def __post_init__(self) -> None:
         if self.residual_base is not None and (not isinstance(self.residual_base, str) or not self.residual_base):
@@ -124,6 +140,12 @@ class ActionComposition:
                 f"residual_observation={self.residual_observation!r} is what a residual policy observes, but there is "
                 "no residual_base"
             )
+        if self.residual_space not in RESIDUAL_SPACES:
+            raise ValueError(f"residual_space must be one of {RESIDUAL_SPACES}, got {self.residual_space!r}")
+        if self.residual_space != "full" and self.residual_base is None:
+            raise ValueError(
+                f"residual_space={self.residual_space!r} is where a residual acts, but there is no residual_base"
+            )
 
     @property
     def is_residual(self) -> bool:
@@ -142,6 +164,7 @@ class ActionComposition:
             "residual_base": self.residual_base,
             "residual_scale": scale,
             "residual_observation": self.residual_observation,
+            "residual_space": self.residual_space,
             "safety_filter": self.safety_filter,
         }
 
@@ -156,11 +179,13 @@ class ActionComposition:
         scale = record.get("residual_scale")
         safety_filter = record.get("safety_filter")
         observation = record.get("residual_observation")
+        space = record.get("residual_space")
         return cls(
             residual_base=record.get("residual_base"),
             residual_scale=float(scale) if is_residual_scale(scale) else scale,
             safety_filter=False if safety_filter is None else safety_filter,
             residual_observation="base" if observation is None else observation,
+            residual_space="full" if space is None else space,
         )
 
     def describe(self, name: str) -> str:
@@ -255,6 +280,63 @@ class ClearanceFeatures:
         return np.clip(np.concatenate([direction, rate]), -FEATURE_CLIP, FEATURE_CLIP)
 
 
+class NullspaceProjection:
+    """The projection of ``residual_space="nullspace"``: residual commands that leave both hands where they are.
+
+    With ``J`` the (6, 18) Jacobian of the two end-effector positions (world-aligned) per unit of normalised
+    action, ``J = J_pos diag(zeta_max)``, at the configuration of ``info``, and ``J^+`` its Moore-Penrose
+    pseudo-inverse, ``P = I - J^+ J`` (18 x 18, symmetric, ``J P = 0``); a policy output ``u`` becomes
+    ``clip(P u, -1, 1)``. To first order the projected command moves the vehicle and the arms without moving the
+    end effectors; the clip (and the base's own command, which is not projected) can break this at large commands.
+    Evaluated on a kinematic model built from the environment's parameters, from ``info`` alone, so training and
+    evaluation project alike.
+
+    Args:
+        kin: A kinematic model of the environment's vehicle (its state is overwritten on every call).
+        zeta_max: The velocity-mode action scale (18).
+    """
+
+    def __init__(self, kin: Any, zeta_max: np.ndarray) -> None:
+        self.kin = kin
+        self.zeta_max = np.asarray(zeta_max, dtype=np.float64).copy()
+        if self.zeta_max.shape != (18,):
+            raise ValueError(f"zeta_max must have 18 entries, got shape {self.zeta_max.shape}")
+
+    @classmethod
+    def for_env(cls, env: Any) -> NullspaceProjection:
+        """The projection of a UVDMS environment (through wrappers), on a kinematic model of its own.
+
+        Raises:
+            ValueError: ``env`` is not a UVDMS environment.
+        """
+        base = getattr(env, "unwrapped", env)
+        if not hasattr(base, "params") or not hasattr(base, "zeta_max"):
+            raise ValueError(f"residual_space='nullspace' needs a UVDMS environment (params, zeta_max), got {base!r}")
+        return cls(KinematicModel(base.params), base.zeta_max)
+
+    def matrix(self, info: Mapping[str, Any]) -> np.ndarray:
+        """``P`` (18, 18) at the configuration of ``info``."""
+        self.kin.set_state(np.asarray(info["eta"], dtype=np.float64), np.asarray(info["q"], dtype=np.float64))
+        jac = self.kin.ee_jacobian()[_EE_POSITION_ROWS] * self.zeta_max
+        return np.eye(jac.shape[1]) - np.linalg.pinv(jac) @ jac
+
+    def __call__(self, info: Mapping[str, Any], policy_action: np.ndarray) -> np.ndarray:
+        """``clip(P u, -1, 1)`` (18, float64) for the policy output ``u`` at the configuration of ``info``."""
+        u = np.asarray(policy_action, dtype=np.float64)
+        return np.clip(self.matrix(info) @ u, ACTION_LOW, ACTION_HIGH)
+
+
+_EE_POSITION_ROWS = [0, 1, 2, 6, 7, 8]
+"""Rows of :meth:`uvdms_gym.kinematics.KinematicModel.ee_jacobian` that are the two end-effector positions."""
+
+
+def residual_projection(composition: ActionComposition, env: Any) -> NullspaceProjection | None:
+    """The projection a composition's residual goes through on ``env`` (``None``: the full command space)."""
+    if composition.residual_space == "nullspace":
+        return NullspaceProjection.for_env(env)
+    return None
+
+
 def residual_features(composition: ActionComposition, env: Any) -> ClearanceFeatures | None:
     """The extra features a composition's residual policy observes on ``env`` (``None``: only the base's action)."""
     if composition.residual_observation == "clearance":
@@ -323,10 +405,12 @@ class ResidualAction(gym.Wrapper):
             ``[-1, 1]``, so the term lies in ``[-penalty, 0]``.
         observation: ``residual_observation`` (:data:`RESIDUAL_OBSERVATIONS`): ``"clearance"`` appends the
             :class:`ClearanceFeatures` of the new state (after the base's action at it) to every observation.
+        space: ``residual_space`` (:data:`RESIDUAL_SPACES`): ``"nullspace"`` projects the policy's output with
+            the :class:`NullspaceProjection` at the current state before it is scaled and added.
 
     Raises:
         ValueError: A scale outside (0, 1], a negative or non-finite penalty, an action space other than
-            ``Box(-1, 1)``, an unknown observation (or ``"clearance"`` on a non-UVDMS environment), or what the
+            ``Box(-1, 1)``, an unknown observation or space (or either on a non-UVDMS environment), or what the
             factory raises.
     """
 
@@ -337,19 +421,24 @@ class ResidualAction(gym.Wrapper):
         scale: float,
         penalty: float = 0.0,
         observation: str = "base",
+        space: str = "full",
     ) -> None:
         super().__init__(env)
         if not is_residual_scale(scale):
             raise ValueError(f"residual_scale must be a number in (0, 1], got {scale!r}")
         if not is_residual_penalty(penalty):
             raise ValueError(f"residual_penalty must be a finite number >= 0, got {penalty!r}")
+        if space not in RESIDUAL_SPACES:
+            raise ValueError(f"residual_space must be one of {RESIDUAL_SPACES}, got {space!r}")
         _check_unit_box(env, "a residual agent")
         self.scale = float(scale)
         self.penalty = float(penalty)
         self.base = base_factory(env)
         self.observation_space = residual_observation_space(env.observation_space, env.action_space, observation)
         self.features = ClearanceFeatures.for_env(env) if observation == "clearance" else None
+        self.projection = NullspaceProjection.for_env(env) if space == "nullspace" else None
         self._base_action: np.ndarray | None = None
+        self._info: Mapping[str, Any] = {}
 
     def _observation(self, obs: Any, info: Mapping[str, Any]) -> np.ndarray:
         features = None if self.features is None else self.features(info, self._base_action)  # type: ignore[arg-type]
@@ -360,6 +449,7 @@ class ResidualAction(gym.Wrapper):
         obs, info = self.env.reset(seed=seed, options=options)
         self.base.reset(seed)
         self._base_action = np.asarray(self.base.predict(obs, info))
+        self._info = info
         return self._observation(obs, info), info
 
     def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
@@ -367,9 +457,11 @@ class ResidualAction(gym.Wrapper):
         if self._base_action is None:
             raise RuntimeError("ResidualAction.step called before reset")
         base_action = self._base_action
-        sent, clipped = compose_residual(base_action, action, self.scale)
+        residual = action if self.projection is None else self.projection(self._info, action)
+        sent, clipped = compose_residual(base_action, residual, self.scale)
         obs, reward, terminated, truncated, info = self.env.step(sent)
         self._base_action = np.asarray(self.base.predict(obs, info))
+        self._info = info
         observation = self._observation(obs, info)
         info = {**info, "residual_clipped": clipped, "residual_base_action": base_action, "residual_action": sent}
         if self.penalty:
@@ -394,6 +486,8 @@ class ResidualController:
         scale: ``residual_scale``, in (0, 1].
         features: The :class:`ClearanceFeatures` of an agent trained with ``residual_observation="clearance"``
             (:func:`residual_features`; ``None``: none).
+        projection: The :class:`NullspaceProjection` of an agent trained with ``residual_space="nullspace"``
+            (:func:`residual_projection`; ``None``: none).
 
     Raises:
         ValueError: A scale outside (0, 1].
@@ -402,7 +496,12 @@ class ResidualController:
     action_mode = "velocity"
 
     def __init__(
-        self, base: Controller, policy: Controller, scale: float, features: ClearanceFeatures | None = None
+        self,
+        base: Controller,
+        policy: Controller,
+        scale: float,
+        features: ClearanceFeatures | None = None,
+        projection: NullspaceProjection | None = None,
     ) -> None:
         if not is_residual_scale(scale):
             raise ValueError(f"residual_scale must be a number in (0, 1], got {scale!r}")
@@ -410,6 +509,7 @@ class ResidualController:
         self.policy = policy
         self.residual_scale = float(scale)
         self.features = features
+        self.projection = projection
         self.last_record: dict[str, Any] = {}
         for attr in ("algo", "env_id", "num_timesteps", "source"):  # what evaluation records of an agent
             if hasattr(policy, attr):
@@ -424,13 +524,18 @@ class ResidualController:
         self.last_record = {}
 
     def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
-        """``clip(a_base + scale * a_policy, -1, 1)`` with ``a_policy`` the policy's output on ``[obs; a_base]``."""
+        """``clip(a_base + scale * a_policy, -1, 1)``, ``a_policy`` the policy's output on ``[obs; a_base]``.
+
+        With a projection (``residual_space="nullspace"``) ``a_policy`` is projected first.
+        """
         base_action = np.asarray(self.base.predict(obs, info))
         record = dict(getattr(self.base, "last_record", None) or {})
         if "zeta_cmd" in record:
             record["base_zeta_cmd"] = record.pop("zeta_cmd")
         features = None if self.features is None else self.features(info, base_action)
         policy_action = self.policy.predict(residual_observation(obs, base_action, features), info)
+        if self.projection is not None:
+            policy_action = self.projection(info, policy_action)
         action, clipped = compose_residual(base_action, policy_action, self.residual_scale)
         self.last_record = {**record, "residual_clipped": clipped}
         return action
