@@ -47,6 +47,10 @@ RESIDUAL_CIRCLE_KWARGS="effort_weight=0.0 proximity_weight=1.0"
 # 0.82 of its maximum at a 1 cm error, and a first run tracked random circles at 15-27 mm).
 RESIDUAL_CIRCLE_CLEARANCE="$RESIDUAL_CIRCLE --residual-observation clearance"
 CIRCLE_MIX="case=mix hydro_randomization=0.3"
+# The clearance-feature residual confined to the null space of both hand positions (--residual-space nullspace,
+# uvdms_gym.residual.NullspaceProjection): to first order it cannot move the hands, so exploring it leaves the
+# tracking to mpc; a hand-written field in that space kept 9-10 of 10 random circles contact-free (README).
+RESIDUAL_CIRCLE_NULLSPACE="$RESIDUAL_CIRCLE_CLEARANCE --residual-space nullspace"
 RESIDUAL_TRANSPORT="--residual mpc --residual-scale 0.3 --hyperparams action_scale=1.0"
 
 # entry | algo | env id | env kwargs | extra training arguments | budget (env steps)
@@ -55,6 +59,7 @@ ENTRIES=(
   "sac-transport-v1|sac|uvdms/Transport-v1|$TRANSPORT $E2E||150000"
   "residual-mpc-td3prior-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE $RESIDUAL_CIRCLE_KWARGS|$RESIDUAL_CIRCLE|150000"
   "residual-mpc-td3prior-clearance-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE_MIX $RESIDUAL_CIRCLE_KWARGS track_scale=0.02|$RESIDUAL_CIRCLE_CLEARANCE|150000"
+  "residual-mpc-td3prior-nullspace-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE $RESIDUAL_CIRCLE_KWARGS|$RESIDUAL_CIRCLE_NULLSPACE|150000"
   "residual-mpc-sac-transport-v1|sac|uvdms/Transport-v1|$TRANSPORT|$RESIDUAL_TRANSPORT|150000"
   "ppo-lagrangian-circle-v1|ppo_lagrangian|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PPO_LAGRANGIAN|2000000"
   "ppo-lagrangian-transport-v1|ppo_lagrangian|uvdms/Transport-v1|$TRANSPORT $E2E|$PPO_LAGRANGIAN|2000000"
