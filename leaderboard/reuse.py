@@ -58,9 +58,7 @@ def reusable_results(jobs: Sequence[Job], entries: Sequence[Entry], reuse_dir: s
         FileNotFoundError: ``reuse_dir`` has no ``entries/`` folder.
         ValueError: A document of ``reuse_dir`` that is needed is not valid JSON.
     """
-    entries_dir = Path(reuse_dir) / "entries"
-    if not entries_dir.is_dir():
-        raise FileNotFoundError(f"--reuse {reuse_dir}: not a leaderboard output folder (no entries/ inside)")
+    entries_dir = check_reuse_dir(reuse_dir)
     parent_of = {run: entry for entry in entries for run in entry.runs()}
     docs: dict[str, dict[str, Any] | None] = {}
     found: dict[Path, dict] = {}
@@ -89,6 +87,18 @@ def reusable_results(jobs: Sequence[Job], entries: Sequence[Entry], reuse_dir: s
             entries_dir / f"{slug}.json",
         )
     return found
+
+
+def check_reuse_dir(reuse_dir: str | Path) -> Path:
+    """The ``entries/`` folder of the leaderboard output ``reuse_dir``.
+
+    Raises:
+        FileNotFoundError: ``reuse_dir`` has no ``entries/`` folder.
+    """
+    entries_dir = Path(reuse_dir) / "entries"
+    if not entries_dir.is_dir():
+        raise FileNotFoundError(f"--reuse {reuse_dir}: not a leaderboard output folder (no entries/ inside)")
+    return entries_dir
 
 
 def _read_document(path: Path) -> dict[str, Any] | None:

@@ -19,7 +19,7 @@ from typing import Any
 from leaderboard.cache import CorruptCacheError, cache_key, cache_material, cache_path, compact_result, read_cached
 from leaderboard.entries import Entry, check_seed_disjointness
 from leaderboard.report import write_outputs
-from leaderboard.reuse import CACHE_KEY_FIELD, reusable_results
+from leaderboard.reuse import CACHE_KEY_FIELD, check_reuse_dir, reusable_results
 from leaderboard.stats import RankedRow, aggregate, aggregate_runs, rank_rows
 from leaderboard.tasks import DEFAULT_EPISODES, TASKS, TRACKS, Task, evaluation_seeds
 from uvdms_gym.io import write_json_atomic
@@ -318,6 +318,8 @@ def run_leaderboard(
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     if force and reuse_from is not None:
         raise ValueError("force recomputes every episode: it cannot be combined with reuse_from")
+    if reuse_from is not None:
+        check_reuse_dir(reuse_from)
     out = Path(out_dir)
     cache = Path(cache_dir) if cache_dir is not None else out / "cache"
     seeds = evaluation_seeds(episodes)

@@ -128,6 +128,9 @@ def test_keyless_documents_of_another_package_version_or_checksum_are_not_used(t
 def test_bad_reuse_arguments_name_the_problem(tmp_path, entries):
     with pytest.raises(FileNotFoundError, match="not a leaderboard output folder"):
         _run(tmp_path / "out", entries, reuse_from=tmp_path / "nowhere")
+    _run(tmp_path / "out", entries)  # every episode cached now: the folder is still checked
+    with pytest.raises(FileNotFoundError, match="not a leaderboard output folder"):
+        _run(tmp_path / "out", entries, reuse_from=tmp_path / "nowhere")
     with pytest.raises(ValueError, match="cannot be combined"):
         _run(tmp_path / "out", entries, reuse_from=tmp_path / "nowhere", force=True)
     _run(tmp_path / "first", entries)
