@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import gymnasium as gym
 import numpy as np
@@ -222,7 +222,43 @@ def is_residual_penalty(value: Any) -> bool:
     )
 
 
-class ClearanceFeatures:
+_Helper = TypeVar("_Helper", bound="_KinematicHelper")
+
+
+class _KinematicHelper:
+    """What :class:`ClearanceFeatures` and :class:`NullspaceProjection` share: a kinematic model and ``zeta_max``.
+
+    Args:
+        kin: A kinematic model of the environment's vehicle (its state is overwritten on every call).
+        zeta_max: The velocity-mode action scale (18).
+    """
+
+    option = ""
+    """The composition option that needs the helper (for the error of :meth:`for_env`)."""
+
+    def __init__(self, kin: Any, zeta_max: np.ndarray) -> None:
+        self.kin = kin
+        self.zeta_max = np.asarray(zeta_max, dtype=np.float64).copy()
+        if self.zeta_max.shape != (18,):
+            raise ValueError(f"zeta_max must have 18 entries, got shape {self.zeta_max.shape}")
+
+    @classmethod
+    def for_env(cls: type[_Helper], env: Any) -> _Helper:
+        """The helper for a UVDMS environment (through wrappers).
+
+        It uses a kinematic model of its own, built from the environment's ``params`` (not shared with the
+        base controller), and the environment's ``zeta_max``.
+
+        Raises:
+            ValueError: ``env`` is not a UVDMS environment.
+        """
+        base = getattr(env, "unwrapped", env)
+        if not hasattr(base, "params") or not hasattr(base, "zeta_max"):
+            raise ValueError(f"{cls.option} needs a UVDMS environment (params, zeta_max), got {base!r}")
+        return cls(KinematicModel(base.params), base.zeta_max)
+
+
+class ClearanceFeatures(_KinematicHelper):
     """The 36 clearance features of ``residual_observation="clearance"``, from ``info`` and a kinematic model.
 
     With ``d`` the 18 clearances (m), ``G = -J_dis diag(zeta_max)`` (18 x 18: the rate of each clearance per unit
@@ -244,29 +280,7 @@ class ClearanceFeatures:
 
     size = 36
     """Number of features."""
-
-    def __init__(self, kin: Any, zeta_max: np.ndarray) -> None:
-        self.kin = kin
-        self.zeta_max = np.asarray(zeta_max, dtype=np.float64).copy()
-        if self.zeta_max.shape != (18,):
-            raise ValueError(f"zeta_max must have 18 entries, got shape {self.zeta_max.shape}")
-
-    @classmethod
-    def for_env(cls, env: Any) -> ClearanceFeatures:
-        """The features of a UVDMS environment (through wrappers).
-
-        They use a kinematic model of their own, built from the environment's ``params`` (not shared with the
-        base controller), and the environment's ``zeta_max``.
-
-        Raises:
-            ValueError: ``env`` is not a UVDMS environment.
-        """
-        base = getattr(env, "unwrapped", env)
-        if not hasattr(base, "params") or not hasattr(base, "zeta_max"):
-            raise ValueError(
-                f"residual_observation='clearance' needs a UVDMS environment (params, zeta_max), got {base!r}"
-            )
-        return cls(KinematicModel(base.params), base.zeta_max)
+    option = "residual_observation='clearance'"
 
     def __call__(self, info: Mapping[str, Any], base_action: np.ndarray) -> np.ndarray:
         """``[direction; rate]`` (36, float64) at the configuration of ``info``."""
@@ -280,7 +294,7 @@ class ClearanceFeatures:
         return np.clip(np.concatenate([direction, rate]), -FEATURE_CLIP, FEATURE_CLIP)
 
 
-class NullspaceProjection:
+class NullspaceProjection(_KinematicHelper):
     """The projection of ``residual_space="nullspace"``: residual commands that leave both hands where they are.
 
     With ``J`` the (6, 18) Jacobian of the two end-effector positions (world-aligned) per unit of normalised
@@ -296,23 +310,7 @@ class NullspaceProjection:
         zeta_max: The velocity-mode action scale (18).
     """
 
-    def __init__(self, kin: Any, zeta_max: np.ndarray) -> None:
-        self.kin = kin
-        self.zeta_max = np.asarray(zeta_max, dtype=np.float64).copy()
-        if self.zeta_max.shape != (18,):
-            raise ValueError(f"zeta_max must have 18 entries, got shape {self.zeta_max.shape}")
-
-    @classmethod
-    def for_env(cls, env: Any) -> NullspaceProjection:
-        """The projection of a UVDMS environment (through wrappers), on a kinematic model of its own.
-
-        Raises:
-            ValueError: ``env`` is not a UVDMS environment.
-        """
-        base = getattr(env, "unwrapped", env)
-        if not hasattr(base, "params") or not hasattr(base, "zeta_max"):
-            raise ValueError(f"residual_space='nullspace' needs a UVDMS environment (params, zeta_max), got {base!r}")
-        return cls(KinematicModel(base.params), base.zeta_max)
+    option = "residual_space='nullspace'"
 
     def matrix(self, info: Mapping[str, Any]) -> np.ndarray:
         """``P`` (18, 18) at the configuration of ``info``."""
