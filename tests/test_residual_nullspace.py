@@ -93,8 +93,19 @@ def test_a_projected_command_leaves_the_hands_in_place_to_first_order(states, pr
         u = rng.uniform(-0.5, 0.5, 18)
         dt = 0.04
         moved = _hands(kin, pin.integrate(kin.model, q0, u * projection.zeta_max * dt)) - start
-        kept = _hands(kin, pin.integrate(kin.model, q0, projection(info, u) * projection.zeta_max * dt)) - start
+        projected, clipped = projection(info, u)
+        assert not clipped  # entries of P u stay within [-1, 1] for this small u
+        kept = _hands(kin, pin.integrate(kin.model, q0, projected * projection.zeta_max * dt)) - start
         assert np.linalg.norm(kept) < 0.05 * np.linalg.norm(moved)
+
+
+def test_a_clipped_projection_is_reported(states, projection, monkeypatch):
+    info = states[0][1]
+    monkeypatch.setattr(projection, "matrix", lambda _info: 2.0 * np.eye(18))
+    out, clipped = projection(info, np.full(18, 0.75))
+    assert clipped and np.all(out == 1.0)
+    out, clipped = projection(info, np.full(18, 0.25))
+    assert not clipped and np.all(out == 0.5)
 
 
 def test_training_and_evaluation_send_the_same_projected_actions():

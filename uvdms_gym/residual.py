@@ -318,10 +318,15 @@ class NullspaceProjection(_KinematicHelper):
         jac = self.kin.ee_jacobian()[_EE_POSITION_ROWS] * self.zeta_max
         return np.eye(jac.shape[1]) - np.linalg.pinv(jac) @ jac
 
-    def __call__(self, info: Mapping[str, Any], policy_action: np.ndarray) -> np.ndarray:
-        """``clip(P u, -1, 1)`` (18, float64) for the policy output ``u`` at the configuration of ``info``."""
-        u = np.asarray(policy_action, dtype=np.float64)
-        return np.clip(self.matrix(info) @ u, ACTION_LOW, ACTION_HIGH)
+    def __call__(self, info: Mapping[str, Any], policy_action: np.ndarray) -> tuple[np.ndarray, bool]:
+        """``clip(P u, -1, 1)`` (18, float64) for the policy output ``u`` at ``info``'s configuration, and a flag.
+
+        The flag says whether the clip changed anything (``P`` is a projection, but single entries of ``P u`` can
+        exceed 1).
+        """
+        raw = self.matrix(info) @ np.asarray(policy_action, dtype=np.float64)
+        projected = np.clip(raw, ACTION_LOW, ACTION_HIGH)
+        return projected, bool(np.any(projected != raw))
 
 
 _EE_POSITION_ROWS = [0, 1, 2, 6, 7, 8]
@@ -390,8 +395,9 @@ class ResidualAction(gym.Wrapper):
     does) and returns ``[obs; a_base]``; ``step(a)`` sends :func:`compose_residual` of the current ``a_base`` and
     ``a`` to the environment, then computes the base's action at the new state for the next observation (also at
     the last state of an episode: the learner bootstraps from it on truncation). ``info`` gains
-    ``residual_clipped`` (the clip changed the sum), ``residual_base_action`` (the ``a_base`` that was used) and
-    ``residual_action`` (the action sent); the base reads the environment's own ``info``.
+    ``residual_clipped`` (a clip changed the sum or, with ``space="nullspace"``, the projected output),
+    ``residual_base_action`` (the ``a_base`` that was used) and ``residual_action`` (the action sent); the base
+    reads the environment's own ``info``.
 
     Args:
         env: A velocity-mode environment with the action space ``Box(-1, 1)``.
@@ -455,8 +461,11 @@ class ResidualAction(gym.Wrapper):
         if self._base_action is None:
             raise RuntimeError("ResidualAction.step called before reset")
         base_action = self._base_action
-        residual = action if self.projection is None else self.projection(self._info, action)
+        residual, clipped_projection = (
+            (action, False) if self.projection is None else self.projection(self._info, action)
+        )
         sent, clipped = compose_residual(base_action, residual, self.scale)
+        clipped = clipped or clipped_projection
         obs, reward, terminated, truncated, info = self.env.step(sent)
         self._base_action = np.asarray(self.base.predict(obs, info))
         self._info = info
@@ -532,9 +541,11 @@ class ResidualController:
             record["base_zeta_cmd"] = record.pop("zeta_cmd")
         features = None if self.features is None else self.features(info, base_action)
         policy_action = self.policy.predict(residual_observation(obs, base_action, features), info)
+        clipped_projection = False
         if self.projection is not None:
-            policy_action = self.projection(info, policy_action)
+            policy_action, clipped_projection = self.projection(info, policy_action)
         action, clipped = compose_residual(base_action, policy_action, self.residual_scale)
+        clipped = clipped or clipped_projection
         self.last_record = {**record, "residual_clipped": clipped}
         return action
 
