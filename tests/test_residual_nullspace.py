@@ -20,7 +20,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import yaml
-from test_residual_clearance import ACTION_DIM, OBS_DIM, SCALE, SEED, TINY, LinearPolicy, _mpc_states
+from test_residual_clearance import ACTION_DIM, CIRCLE, OBS_DIM, SCALE, SEED, TINY, LinearPolicy, _mpc_states
 
 from agents.train import run_dir_for
 from baselines.controllers import make_baseline
@@ -35,8 +35,6 @@ from uvdms_gym.residual import (
     ResidualAction,
     ResidualController,
 )
-
-CIRCLE = "uvdms/CircleTrack-v0"
 
 
 @pytest.fixture(scope="module")
