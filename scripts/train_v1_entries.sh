@@ -61,8 +61,8 @@ ENTRIES=(
   "residual-mpc-td3prior-clearance-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE_MIX $RESIDUAL_CIRCLE_KWARGS track_scale=0.02|$RESIDUAL_CIRCLE_CLEARANCE|150000"
   "residual-mpc-td3prior-nullspace-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE $RESIDUAL_CIRCLE_KWARGS|$RESIDUAL_CIRCLE_NULLSPACE|150000"
   "residual-mpc-sac-transport-v1|sac|uvdms/Transport-v1|$TRANSPORT|$RESIDUAL_TRANSPORT|150000"
-  "ppo-lagrangian-circle-v1|ppo_lagrangian|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PPO_LAGRANGIAN|2000000"
-  "ppo-lagrangian-transport-v1|ppo_lagrangian|uvdms/Transport-v1|$TRANSPORT $E2E|$PPO_LAGRANGIAN|2000000"
+  "ppo-lagrangian-circle-v1|ppo_lagrangian|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PPO_LAGRANGIAN|1000000"
+  "ppo-lagrangian-transport-v1|ppo_lagrangian|uvdms/Transport-v1|$TRANSPORT $E2E|$PPO_LAGRANGIAN|1000000"
 )
 
 lookup() {
