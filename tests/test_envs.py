@@ -185,6 +185,27 @@ def test_make_step_close_cycles_do_not_leak():
     assert not any(p.isConnected(physicsClientId=c) for c in set(ids))
 
 
+def test_velocity_loop_inverse_diagonal_matches_numpy_inverse():
+    """The loop's compiled diag(M^-1) equals np.linalg.inv's diagonal to rounding; non-SPD input is refused."""
+    from uvdms_gym.envs.lowlevel import _inverse_diagonal
+
+    rng = np.random.default_rng(11)
+    env = gym.make("uvdms/CircleTrack-v0")
+    env.reset(seed=0)
+    mats = [env.unwrapped._nominal.mass_matrix()]
+    env.close()
+    for n in (1, 5, 18):
+        a = rng.normal(size=(n, n))
+        mats.append(a @ a.T + 1e-2 * np.eye(n))
+    for m in mats:
+        out = np.empty(m.shape[0])
+        assert _inverse_diagonal(m, out)
+        np.testing.assert_allclose(out, np.linalg.inv(m).diagonal(), rtol=1e-11, atol=0.0)
+    indefinite = np.diag([1.0, -1.0, 2.0])
+    assert not _inverse_diagonal(indefinite, np.empty(3))
+    assert not _inverse_diagonal(np.full((2, 2), np.nan), np.empty(2))
+
+
 def test_transport_orientation_errors_match_frames_rot_error():
     """errors_pose's float-arithmetic rotation errors equal frames.rot_error of the Euler references."""
     from uvdms_gym.envs.base import POS_SCALE, errors_pose

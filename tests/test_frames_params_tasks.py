@@ -160,6 +160,22 @@ def test_mixed_circles_draw_the_paper_cases_and_random_circles_in_equal_parts():
         env.close()
 
 
+def test_transport_reference_kernel_equals_scipy_spline_bit_for_bit():
+    """The compiled evaluation gives the bits of scipy's CubicSpline at the clipped times, edges and NaN included."""
+    rng = np.random.default_rng(5)
+    for goal in ("paper", "random"):
+        task = tasks.make_transport_task(goal, rng)
+        mt = task.move_time
+        t = np.concatenate([rng.uniform(-5.0, mt + 10.0, 2000), [0.0, -0.0, mt / 2, mt, np.nextafter(mt, 0), np.nan]])
+        expected = task._spline(np.clip(t, 0.0, mt))
+        got = task.reference(t)
+        assert got.shape == (t.size, 6)
+        assert np.array_equal(got, expected, equal_nan=True)
+        assert np.array_equal(task.reference(3.25), task._spline(3.25))
+        grid = rng.uniform(0.0, mt, (4, 3))  # other shapes go to the spline itself
+        assert np.array_equal(task.reference(grid), task._spline(grid))
+
+
 def test_transport_reference_passes_waypoints_and_holds():
     task = tasks.make_transport_task()
     start, goal = task.reference(0.0), task.reference(task.move_time)

@@ -67,7 +67,11 @@ class VelocityLoop:
         """Start a control step: feedforward and gains at the kinematic model's current state."""
         cmd = self._cmd = np.asarray(zeta_cmd, dtype=float)
         nominal = self.nominal
-        m_eff = 1.0 / np.linalg.inv(nominal.mass_matrix()).diagonal()
+        m = nominal.mass_matrix()
+        m_inv_diag = np.empty(m.shape[0])
+        if not _inverse_diagonal(m, m_inv_diag):  # not positive definite to working precision: LU's inverse
+            m_inv_diag = np.linalg.inv(m).diagonal()
+        m_eff = 1.0 / m_inv_diag
         kp = self._kp = m_eff * self.omega
         ki = self._ki = kp * self.omega * self.integral_ratio
         # the anti-windup bound of the integral is constant over the control step
@@ -107,7 +111,47 @@ def _pi_update(cmd, zeta, integral, dt, neg_limit, limit, kp, ki, ff, out):  # p
         out[i] = kp[i] * err + ff[i] + ki[i] * v
 
 
+@jit
+def _inverse_diagonal(m, out):  # pragma: no cover - compiled
+    """``diag(m^-1)`` of a symmetric positive definite ``m`` into ``out``; False if the Cholesky factor fails.
+
+    ``m = L L^T``, ``(m^-1)_ii = sum_k ((L^-1)_ki)^2``: a few thousand flops for the 18x18 mass matrix, against
+    numpy's LU inverse whose call overhead is most of its cost at this size. Agrees with ``np.linalg.inv`` to
+    rounding (tested), not bit for bit.
+    """
+    n = m.shape[0]
+    low = np.zeros((n, n))
+    for j in range(n):
+        acc = m[j, j]
+        for k in range(j):
+            acc -= low[j, k] * low[j, k]
+        if not acc > 0.0:  # also NaN
+            return False
+        d = np.sqrt(acc)
+        low[j, j] = d
+        for i in range(j + 1, n):
+            acc = m[i, j]
+            for k in range(j):
+                acc -= low[i, k] * low[j, k]
+            low[i, j] = acc / d
+    inv = np.zeros((n, n))  # L^-1, lower triangular, column by column (forward substitution)
+    for c in range(n):
+        inv[c, c] = 1.0 / low[c, c]
+        for i in range(c + 1, n):
+            acc = 0.0
+            for k in range(c, i):
+                acc -= low[i, k] * inv[k, c]
+            inv[i, c] = acc / low[i, i]
+    for i in range(n):
+        acc = 0.0
+        for k in range(i, n):
+            acc += inv[k, i] * inv[k, i]
+        out[i] = acc
+    return True
+
+
 def _warm_up() -> None:
     """Compile (or load from numba's cache) the kernel now, at environment construction, not in a step."""
     z = np.zeros(1)
     _pi_update(z, z, z.copy(), 0.0, z, z, z, z, z, z.copy())
+    _inverse_diagonal(np.ones((1, 1)), z.copy())

@@ -90,10 +90,12 @@ class TransportEnv(UVDMSEnv):
         self.goal = goal
         self._task_kwargs = {"start_pose": start_pose, "goal_pose": goal_pose, "move_time": move_time}
         try:
-            make_transport_task(goal, np.random.default_rng(0), **self._task_kwargs)
+            task = make_transport_task(goal, np.random.default_rng(0), **self._task_kwargs)
         except ValueError:
             self.close()
             raise
+        # compile (or load from numba's disk cache) the step's kernels now, not in the first step
+        errors_pose(task.start[:3], np.eye(3), task.reference(np.zeros(1)), np.eye(3))
 
     def _build_task(self, rng: np.random.Generator) -> TransportTask:
         return make_transport_task(self.goal, rng, **self._task_kwargs)
