@@ -36,7 +36,8 @@ def bench_sim(quick: bool = False) -> dict:
 
     ``physics_step_us`` is one physics substep of :meth:`UVDMSSim.step` (state read, vehicle and link
     hydrodynamics, external forces, joint torques, ``stepSimulation``), timed over 10-substep calls;
-    ``bare_step_us`` is ``stepSimulation`` alone on the same body and time step.
+    ``bare_step_us`` is ``stepSimulation`` alone on the same body and time step. The two alternate in short
+    blocks; ``overhead_ratio`` is the median over blocks of ``physics_step / bare_step`` within each block.
 
     ``distances_us["exact"]`` and ``jdis_us`` are the default (compiled) paths,
     ``distances_us["exact_numpy_reference"]`` and ``jdis_reference_us`` the numpy reference of the same
@@ -71,17 +72,18 @@ def bench_sim(quick: bool = False) -> dict:
             if sim.t > 5.0:
                 sim.reset(eta0, q=q0)
 
-        # interleave the two measurements block by block so machine load affects both alike
+        # interleave the two measurements in short blocks so machine load affects both alike; the ratio is
+        # the median of the per-block ratios (a load change between blocks cancels within each pair)
         bare, full = [], []
-        for _ in range(blocks):
+        for _ in range(3 * blocks):
             reset_if_far()
-            bare.append(_median_us(sim.bare_step, calls, 1))
+            bare.append(_median_us(sim.bare_step, calls // 3, 1))
             reset_if_far()
             # one call runs 10 substeps (input validation and the state check amortised, as in an env step)
-            full.append(_median_us(lambda: sim.step(tau, n_substeps=10), calls // 10, 1) / 10.0)
+            full.append(_median_us(lambda: sim.step(tau, n_substeps=10), calls // 30, 1) / 10.0)
         out["bare_step_us"] = float(np.median(bare))
         out["physics_step_us"] = float(np.median(full))
-        out["overhead_ratio"] = out["physics_step_us"] / out["bare_step_us"]
+        out["overhead_ratio"] = float(np.median(np.array(full) / np.array(bare)))
         sim.reset(eta0, q=q0)
         pb = _median_us(lambda: pybullet_distances(sim.client, sim.body_id, sim.link_index, params), calls // 4, blocks)
     kin = KinematicModel(params)
@@ -143,54 +145,70 @@ def _numba_first_call_ms() -> dict:
 def bench_env(quick: bool = False) -> dict:
     """Environment steps per second (velocity mode, random actions) and the ratio to bare physics.
 
-    Per environment: ``steps_per_s`` and ``step_us`` over ``n_steps`` steps of ``gym.make(env_id)`` (resets
-    on episode end included), after ``warmup_steps`` untimed steps (numba kernels are compiled or loaded
-    from their disk cache at construction; the warm-up keeps first-touch effects out of the medians);
-    ``ratio_to_bare_physics`` = ``step_us / (substeps * bare_step_us)`` with ``bare_step_us`` one
-    ``stepSimulation`` of the free robot at rest (the figure the project's targets use).
-    ``env_bare_step_us`` is one ``stepSimulation`` of the environment's own multibody at its reset state
-    (for the transport task: with the gripped object and its two grasp constraints, solved by the direct
-    LCP solver) and ``ratio_to_env_physics`` the step against that, i.e. the cost on top of the physics
-    engine.
+    Per environment: ``n_blocks`` blocks of ``block_steps`` steps of ``gym.make(env_id)`` (resets on episode
+    end included), after ``warmup_steps`` untimed steps (numba kernels are compiled or loaded from their disk
+    cache at construction; the warm-up keeps first-touch effects out of the medians). Before each block, one
+    ``stepSimulation`` of the free robot at rest is timed (``bare_step_us``: the figure the project's targets
+    use), so that each block's ratio ``step_us / (substeps * bare_step_us)`` divides two figures measured
+    seconds apart under the same machine load. Reported: ``step_us`` (median over blocks),
+    ``steps_per_s = 1e6 / step_us``, ``ratio_to_bare_physics`` (median of the block ratios) and the per-block
+    figures (``step_us_blocks``, ``ratio_blocks``). ``env_bare_step_us`` is one ``stepSimulation`` of the
+    environment's own multibody at its reset state (for the transport task: with the gripped object and its
+    two grasp constraints, solved by the direct LCP solver) and ``ratio_to_env_physics`` the step against
+    that, i.e. the cost on top of the physics engine.
     """
     import gymnasium as gym
 
     from uvdms_gym.sim import UVDMSSim
 
-    n_steps, warmup = (300, 10) if quick else (2000, 20)
+    n_blocks, block_steps, warmup = (3, 100, 10) if quick else (7, 400, 20)
+    eta0 = np.array([2.0, 0.0, 3.0, 0.0, 0.0, 0.0])
     result: dict = {}
+    bare_all: list[float] = []
     with UVDMSSim(UVDMSParams()) as sim:
-        sim.reset(np.array([2.0, 0.0, 3.0, 0.0, 0.0, 0.0]))
-        bare_us = _median_us(sim.bare_step, 500, 5)
-    for env_id in BENCH_ENV_IDS:
-        env = gym.make(env_id, action_mode="velocity", terminate_on_contact=False)
-        rng = np.random.default_rng(0)
-        env.reset(seed=0)
-        n_sub = env.unwrapped.n_substeps
-        actions = rng.uniform(-0.3, 0.3, (warmup + n_steps, 18)).astype(np.float32)
-        for a in actions[:warmup]:
-            env.step(a)
-        t0 = time.perf_counter()
-        for a in actions[warmup:]:
-            _, _, term, trunc, _ = env.step(a)
-            if term or trunc:
-                env.reset()
-        elapsed = time.perf_counter() - t0
-        env_bare = []
-        for _ in range(5):  # bare physics of this environment's body from its reset state (1 s of free fall)
+
+        def bare_step_us() -> float:
+            sim.reset(eta0)
+            return _median_us(sim.bare_step, 300, 1)
+
+        for env_id in BENCH_ENV_IDS:
+            env = gym.make(env_id, action_mode="velocity", terminate_on_contact=False)
+            rng = np.random.default_rng(0)
             env.reset(seed=0)
-            env_bare.append(_median_us(env.unwrapped._sim.bare_step, 100, 1))
-        env.close()
-        step_us = elapsed / n_steps * 1e6
-        env_bare_us = float(np.median(env_bare))
-        result[env_id] = {
-            "steps_per_s": n_steps / elapsed,
-            "step_us": step_us,
-            "ratio_to_bare_physics": step_us / (n_sub * bare_us),
-            "env_bare_step_us": env_bare_us,
-            "ratio_to_env_physics": step_us / (n_sub * env_bare_us),
-            "substeps": n_sub,
-        }
-    result["bare_step_us"] = bare_us
+            n_sub = env.unwrapped.n_substeps
+            actions = rng.uniform(-0.3, 0.3, (warmup + n_blocks * block_steps, 18)).astype(np.float32)
+            for a in actions[:warmup]:
+                env.step(a)
+            step_blocks, ratio_blocks = [], []
+            for b in range(n_blocks):
+                bare_us = bare_step_us()
+                bare_all.append(bare_us)
+                t0 = time.perf_counter()
+                for a in actions[warmup + b * block_steps : warmup + (b + 1) * block_steps]:
+                    _, _, term, trunc, _ = env.step(a)
+                    if term or trunc:
+                        env.reset()
+                step_us = (time.perf_counter() - t0) / block_steps * 1e6
+                step_blocks.append(step_us)
+                ratio_blocks.append(step_us / (n_sub * bare_us))
+            env_bare = []
+            for _ in range(5):  # bare physics of this environment's body from its reset state (1 s of free fall)
+                env.reset(seed=0)
+                env_bare.append(_median_us(env.unwrapped._sim.bare_step, 100, 1))
+            env.close()
+            step_us = float(np.median(step_blocks))
+            env_bare_us = float(np.median(env_bare))
+            result[env_id] = {
+                "steps_per_s": 1e6 / step_us,
+                "step_us": step_us,
+                "ratio_to_bare_physics": float(np.median(ratio_blocks)),
+                "env_bare_step_us": env_bare_us,
+                "ratio_to_env_physics": step_us / (n_sub * env_bare_us),
+                "substeps": n_sub,
+                "step_us_blocks": step_blocks,
+                "ratio_blocks": ratio_blocks,
+            }
+    result["bare_step_us"] = float(np.median(bare_all))
     result["warmup_steps"] = warmup
+    result["blocks"] = {"n_blocks": n_blocks, "block_steps": block_steps}
     return result

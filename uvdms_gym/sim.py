@@ -116,6 +116,7 @@ _closest_points = pb.getClosestPoints
 _contact_points = pb.getContactPoints
 _perform_collision_detection = pb.performCollisionDetection
 _chain = itertools.chain.from_iterable
+_fromiter = np.fromiter
 _arctan2 = np.arctan2
 _arcsin = np.arcsin
 
@@ -403,6 +404,7 @@ class UVDMSSim:
         self._vehicle_consts = (*h.d_lin, *h.d_quad, *h.a_res, self._up_force, *self._up_centroid)
         self._link_table = link_table(h)
         self._link_forces = np.empty((self._link_table.shape[0], 3))
+        self._n_link_state = 7 * self._link_table.shape[0]  # [orientation xyzw, velocity] per link
         if self._obj is not None:
             self._set_object_dynamics()
 
@@ -871,7 +873,8 @@ class UVDMSSim:
         if tau_q:
             links = st[1:]
             forces = self._link_forces
-            link_forces_world(np.array(list(_chain([ls[1] + ls[6] for ls in links]))), self._link_table, forces)
+            states = _fromiter(_chain([ls[1] + ls[6] for ls in links]), float, self._n_link_state)
+            link_forces_world(states, self._link_table, forces)
             world = _WORLD
             for link, force, ls in zip(self._joints, forces.tolist(), links):
                 apply_force(body, link, force, ls[0], world, cid)

@@ -1,0 +1,20 @@
+"""``uvdms bench env``: its figures are the medians of interleaved blocks they claim to be (no timing asserted)."""
+
+import numpy as np
+
+from uvdms_gym.bench import BENCH_ENV_IDS, bench_env
+
+
+def test_bench_env_reports_block_medians():
+    out = bench_env(quick=True)
+    n_blocks = out["blocks"]["n_blocks"]
+    for env_id in BENCH_ENV_IDS:
+        row = out[env_id]
+        assert len(row["step_us_blocks"]) == len(row["ratio_blocks"]) == n_blocks
+        assert row["step_us"] == np.median(row["step_us_blocks"]) > 0
+        assert row["ratio_to_bare_physics"] == np.median(row["ratio_blocks"]) > 0
+        assert np.isclose(row["steps_per_s"] * row["step_us"], 1e6)
+        # each block's ratio divides by a bare step timed just before it, not by one global figure
+        implied_bare = np.array(row["step_us_blocks"]) / (row["substeps"] * np.array(row["ratio_blocks"]))
+        assert np.all(implied_bare > 0)
+        assert np.isclose(np.median(implied_bare), out["bare_step_us"], rtol=1.0)
