@@ -3,7 +3,8 @@
 SB3's PPO (as :class:`agents.rollouts.PPO`: SB3's PPO, which also collects parallel rollouts on
 ``--vec-env rollout``), SAC, TD3, sb3-contrib's TQC, and the project's PPO-Lagrangian
 (:mod:`agents.ppo_lagrangian`: PPO under a per-episode budget on ``info["cost"]``) and TD3-prior
-(:mod:`agents.td3_prior`: TD3 whose actor is held near the zero action, TD3+BC's loss; for residual agents).
+(:mod:`agents.td3_prior`: TD3 whose actor is held near the zero action, TD3+BC's loss; for residual agents) and
+DAgger (:mod:`agents.dagger`: a residual policy fitted to a teacher's labels on the states it visits).
 """
 
 from sb3_contrib import TQC
@@ -11,11 +12,13 @@ from stable_baselines3 import SAC, TD3
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
+from agents.dagger import DAgger
 from agents.ppo_lagrangian import PPOLagrangian
 from agents.rollouts import PPO
 from agents.td3_prior import TD3Prior
 
 ALGOS: dict[str, type[BaseAlgorithm]] = {
+    "dagger": DAgger,
     "ppo": PPO,
     "ppo_lagrangian": PPOLagrangian,
     "sac": SAC,

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-ALGO_NAMES: tuple[str, ...] = ("ppo", "ppo_lagrangian", "sac", "td3", "td3_prior", "tqc")
+ALGO_NAMES: tuple[str, ...] = ("dagger", "ppo", "ppo_lagrangian", "sac", "td3", "td3_prior", "tqc")
 """Names of :data:`agents.algos.ALGOS` (kept equal to its keys; checked by the tests)."""
 DEFAULT_GYM_PACKAGES: tuple[str, ...] = ("uvdms_gym",)
 """Packages imported by default so that the env ids are registered."""

@@ -127,6 +127,8 @@ class EnvFactory:
             :class:`FilteredAction`).
         episode_metrics: Put each episode's benchmark metrics into its last ``info``
             (:class:`agents.learning_curve.EpisodeMetrics`; evaluation envs of a uvdms id, else no effect).
+        teacher_factory: A teacher whose correction of the base labels every step (with ``base_factory``;
+            ``None``: none; :class:`ResidualAction`'s ``teacher_factory``, for :mod:`agents.dagger`).
     """
 
     env_id: str
@@ -144,6 +146,7 @@ class EnvFactory:
     residual_space: str = "full"
     filter_factory: FilterFactory | None = None
     episode_metrics: bool = False
+    teacher_factory: ControllerFactory | None = None
 
     def __call__(self) -> gym.Env:
         """Create the environment wrapped in a ``Monitor`` (filter, residual, action scaling and alive bonus inside).
@@ -176,6 +179,7 @@ class EnvFactory:
                 self.residual_penalty,
                 self.residual_observation,
                 self.residual_space,
+                self.teacher_factory,
             )
         if self.action_scale != 1.0:
             env = ScaledAction(env, self.action_scale)

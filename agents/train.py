@@ -80,6 +80,7 @@ from agents.algos import ALGOS, is_off_policy
 from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
 from agents.callbacks import DelayActorUpdates, LatestBufferCheckpointCallback, SaveBestExtras, SeededEvalCallback
 from agents.config import ConfigError, TrainConfig, default_config_path, load_config, parse_entry
+from agents.dagger import teacher_name
 from agents.envs import (
     EVAL_SEED_OFFSET,
     SEGMENT_SEED_STRIDE,
@@ -468,19 +469,22 @@ def _resume(
 
 def composition_factories(
     cfg: TrainConfig, components: ActionComponents | None
-) -> tuple[ControllerFactory | None, FilterFactory | None]:
-    """The base and filter factories of a configuration's residual base and safety filter.
+) -> tuple[ControllerFactory | None, FilterFactory | None, ControllerFactory | None]:
+    """The base, filter and teacher factories of a configuration's residual base, safety filter and teacher.
 
     Args:
         cfg: The configuration.
         components: The composition layer's factories (``None``: none available).
 
     Returns:
-        ``(base_factory, filter_factory)``, each ``None`` when not configured.
+        ``(base_factory, filter_factory, teacher_factory)``, each ``None`` when not configured; the teacher is that
+        of an imitation learner (``dagger``'s ``teacher`` hyperparameter, :mod:`agents.dagger`), built like a base.
 
     Raises:
         ConfigError: A residual base or the filter without ``components`` (the message names ``uvdms train``), a
-            base name the components reject, or a ``residual_penalty`` without a residual base.
+            base or teacher name the components reject, a ``residual_penalty`` without a residual base, or a
+            ``dagger`` configuration without a residual base, with ``residual_space: nullspace`` or with
+            ``action_scale`` other than 1 (its labels are residuals in the base's action units, on the full space).
     """
     composition = cfg.composition
     if cfg.residual_penalty and not composition.is_residual:
@@ -488,8 +492,22 @@ def composition_factories(
             f"residual_penalty={cfg.residual_penalty} shapes a residual agent's reward, but the configuration has no "
             "residual_base (--residual)"
         )
+    imitation = cfg.algo == "dagger"
+    if imitation:
+        problems = []
+        if not composition.is_residual:
+            problems.append("no residual_base (--residual mpc)")
+        if composition.residual_space != "full":
+            problems.append(f"residual_space={composition.residual_space!r} (its labels live on the full space)")
+        if cfg.action_scale != 1.0:
+            problems.append(f"action_scale={cfg.action_scale} (its labels are in the residual's own units: use 1.0)")
+        if problems:
+            raise ConfigError(
+                f"dagger imitates a teacher's correction of a residual base, but this configuration has "
+                f"{'; '.join(problems)}"
+            )
     if composition.is_plain:
-        return None, None
+        return None, None, None
     if components is None:
         parts = []
         if composition.is_residual:
@@ -501,13 +519,15 @@ def composition_factories(
             "which agents does not import: train it with `uvdms train` (python -m agents.train cannot), or pass "
             "components= to agents.train.train"
         )
-    base_factory = None
+    base_factory = teacher_factory = None
     if composition.is_residual:
         try:
             base_factory = components.base_factory(str(composition.residual_base))
+            if imitation:
+                teacher_factory = components.base_factory(teacher_name(cfg.hyperparams))
         except ValueError as exc:
-            raise ConfigError(str(exc)) from None
-    return base_factory, components.filter_factory if composition.safety_filter else None
+            raise ConfigError(f"{exc}" if not imitation else f"dagger's teacher or base: {exc}") from None
+    return base_factory, components.filter_factory if composition.safety_filter else None, teacher_factory
 
 
 def _check_vec_env(cfg: TrainConfig, vec_env: str) -> None:
@@ -538,7 +558,7 @@ def _run_segment(
     verbose: int,
     extra_callbacks: Sequence[BaseCallback] = (),
     after_eval: Sequence[BaseCallback] = (),
-    factories: tuple[ControllerFactory | None, FilterFactory | None] = (None, None),
+    factories: tuple[ControllerFactory | None, FilterFactory | None, ControllerFactory | None] = (None, None, None),
 ) -> None:
     meta = json.loads((run_dir / "meta.json").read_text(encoding="utf-8"))
     segment = len(meta["segments"])
@@ -548,7 +568,7 @@ def _run_segment(
         f.write(shlex.join(command) + "\n")
     model_seed = train_env_seed(seed, segment, 0)
     (run_dir / "monitor").mkdir(exist_ok=True)
-    base_factory, filter_factory = factories
+    base_factory, filter_factory, teacher_factory = factories
     composed = {
         "base_factory": base_factory,
         "residual_scale": cfg.residual_scale if base_factory is not None else None,
@@ -568,6 +588,7 @@ def _run_segment(
             cfg.action_scale,
             scalar_info=True,
             **composed,
+            teacher_factory=teacher_factory,  # training envs only: the evaluation callback needs no labels
         )
         for i in range(cfg.n_envs)
     ]
@@ -600,6 +621,7 @@ def _run_segment(
             **cfg.composition.to_record(),
             "base_factory": repr(base_factory) if base_factory is not None else None,
             "filter_factory": repr(filter_factory) if filter_factory is not None else None,
+            "teacher_factory": repr(teacher_factory) if teacher_factory is not None else None,
         },
         "torch_num_threads": torch.get_num_threads(),
         "torch_update_threads": update_threads(cfg.n_envs, vec_env, not is_off_policy(cfg.algo)),

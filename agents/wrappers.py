@@ -71,7 +71,8 @@ class ScalarInfo(gym.Wrapper):
     model-based controllers; a trainer reads none of it (SB3 reads ``episode``, ``is_success`` and the time-limit
     flags; the costs and reward terms are scalars), yet in ``subproc`` and ``hybrid`` vector envs every step's
     ``info`` is pickled in a worker and unpickled in the trainer: about 70 µs of a ~1.6 ms step here, and the
-    unpickling is on the trainer's critical path. Evaluation envs are not wrapped.
+    unpickling is on the trainer's critical path. Evaluation envs are not wrapped. The one array kept is a
+    teacher's label (``uvdms_gym.residual.TEACHER_KEY``), which an imitation learner stores with each transition.
     """
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
@@ -85,5 +86,10 @@ class ScalarInfo(gym.Wrapper):
         return obs, reward, terminated, truncated, _scalars(info)
 
 
+KEPT_ARRAYS: tuple[str, ...] = ("teacher_residual",)
+"""The array entries :class:`ScalarInfo` keeps: ``uvdms_gym.residual.TEACHER_KEY`` (spelled out here, as this module
+imports only Gymnasium and NumPy; a test checks that they agree)."""
+
+
 def _scalars(info: dict[str, Any]) -> dict[str, Any]:
-    return {key: value for key, value in info.items() if not isinstance(value, np.ndarray)}
+    return {key: value for key, value in info.items() if not isinstance(value, np.ndarray) or key in KEPT_ARRAYS}

@@ -14,6 +14,7 @@
 #   residual-mpc-*         a residual of at most 0.5 (circles, TD3-prior) / 0.3 (transport, SAC) of the action range
 #                          over plain `mpc`
 #                          (no collision rows: whatever avoidance it shows, it learned)
+#   residual-mpc-dagger-*  the residual over `mpc` fitted by DAgger to CAMPC's correction (agents/dagger.py)
 #   ppo-lagrangian-*       PPO-Lagrangian on info["cost"] (train_configs/ppo_lagrangian.yml), 2 envs (--vec-env rollout:
 #                          each env collects its part of every rollout, agents/rollouts.py)
 # All train on the randomised tasks with hydro_randomization=0.3 (the leaderboard's held-out variants use other
@@ -52,6 +53,11 @@ CIRCLE_MIX="case=mix hydro_randomization=0.3"
 # tracking to mpc; a hand-written field in that space kept 9-10 of 10 random circles contact-free (README).
 RESIDUAL_CIRCLE_NULLSPACE="$RESIDUAL_CIRCLE_CLEARANCE --residual-space nullspace"
 RESIDUAL_TRANSPORT="--residual mpc --residual-scale 0.3 --hyperparams action_scale=1.0"
+# DAgger (agents/dagger.py): the same residual over plain `mpc` (scale 0.5, clearance features), fitted to CAMPC's
+# correction of mpc at every state the learner visits; CAMPC labels the training states and is not part of the
+# agent (at evaluation: mpc + the network, no collision rows). Trained on case=mix, where the paper cases give
+# the near-collision states that random circles rarely reach; the reward is not used for learning.
+RESIDUAL_DAGGER="--residual mpc --residual-scale 0.5 --residual-observation clearance --hyperparams teacher=campc"
 
 # entry | algo | env id | env kwargs | extra training arguments | budget (env steps)
 ENTRIES=(
@@ -60,6 +66,7 @@ ENTRIES=(
   "residual-mpc-td3prior-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE $RESIDUAL_CIRCLE_KWARGS|$RESIDUAL_CIRCLE|150000"
   "residual-mpc-td3prior-clearance-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE_MIX $RESIDUAL_CIRCLE_KWARGS track_scale=0.02|$RESIDUAL_CIRCLE_CLEARANCE|150000"
   "residual-mpc-td3prior-nullspace-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE $RESIDUAL_CIRCLE_KWARGS|$RESIDUAL_CIRCLE_NULLSPACE|150000"
+  "residual-mpc-dagger-campc-circle-v1|dagger|uvdms/CircleTrack-v1|$CIRCLE_MIX|$RESIDUAL_DAGGER|100000"
   "residual-mpc-sac-transport-v1|sac|uvdms/Transport-v1|$TRANSPORT|$RESIDUAL_TRANSPORT|150000"
   "ppo-lagrangian-circle-v1|ppo_lagrangian|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PPO_LAGRANGIAN|1000000"
   "ppo-lagrangian-transport-v1|ppo_lagrangian|uvdms/Transport-v1|$TRANSPORT $E2E|$PPO_LAGRANGIAN|1000000"

@@ -55,12 +55,27 @@ TEST_ENVS: list[tuple[str, dict]] = [
 ALGO_NAMES = sorted(ALGOS)
 UVDMS_IDS = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0")
 COST_ALGOS = ("ppo_lagrangian",)  # need info["cost"]: trained on the uvdms ids only
-RUNS = [(a, e) for a in ALGO_NAMES for e, _ in TEST_ENVS if a not in COST_ALGOS or e in UVDMS_IDS]
+TEACHER_ALGOS = ("dagger",)  # need a residual base and a teacher (uvdms train): tests/test_dagger.py
+RUNS = [
+    (a, e)
+    for a in ALGO_NAMES
+    for e, _ in TEST_ENVS
+    if a not in TEACHER_ALGOS and (a not in COST_ALGOS or e in UVDMS_IDS)
+]
 """The (algo, env id) pairs of the shared training runs."""
 
 # A tiny config per algorithm (tests override n_timesteps; small nets, buffers and batches).
 _COMMON = {"n_timesteps": 300, "n_envs": 2, "eval_freq": 200, "n_eval_episodes": 1, "checkpoint_freq": 200}
 TINY = {
+    "dagger": {
+        **_COMMON,
+        "buffer_size": 1000,
+        "batch_size": 32,
+        "noise_type": "normal",
+        "noise_std": 0.1,
+        "teacher": "campc",
+        "policy_kwargs": {"net_arch": [16]},
+    },
     "ppo": {
         **_COMMON,
         "normalize": True,

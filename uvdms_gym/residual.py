@@ -215,6 +215,22 @@ def compose_residual(base_action: np.ndarray, policy_action: np.ndarray, scale: 
     return action.astype(np.float32), bool(np.any(action != raw))
 
 
+def teacher_residual(teacher_action: np.ndarray, base_action: np.ndarray, scale: float) -> np.ndarray:
+    """The residual policy output closest to a teacher's command: ``clip((a_teacher - a_base) / scale, -1, 1)``.
+
+    :func:`compose_residual` of ``base_action`` and this output is the teacher's action wherever the teacher
+    stays within ``scale`` of the base, and the teacher's action clipped to that bound elsewhere. It is the label
+    of imitation learning on a residual (:class:`ResidualAction`'s ``teacher_factory``), computed in float64 and
+    returned as float32 (the action space's dtype).
+    """
+    raw = (np.asarray(teacher_action, dtype=np.float64) - np.asarray(base_action, dtype=np.float64)) / float(scale)
+    return np.clip(raw, ACTION_LOW, ACTION_HIGH).astype(np.float32)
+
+
+TEACHER_KEY = "teacher_residual"
+"""``info`` key of :class:`ResidualAction`'s teacher label (:func:`teacher_residual`)."""
+
+
 def is_residual_penalty(value: Any) -> bool:
     """Whether ``value`` is a finite real number >= 0 (a valid ``residual_penalty``)."""
     return (
@@ -411,6 +427,10 @@ class ResidualAction(gym.Wrapper):
             :class:`ClearanceFeatures` of the new state (after the base's action at it) to every observation.
         space: ``residual_space`` (:data:`RESIDUAL_SPACES`): ``"nullspace"`` projects the policy's output with
             the :class:`NullspaceProjection` at the current state before it is scaled and added.
+        teacher_factory: Builds a teacher controller for ``env`` (``None``: none), for imitation learning
+            (``agents.dagger``): at every state the teacher acts on the same ``(obs, info)`` as the base, and
+            ``step``'s ``info[TEACHER_KEY]`` is :func:`teacher_residual` at the state *the action was taken in* (the
+            label of the observation the policy acted on). The teacher never acts on the environment.
 
     Raises:
         ValueError: A scale outside (0, 1], a negative or non-finite penalty, an action space other than
@@ -426,6 +446,7 @@ class ResidualAction(gym.Wrapper):
         penalty: float = 0.0,
         observation: str = "base",
         space: str = "full",
+        teacher_factory: ControllerFactory | None = None,
     ) -> None:
         super().__init__(env)
         if not is_residual_scale(scale):
@@ -441,8 +462,16 @@ class ResidualAction(gym.Wrapper):
         self.observation_space = residual_observation_space(env.observation_space, env.action_space, observation)
         self.features = ClearanceFeatures.for_env(env) if observation == "clearance" else None
         self.projection = NullspaceProjection.for_env(env) if space == "nullspace" else None
+        self.teacher = None if teacher_factory is None else teacher_factory(env)
         self._base_action: np.ndarray | None = None
+        self._teacher_label: np.ndarray | None = None
         self._info: Mapping[str, Any] = {}
+
+    def _label(self, obs: Any, info: Mapping[str, Any]) -> np.ndarray | None:
+        """The teacher's label at this state (``None`` without a teacher); call after the base's action."""
+        if self.teacher is None:
+            return None
+        return teacher_residual(np.asarray(self.teacher.predict(obs, info)), self._base_action, self.scale)  # type: ignore[arg-type]
 
     def _observation(self, obs: Any, info: Mapping[str, Any]) -> np.ndarray:
         features = None if self.features is None else self.features(info, self._base_action)  # type: ignore[arg-type]
@@ -452,7 +481,10 @@ class ResidualAction(gym.Wrapper):
         """Reset the environment and the base; the observation is ``[obs; a_base]`` (and the features)."""
         obs, info = self.env.reset(seed=seed, options=options)
         self.base.reset(seed)
+        if self.teacher is not None:
+            self.teacher.reset(seed)
         self._base_action = np.asarray(self.base.predict(obs, info))
+        self._teacher_label = self._label(obs, info)
         self._info = info
         return self._observation(obs, info), info
 
@@ -467,10 +499,14 @@ class ResidualAction(gym.Wrapper):
         sent, clipped = compose_residual(base_action, residual, self.scale)
         clipped = clipped or clipped_projection
         obs, reward, terminated, truncated, info = self.env.step(sent)
+        label = self._teacher_label
         self._base_action = np.asarray(self.base.predict(obs, info))
+        self._teacher_label = self._label(obs, info)
         self._info = info
         observation = self._observation(obs, info)
         info = {**info, "residual_clipped": clipped, "residual_base_action": base_action, "residual_action": sent}
+        if label is not None:
+            info[TEACHER_KEY] = label
         if self.penalty:
             residual = np.asarray(action, dtype=np.float64)
             info["reward_residual"] = -self.penalty * float(residual @ residual) / residual.size
