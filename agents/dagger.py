@@ -18,11 +18,13 @@ not (for CAMPC over plain MPC: the collision rows) has to be in the network's we
 Everything else is SB3's ``TD3`` (its deterministic actor, exploration noise, rollout collection, checkpoints and
 exports); the critics are built but never trained, and the reward is not used for learning (only for the
 evaluation callback's reports). ``uvdms train`` builds the teacher named by the ``teacher`` hyperparameter
-(``--hyperparams teacher=campc``); this module only learns from the labels.
+(``--hyperparams teacher=campc``), with its collision thresholds moved outward by ``teacher_margin``; this module
+only learns from the labels.
 """
 
 # NOTE: no ``from __future__ import annotations`` here: agents.config validates YAML keys against the evaluated
 # annotations of ``DAgger.__init__`` (as for agents.td3_prior).
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -41,6 +43,18 @@ TEACHER_INFO_KEY = "teacher_residual"
 """``info`` key of the label (``uvdms_gym.residual.TEACHER_KEY``; a test checks that they agree)."""
 DEFAULT_TEACHER = "campc"
 """The teacher ``uvdms train`` builds when the configuration names none."""
+
+
+def teacher_margin(hyperparams: Mapping[str, Any]) -> float:
+    """The teacher's collision margin a DAgger configuration names (``teacher_margin``, m, default 0).
+
+    Raises:
+        ValueError: ``teacher_margin`` is not a finite number >= 0.
+    """
+    value = hyperparams.get("teacher_margin", 0.0)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
+        raise ValueError(f"teacher_margin must be a finite number >= 0 (metres), got {value!r}")
+    return float(value)
 
 
 def teacher_name(hyperparams: Mapping[str, Any]) -> str:
@@ -131,9 +145,13 @@ class DAgger(TD3):
             :class:`TeacherReplayBuffer`).
         env: The environment; its ``info`` must carry the teacher's label.
         teacher: Name of the teacher controller, built by ``uvdms train`` (recorded here for the run's record).
+        teacher_margin: Metres by which ``uvdms train`` moves the teacher's collision thresholds ``d1`` and ``d2``
+            outward (``leaderboard.registry.BaselineFactory``'s ``collision_margin``): the learner imitates a
+            teacher that keeps this much clear of the collision zone, which its imitation error then may use.
 
     Raises:
-        ValueError: ``teacher`` is not a non-empty string, or another replay buffer class is requested.
+        ValueError: ``teacher`` is not a non-empty string, ``teacher_margin`` not a finite number >= 0, or
+            another replay buffer class is requested.
     """
 
     def __init__(
@@ -157,6 +175,7 @@ class DAgger(TD3):
         target_policy_noise: float = 0.2,
         target_noise_clip: float = 0.5,
         teacher: str = DEFAULT_TEACHER,
+        teacher_margin: float = 0.0,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
@@ -165,12 +184,13 @@ class DAgger(TD3):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ) -> None:
-        self.check_hyperparams({"teacher": teacher})
+        self.check_hyperparams({"teacher": teacher, "teacher_margin": teacher_margin})
         if replay_buffer_class not in (None, TeacherReplayBuffer):
             raise ValueError(
                 f"DAgger stores its labels in TeacherReplayBuffer, got replay_buffer_class={replay_buffer_class}"
             )
         self.teacher = teacher
+        self.teacher_margin = float(teacher_margin)
         super().__init__(
             policy,
             env,
@@ -204,9 +224,10 @@ class DAgger(TD3):
         """Range checks of the keyword arguments of this class (``agents.config`` calls it on a config entry).
 
         Raises:
-            ValueError: ``teacher`` is not a non-empty string.
+            ValueError: ``teacher`` is not a non-empty string, or ``teacher_margin`` not a finite number >= 0.
         """
         teacher_name(hyperparams)
+        teacher_margin(hyperparams)
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         """``gradient_steps`` least-squares steps of the actor toward the teacher's labels (the module's loss)."""

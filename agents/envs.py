@@ -96,11 +96,12 @@ class ActionComponents:
 
     Attributes:
         base_factory: ``residual_base`` name -> the factory of that base controller; raises ``ValueError`` for a
-            name that cannot be a residual base (unknown, or not a velocity-mode controller).
+            name that cannot be a residual base (unknown, or not a velocity-mode controller). Also builds an
+            imitation learner's teacher, with the keyword ``collision_margin`` (m added to its collision thresholds).
         filter_factory: Wraps a controller in the safety filter.
     """
 
-    base_factory: Callable[[str], ControllerFactory]
+    base_factory: Callable[..., ControllerFactory]
     filter_factory: FilterFactory
 
 

@@ -80,7 +80,7 @@ from agents.algos import ALGOS, is_off_policy
 from agents.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
 from agents.callbacks import DelayActorUpdates, LatestBufferCheckpointCallback, SaveBestExtras, SeededEvalCallback
 from agents.config import ConfigError, TrainConfig, default_config_path, load_config, parse_entry
-from agents.dagger import teacher_name
+from agents.dagger import teacher_margin, teacher_name
 from agents.envs import (
     EVAL_SEED_OFFSET,
     SEGMENT_SEED_STRIDE,
@@ -524,7 +524,8 @@ def composition_factories(
         try:
             base_factory = components.base_factory(str(composition.residual_base))
             if imitation:
-                teacher_factory = components.base_factory(teacher_name(cfg.hyperparams))
+                margin = teacher_margin(cfg.hyperparams)
+                teacher_factory = components.base_factory(teacher_name(cfg.hyperparams), collision_margin=margin)
         except ValueError as exc:
             raise ConfigError(f"{exc}" if not imitation else f"dagger's teacher or base: {exc}") from None
     return base_factory, components.filter_factory if composition.safety_filter else None, teacher_factory

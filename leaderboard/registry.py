@@ -21,12 +21,14 @@ passes to :func:`agents.train.train`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from baselines.controllers import BASELINES, make_baseline
+from uvdms_gym.params import D1, D2
 from uvdms_gym.residual import ResidualController
 
 if TYPE_CHECKING:
@@ -79,14 +81,25 @@ class BaselineFactory:
 
     Attributes:
         name: One of :data:`RESIDUAL_BASES`.
+        collision_margin: Metres added to both thresholds ``d1`` and ``d2`` of the baseline's collision rows (0:
+            the baseline as registered). A teacher for imitation (``agents.dagger``'s ``teacher_margin``) keeps this
+            much farther from every obstacle than the benchmark's ``d1``, so that a learner that imitates it to
+            within the margin stays out of the collision zone. Only for a baseline with collision rows.
 
     Raises:
-        ValueError: An unknown name, or a torque-mode baseline (the message lists the valid names).
+        ValueError: An unknown name, or a torque-mode baseline (the message lists the valid names); a negative or
+            non-finite margin, or a margin on a baseline without collision rows.
     """
 
     name: str
+    collision_margin: float = 0.0
 
     def __post_init__(self) -> None:
+        margin = self.collision_margin
+        if isinstance(margin, bool) or not isinstance(margin, int | float) or not math.isfinite(margin) or margin < 0:
+            raise ValueError(f"collision_margin must be a finite number >= 0 (metres), got {margin!r}")
+        if margin and not BASELINES.get(self.name, {}).get("collision", False):
+            raise ValueError(f"collision_margin={margin} widens collision rows, but {self.name!r} has none (use campc)")
         if self.name not in TRACK_OF:
             raise ValueError(
                 f"unknown residual base {self.name!r}: a residual agent's base is a velocity-mode baseline, one of "
@@ -99,8 +112,11 @@ class BaselineFactory:
             )
 
     def __call__(self, env: Any) -> Any:
-        """The baseline for ``env`` (:func:`baselines.controllers.make_baseline`)."""
-        return make_baseline(self.name, env)
+        """The baseline for ``env`` (:func:`baselines.controllers.make_baseline`), thresholds moved by the margin."""
+        if not self.collision_margin:
+            return make_baseline(self.name, env)
+        shifted = {"d1": D1 + self.collision_margin, "d2": D2 + self.collision_margin}
+        return make_baseline(self.name, env, mpc_overrides=shifted)
 
 
 @dataclass(frozen=True)
