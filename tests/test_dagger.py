@@ -26,6 +26,7 @@ from agents.train import run_dir_for
 from agents.wrappers import KEPT_ARRAYS, ScalarInfo
 from leaderboard.registry import BaselineFactory
 from uvdms_cli.main import main as uvdms
+from uvdms_gym.params import D1, D2
 from uvdms_gym.residual import TEACHER_KEY, ResidualAction, compose_residual, teacher_residual
 
 CIRCLE = "uvdms/CircleTrack-v1"
@@ -90,6 +91,16 @@ def test_the_wrapper_labels_each_step_with_the_teachers_correction_at_the_state_
     scalar.reset(seed=3)
     _, _, _, _, info = scalar.step(np.zeros(ACTION_DIM, np.float32))
     assert TEACHER_KEY in info and "eta" not in info  # the label survives the training envs' info filter
+
+
+def test_a_teacher_margin_moves_both_collision_thresholds_of_the_teacher_only():
+    env = gym.make(CIRCLE, case=1)
+    shifted = BaselineFactory("campc", collision_margin=0.01)(env).mpc.config
+    registered = BaselineFactory("campc")(env).mpc.config
+    assert (registered.d1, registered.d2) == (D1, D2)
+    assert (shifted.d1, shifted.d2) == pytest.approx((D1 + 0.01, D2 + 0.01), abs=1e-15)
+    with pytest.raises(ValueError, match="'mpc' has none"):
+        BaselineFactory("mpc", collision_margin=0.01)
 
 
 class _ToyTeacherEnv(gym.Env):
@@ -177,6 +188,8 @@ RESIDUAL = ["--residual", "mpc", "--residual-scale", "0.5"]
         ([*RESIDUAL, "--hyperparams", "action_scale=0.3"], r"action_scale=0.3"),
         ([*RESIDUAL, "--hyperparams", "teacher=nope"], r"dagger's teacher or base: unknown residual base 'nope'"),
         ([*RESIDUAL, "--hyperparams", "teacher=3"], r"key 'teacher': expected str, got int"),
+        ([*RESIDUAL, "--hyperparams", "teacher_margin=-0.01"], r"teacher_margin must be a finite number >= 0"),
+        ([*RESIDUAL, "--hyperparams", "teacher=mpc", "teacher_margin=0.01"], r"'mpc' has none \(use campc\)"),
     ],
 )
 def test_bad_dagger_configurations_are_one_line_errors(flags, message, tmp_path, capsys):
