@@ -4,11 +4,11 @@
 
 The oracle residual is CAMPC's correction of plain MPC, clipped to what a residual agent of scale ``s`` can
 send: ``a = clip(a_mpc + s * clip((a_campc - a_mpc) / s, -1, 1), -1, 1)`` (``uvdms_gym.residual``'s formula with
-the policy output ``clip((a_campc - a_mpc) / s, -1, 1)``). Both MPCs see the same state every step. ``s = inf``
-(reported as the CAMPC row) sends CAMPC's action itself. If the oracle of scale ``s`` is not contact-free, no
-residual agent of that scale can learn CAMPC's avoidance by imitating it; the rows give contact-free rate,
-success rate and position RMSE on the leaderboard's randomised task (held-out seeds, hydro +-30 %), and the
-largest correction CAMPC needed, ``max |a_campc - a_mpc|``.
+the policy output ``teacher_residual(a_campc, a_mpc, s)``, the label ``--algo dagger`` learns from). Both MPCs see
+the same state every step. ``s = inf`` (reported as the CAMPC row) sends CAMPC's action itself. If the oracle of
+scale ``s`` is not contact-free, no residual agent of that scale can learn CAMPC's avoidance by imitating it; the
+rows give contact-free rate, success rate and position RMSE on the leaderboard's randomised task (held-out seeds,
+hydro +-30 %), and the largest correction CAMPC needed, ``max |a_campc - a_mpc|``.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import uvdms_gym  # noqa: F401  (registers the ids)
 from baselines.controllers import make_baseline
 from leaderboard.tasks import SEED_BASE, TASKS
 from uvdms_gym.evaluation import run_episode, summarize
-from uvdms_gym.residual import compose_residual
+from uvdms_gym.residual import compose_residual, teacher_residual
 
 
 class OracleResidual:
@@ -46,8 +46,7 @@ class OracleResidual:
         self.max_correction = max(self.max_correction, float(np.max(np.abs(a_campc - a_mpc))))
         if self.scale is None:
             return a_campc.astype(np.float32)
-        policy = np.clip((a_campc - a_mpc) / self.scale, -1.0, 1.0)
-        action, _clipped = compose_residual(a_mpc, policy, self.scale)
+        action, _clipped = compose_residual(a_mpc, teacher_residual(a_campc, a_mpc, self.scale), self.scale)
         return action
 
 
