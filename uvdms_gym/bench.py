@@ -147,10 +147,10 @@ def bench_env(quick: bool = False) -> dict:
 
     Per environment: ``n_blocks`` blocks of ``block_steps`` steps of ``gym.make(env_id)`` (resets on episode
     end included), after ``warmup_steps`` untimed steps (numba kernels are compiled or loaded from their disk
-    cache at construction; the warm-up keeps first-touch effects out of the medians). Before each block, one
-    ``stepSimulation`` of the free robot at rest is timed (``bare_step_us``: the figure the project's targets
-    use), so that each block's ratio ``step_us / (substeps * bare_step_us)`` divides two figures measured
-    seconds apart under the same machine load. Reported: ``step_us`` (median over blocks),
+    cache at construction; the warm-up keeps first-touch effects out of the medians). Before each block, 300
+    ``stepSimulation`` calls of the free robot from rest are timed (``bare_step_us``, per call: the figure the
+    project's targets use), so that each block's ratio ``step_us / (substeps * bare_step_us)`` divides two
+    figures measured seconds apart under the same machine load. Reported: ``step_us`` (median over blocks),
     ``steps_per_s = 1e6 / step_us``, ``ratio_to_bare_physics`` (median of the block ratios) and the per-block
     figures (``step_us_blocks``, ``ratio_blocks``). ``env_bare_step_us`` is one ``stepSimulation`` of the
     environment's own multibody at its reset state (for the transport task: with the gripped object and its
