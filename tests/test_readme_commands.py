@@ -181,17 +181,17 @@ SHRUNK: dict[str, Shrunk] = {
         "max_episode_steps=20 --episodes 1 --no-progress",
         stdout_json=True,
     ),
-    # imitation: DAgger on a residual over mpc, CAMPC (1 cm margin) the teacher
+    # imitation: DAgger on a residual over mpc, CAMPC (2 cm margin) the teacher
     "uvdms train --algo dagger --env uvdms/CircleTrack-v1 --env-kwargs case=mix hydro_randomization=0.3 "
     "--residual mpc --residual-scale 0.5 --residual-observation clearance --hyperparams teacher=campc "
-    "teacher_margin=0.01 --total-timesteps 100000": Shrunk(
+    "teacher_margin=0.02 --total-timesteps 100000": Shrunk(
         "dagger",
         "uvdms train --algo dagger --env uvdms/CircleTrack-v1 --env-kwargs case=mix hydro_randomization=0.3 "
         "max_episode_steps=20 --residual mpc --residual-scale 0.5 --residual-observation clearance --hyperparams "
-        "teacher=campc teacher_margin=0.01 batch_size=32 eval_freq=100 n_eval_episodes=1 checkpoint_freq=0 "
+        "teacher=campc teacher_margin=0.02 batch_size=32 eval_freq=100 n_eval_episodes=1 checkpoint_freq=0 "
         "--total-timesteps 200 --no-progress",
         creates=("runs/uvdms_CircleTrack-v1/dagger_0/final_model.zip",),
-        contains=(("runs/uvdms_CircleTrack-v1/dagger_0/config.yml", "teacher_margin: 0.01"),),
+        contains=(("runs/uvdms_CircleTrack-v1/dagger_0/config.yml", "teacher_margin: 0.02"),),
     ),
 }
 """README command (normalised: see :func:`readme_commands`) -> how it is run."""
