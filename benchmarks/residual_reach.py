@@ -1,6 +1,7 @@
 """Can a residual of scale ``s`` over plain ``mpc`` do what CAMPC does? An oracle residual, per scale (JSON).
 
-    python benchmarks/residual_reach.py [--episodes 10] [--scales 0.1 0.3 1.0] [--task circle|transport]
+    python benchmarks/residual_reach.py [--episodes 10] [--scales 0.1 0.3 1.0] [--task circle|transport|case1|case2]
+                                        [--teacher-margin 0.0]
 
 The oracle residual is CAMPC's correction of plain MPC, clipped to what a residual agent of scale ``s`` can
 send: ``a = clip(a_mpc + s * clip((a_campc - a_mpc) / s, -1, 1), -1, 1)`` (``uvdms_gym.residual``'s formula with
@@ -8,7 +9,10 @@ the policy output ``teacher_residual(a_campc, a_mpc, s)``, the label ``--algo da
 the same state every step. ``s = inf`` (reported as the CAMPC row) sends CAMPC's action itself. If the oracle of
 scale ``s`` is not contact-free, no residual agent of that scale can learn CAMPC's avoidance by imitating it; the
 rows give contact-free rate, success rate and position RMSE on the leaderboard's randomised task (held-out seeds,
-hydro +-30 %), and the largest correction CAMPC needed, ``max |a_campc - a_mpc|``.
+hydro +-30 %; ``case1``/``case2``: the paper's fixed circles), the closest approach of any pair over the episodes,
+and the largest correction CAMPC needed, ``max |a_campc - a_mpc|``. ``--teacher-margin m`` moves CAMPC's collision
+thresholds out by ``m`` (the DAgger teacher of ``teacher_margin=m``): the closest approach then says how much
+imitation error a learner of that teacher can afford before it reaches ``d1``.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import numpy as np
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 from baselines.controllers import make_baseline
+from leaderboard.registry import BaselineFactory
 from leaderboard.tasks import SEED_BASE, TASKS
 from uvdms_gym.evaluation import run_episode, summarize
 from uvdms_gym.residual import compose_residual, teacher_residual
@@ -30,9 +35,9 @@ from uvdms_gym.residual import compose_residual, teacher_residual
 class OracleResidual:
     """``mpc`` plus CAMPC's correction clipped to a residual of scale ``scale`` (``None``: CAMPC itself)."""
 
-    def __init__(self, env: Any, scale: float | None) -> None:
+    def __init__(self, env: Any, scale: float | None, margin: float = 0.0) -> None:
         self.mpc = make_baseline("mpc", env)
-        self.campc = make_baseline("campc", env)
+        self.campc = BaselineFactory("campc", collision_margin=margin)(env)
         self.scale = scale
         self.max_correction = 0.0
 
@@ -54,13 +59,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--scales", type=float, nargs="+", default=[0.1, 0.3, 1.0])
-    parser.add_argument("--task", choices=("circle", "transport"), default="circle")
+    parser.add_argument("--task", choices=("circle", "transport", "case1", "case2"), default="circle")
+    parser.add_argument("--teacher-margin", type=float, default=0.0, help="m added to CAMPC's d1 and d2")
     args = parser.parse_args()
-    task = next(t for t in TASKS if t.name == f"{args.task}-random")
-    out: dict[str, Any] = {"task": task.name, "episodes": args.episodes, "rows": {}}
+    name = args.task if args.task.startswith("case") else f"{args.task}-random"
+    task = next(t for t in TASKS if t.name == name)
+    out: dict[str, Any] = {"task": task.name, "episodes": args.episodes, "teacher_margin": args.teacher_margin}
+    out["rows"] = {}
     for scale in [*args.scales, None]:
         env = gym.make(task.env_id, **task.spec("velocity")["env_kwargs"])
-        controller = OracleResidual(env, scale)
+        controller = OracleResidual(env, scale, args.teacher_margin)
         results = [run_episode(env, controller, SEED_BASE + i) for i in range(args.episodes)]
         env.close()
         summary = summarize(results)
@@ -68,6 +76,7 @@ def main() -> None:
             "contact_free_rate": float(np.mean([r["contacts"] == 0 for r in results])),
             "success_rate": summary.get("success"),
             "rmse_pos_mm": None if summary.get("rmse_pos") is None else 1000.0 * summary["rmse_pos"],
+            "min_distance_mm": 1000.0 * min(r["min_distance"] for r in results),
             "max_correction": controller.max_correction,
         }
     print(json.dumps(out, indent=1))
