@@ -4,8 +4,10 @@ A directory written by :func:`export_agent` / :func:`export_controller` (layout 
 with :func:`load_weights_only` (also through :func:`agents.policy.load_agent`): the policy is rebuilt from the
 JSON by constructing the algorithm's policy class with the saved spaces and keyword arguments; the weights load
 with ``torch.load(..., weights_only=True)`` and the normalisation with ``numpy.load(..., allow_pickle=False)``.
-An export also carries the run's ``learning_curve.json`` (:mod:`agents.learning_curve`) when the agent's folder
-has one; it is plain data about the training, not part of the policy (nor of its checksum).
+An export also carries the run's ``learning_curve.json`` (:mod:`agents.learning_curve`) and its ``meta.json``
+(seeds, package versions, git revision and every training segment's command, budget and wall time;
+:mod:`agents.rundir`) when the agent's folder has them; they are plain data about the training, not part of the
+policy (nor of its checksum).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import hashlib
 import inspect
 import json
 import math
+import shutil
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -33,6 +36,7 @@ from uvdms_gym.provenance import package_versions
 FORMAT_NAME = "uvdms-agent-weights"
 FORMAT_VERSION = 1
 AGENT_JSON = "agent.json"
+RUN_META = "meta.json"
 WEIGHTS_FILE = "policy.pt"
 NORMALIZATION_FILE = "normalization.npz"
 _DTYPES = {"float32": np.float32, "float64": np.float64}
@@ -118,7 +122,26 @@ def export_controller(agent: AgentController, out_path: str | Path, *, overwrite
     }
     write_json_atomic(out / AGENT_JSON, document)
     copy_learning_curve(agent.source, out)  # the training history, if the agent's run recorded one
+    copy_run_meta(agent.source, out)
     return out
+
+
+def copy_run_meta(source: str | Path, out_dir: str | Path) -> Path | None:
+    """Copy the ``meta.json`` of the folder of ``source`` into ``out_dir``; ``None`` if it has none.
+
+    ``source`` is the agent's model file or folder (a run directory, a shipped folder or an export). A stale record
+    in ``out_dir`` is removed when the source has none.
+    """
+    path = Path(source)
+    found = (path if path.is_dir() else path.parent) / RUN_META
+    target = Path(out_dir) / RUN_META
+    if not found.is_file():
+        if target.is_file():
+            target.unlink()
+        return None
+    if found.resolve() != target.resolve():
+        shutil.copy2(found, target)
+    return target
 
 
 def load_weights_only(path: str | Path, device: str = "cpu") -> AgentController:

@@ -158,6 +158,16 @@ def test_training_records_the_benchmark_metrics_and_resume_continues_the_curve(t
             (run_dir / LEARNING_CURVE_FILE).read_text()
         )
     assert lb.agent_checksum(export) == lb.agent_checksum(export_agent(run_dir, tmp_path / "e2", trust=True))
+    # and the run's meta.json (seeds, versions, git, every segment's budget and wall time), outside the checksum
+    meta = json.loads((run_dir / "meta.json").read_text())
+    assert json.loads((export / "meta.json").read_text()) == meta
+    assert [s["end_num_timesteps"] for s in meta["segments"]] == [BUDGET, 2 * BUDGET]
+    assert all(s["wall_time_s"] > 0 for s in meta["segments"])
+    checksum = lb.agent_checksum(export)
+    (export / "meta.json").unlink()
+    assert lb.agent_checksum(export) == checksum
+    re_export = export_agent(export, tmp_path / "e3")  # an export of an export without the record has none
+    assert not (re_export / "meta.json").exists()
 
 
 def test_a_broken_curve_file_is_a_clear_error(tmp_path):

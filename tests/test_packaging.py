@@ -77,7 +77,7 @@ def test_wheel_holds_code_configs_and_shipped_agents(wheel):
             if (folder / name).is_file() or name in ("model.zip", "config.yml", "meta.json", "README.md"):
                 assert f"agents/trained_agents/{folder.name}/{name}" in names, f"{folder.name}/{name}"
         assert (folder / "model.zip").stat().st_size < MAX_MODEL_BYTES
-    export_files = ("agent.json", "policy.pt", "normalization.npz", "learning_curve.json")
+    export_files = ("agent.json", "policy.pt", "normalization.npz", "learning_curve.json", "meta.json")
     for seed_folder in sorted((REPO / "trained_agents").glob("*/seed_*")):  # multi-seed entries' exports
         entry = seed_folder.parent.name
         for name in export_files:
