@@ -16,7 +16,6 @@ import hashlib
 import inspect
 import json
 import math
-import shutil
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -30,7 +29,7 @@ from agents.config import ConfigError, is_unit_scale
 from agents.learning_curve import copy_learning_curve
 from agents.policy import AgentController, ExportFormatError, ObsNormalizer, Which, load_agent, recorded_composition
 from agents.policy_kwargs import plain_policy_kwargs, resolve_policy_kwargs
-from uvdms_gym.io import write_json_atomic
+from uvdms_gym.io import mirror_file, write_json_atomic
 from uvdms_gym.provenance import package_versions
 
 FORMAT_NAME = "uvdms-agent-weights"
@@ -133,15 +132,7 @@ def copy_run_meta(source: str | Path, out_dir: str | Path) -> Path | None:
     in ``out_dir`` is removed when the source has none.
     """
     path = Path(source)
-    found = (path if path.is_dir() else path.parent) / RUN_META
-    target = Path(out_dir) / RUN_META
-    if not found.is_file():
-        if target.is_file():
-            target.unlink()
-        return None
-    if found.resolve() != target.resolve():
-        shutil.copy2(found, target)
-    return target
+    return mirror_file((path if path.is_dir() else path.parent) / RUN_META, Path(out_dir) / RUN_META)
 
 
 def load_weights_only(path: str | Path, device: str = "cpu") -> AgentController:

@@ -26,14 +26,13 @@ from __future__ import annotations
 import json
 import logging
 import math
-import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 
-from uvdms_gym.io import to_jsonable, write_json_atomic
+from uvdms_gym.io import mirror_file, to_jsonable, write_json_atomic
 
 log = logging.getLogger("agents.train")
 
@@ -250,12 +249,4 @@ def copy_learning_curve(source: str | Path, out_dir: str | Path) -> Path | None:
 
     A stale curve in ``out_dir`` is removed when the source has none.
     """
-    found = find_learning_curve(source)
-    target = Path(out_dir) / LEARNING_CURVE_FILE
-    if found is None:
-        if target.is_file():
-            target.unlink()
-        return None
-    if found.resolve() != target.resolve():
-        shutil.copy2(found, target)
-    return target
+    return mirror_file(find_learning_curve(source), Path(out_dir) / LEARNING_CURVE_FILE)

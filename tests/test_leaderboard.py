@@ -15,7 +15,7 @@ import leaderboard as lb
 import leaderboard.cache
 import leaderboard.runner
 from uvdms_cli.main import main as uvdms_main
-from uvdms_gym.io import _umask, write_json_atomic
+from uvdms_gym.io import _umask, mirror_file, write_json_atomic
 
 CIRCLE = "uvdms/CircleTrack-v0"
 TINY_TASKS = (
@@ -188,6 +188,17 @@ def test_atomic_write_leaves_no_temporary_files(tmp_path):
         write_json_atomic(tmp_path / "a" / "x.json", {"v": math.nan})
     assert [p.name for p in (tmp_path / "a").iterdir()] == ["x.json"]
     assert json.loads((tmp_path / "a" / "x.json").read_text()) == {"v": 1}
+
+
+def test_mirror_file_copies_keeps_itself_and_removes_a_stale_copy(tmp_path):
+    source, target = tmp_path / "meta.json", tmp_path / "out" / "meta.json"
+    target.parent.mkdir()
+    source.write_text('{"seed": 3}')
+    assert mirror_file(source, target) == target and target.read_text() == '{"seed": 3}'
+    assert mirror_file(target, target) == target and target.read_text() == '{"seed": 3}'  # itself: kept as is
+    source.unlink()
+    assert mirror_file(source, target) is None and not target.exists()  # the source has none: stale copy gone
+    assert mirror_file(None, target) is None and not target.exists()
 
 
 def test_cache_key_depends_on_entry_task_seed_and_version(monkeypatch):

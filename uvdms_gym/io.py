@@ -17,6 +17,7 @@ import contextlib
 import json
 import math
 import os
+import shutil
 import sys
 import tempfile
 from collections.abc import Iterator, Mapping
@@ -87,6 +88,22 @@ def write_json_atomic(path: str | Path, data: Any, *, indent: int | None = 2) ->
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+def mirror_file(found: str | Path | None, target: str | Path) -> Path | None:
+    """Make ``target`` a copy of the file ``found`` (``None`` or missing: remove a stale ``target``).
+
+    Returns:
+        ``target``, or ``None`` when there was nothing to copy. A ``found`` that is ``target`` itself is kept.
+    """
+    target = Path(target)
+    if found is None or not Path(found).is_file():
+        if target.is_file():
+            target.unlink()
+        return None
+    if Path(found).resolve() != target.resolve():
+        shutil.copy2(found, target)
+    return target
 
 
 @contextlib.contextmanager
