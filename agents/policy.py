@@ -17,6 +17,10 @@ deterministic, VecNormalize observation statistics applied without a VecEnv):
                           ``torch.load(..., weights_only=True)``
       normalization.npz   ``obs_mean``, ``obs_var`` (only when observations are normalised), loaded with
                           ``numpy.load(..., allow_pickle=False)``
+      learning_curve.json the run's evaluation metrics against steps (:mod:`agents.learning_curve`; if recorded)
+      meta.json           the run's record: seeds, versions, git revision, each segment's command, steps and
+                          wall time (:mod:`agents.rundir`; if recorded). Neither is read to rebuild the policy
+                          nor part of the agent's checksum.
 
   The policy is rebuilt from the JSON by constructing the algorithm's policy class with the saved spaces
   and keyword arguments; no file of the export is unpickled.
