@@ -426,7 +426,9 @@ def test_loading_pickles_requires_trust(runs, monkeypatch):
 def test_weights_only_export_contains_no_pickle(runs, tmp_path):
     run_dir = runs["ppo", TEST_ENVS[0][0]]
     export = export_agent(run_dir, tmp_path / "export", trust=True)
-    assert sorted(p.name for p in export.iterdir()) == ["agent.json", "normalization.npz", "policy.pt"]
+    # the policy's three files, and the run's record (plain JSON, not read to rebuild the policy)
+    assert sorted(p.name for p in export.iterdir()) == ["agent.json", "meta.json", "normalization.npz", "policy.pt"]
+    assert json.loads((export / "meta.json").read_text()) == json.loads((run_dir / "meta.json").read_text())
 
     def _no_constants(name):
         raise ValueError(name)
