@@ -1,4 +1,7 @@
-"""The project's one JSON writer, numpy-to-JSON conversion, and silencing of C-level output (one home each).
+"""The project's one JSON writer, numpy-to-JSON conversion, file mirroring and C-output silencing (one home each).
+
+:func:`mirror_file` copies a record file (a run's learning curve, its ``meta.json``) into another folder and removes
+a stale copy there when the source has none.
 
 Decisions [D], taken once here for every writer:
 
