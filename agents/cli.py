@@ -4,7 +4,7 @@
 ``uvdms train`` takes exactly the arguments of ``python -m agents.train`` (the parser is shared); unlike it, it
 gets the base and filter factories of residual agents and the safety filter from the composition layer
 (``register(..., components=...)``: :mod:`uvdms_cli.main` passes the registry's, built on first use).
-``uvdms export-agent RUN_DIR OUT`` writes the weights-only export of :func:`agents.policy.export_agent`.
+``uvdms export-agent RUN_DIR OUT`` writes the weights-only export of :func:`agents.export.export_agent`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from agents.envs import ActionComponents
+    from agents.common.envs import ActionComponents
 
 _TRAIN_HELP = "train a Stable-Baselines3 agent from train_configs/<algo>.yml (same as python -m agents.train)"
 _EXPORT_HELP = "export a trained agent to the weights-only format (no pickles; loads with load_weights_only)"
@@ -31,7 +31,7 @@ def register(
         components: Returns the base and filter factories that residual and filtered training need (called
             only when ``uvdms train`` runs; ``None``: such configurations are refused).
     """
-    from agents.args import build_parser
+    from agents.training.args import build_parser
 
     train_parser = build_parser()
     train = subparsers.add_parser(
@@ -62,7 +62,7 @@ def register(
 
 
 def _train_argv(args: argparse.Namespace) -> list[str]:
-    """Rebuild the ``agents.train`` argument list from the parsed namespace (so ``main`` does the work)."""
+    """Rebuild the ``agents.training.train`` argument list from the parsed namespace (so ``main`` does the work)."""
     argv: list[str] = []
     if args.algo is not None:
         argv += ["--algo", args.algo]
@@ -108,11 +108,11 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if args.env_id is not None:  # before torch loads and a run directory exists: bad YAML, ids and keys
         env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
         parse_kv(args.hyperparams, "--hyperparams")
-        _import_quietly(args.gym_packages)  # import failures are reported by agents.train
+        _import_quietly(args.gym_packages)  # import failures are reported by agents.training.train
         import gymnasium as gym
 
         if ":" not in args.env_id and args.env_id not in gym.registry:
-            from agents.train import EnvironmentNotFoundError, check_env_id
+            from agents.training.train import EnvironmentNotFoundError, check_env_id
 
             try:
                 check_env_id(args.env_id, args.gym_packages)  # its message names failed imports, close matches
@@ -122,13 +122,13 @@ def _cmd_train(args: argparse.Namespace) -> int:
     components = args._components() if args._components is not None else None
     if args.residual is not None and components is not None:
         components.base_factory(args.residual)  # an unknown or torque-mode base: one line, before torch loads
-    from agents.train import main
+    from agents.training.train import main
 
     return main(_train_argv(args), components=components)
 
 
 def _import_quietly(packages: list[str]) -> None:
-    """Import the packages that register environments, ignoring failures (``agents.train`` reports them)."""
+    """Import the packages that register environments, ignoring failures (``agents.training.train`` reports them)."""
     import contextlib
     import importlib
 
@@ -143,7 +143,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     out_dir = Path(args.out)
     if out_dir.is_dir() and any(out_dir.iterdir()) and not args.overwrite:  # before loading torch and the model
         raise FileExistsError(f"{out_dir} exists and is not empty (pass --overwrite to replace its files)")
-    from agents.policy import export_agent
+    from agents.export import export_agent
 
     try:
         out = export_agent(args.run_dir, args.out, which=args.which, trust=args.trust, overwrite=args.overwrite)

@@ -39,15 +39,15 @@ Multi-seed entries
 
 Learning curves
     A run whose evaluation callback ran records the benchmark's metrics of its evaluation episodes against
-    environment steps in ``learning_curve.json`` (:mod:`agents.learning_curve`, kept through ``--resume``,
-    copied by exports and ``agents.ship``). For every agent entry with such files the leaderboard writes
+    environment steps in ``learning_curve.json`` (:mod:`agents.common.learning_curve`, kept through ``--resume``,
+    copied by exports and ``scripts.ship_agent``). For every agent entry with such files the leaderboard writes
     ``plots/learning_curves_<entry>.png``: success rate and position RMSE against environment steps, every
     seed's curve and, at the step counts every seed has, the mean over seeds with a 95 % bootstrap interval
     (:func:`bootstrap_ci` over the seeds' values, :func:`learning_curve_stats`).
 
 Seeds
     Episode ``i`` of every task uses seed ``SEED_BASE + i`` (:data:`SEED_BASE` = 2,000,000,000), far above
-    the training scheme of :mod:`agents.train` (training envs ``seed + 1000 k + i``, its evaluation envs
+    the training scheme of :mod:`agents.training.train` (training envs ``seed + 1000 k + i``, its evaluation envs
     ``seed + 1,000,000 + i``). Every integer stored under a key containing ``seed`` in an agent's
     ``meta.json``, ``config.yml`` or ``agent.json`` is collected (for a seed of a multi-seed entry also its
     ``k``) and :func:`check_seed_disjointness` refuses to run if an evaluation seed is among them (naming the
@@ -115,8 +115,8 @@ Timings
     ``timing_episodes_unknown_load``, ``timing_load_1min_max`` and ``timing_machine`` per row.
 
 Safety
-    Weights-only agent exports (:func:`agents.policy.load_weights_only`) evaluate without trust. A full SB3
-    zip contains pickles: it is refused (:class:`agents.policy.UntrustedFileError`) unless it lies inside the
+    Weights-only agent exports (:func:`agents.export.load_weights_only`) evaluate without trust. A full SB3
+    zip contains pickles: it is refused (:class:`agents.export.UntrustedFileError`) unless it lies inside the
     repository's ``trained_agents/`` folder or ``trust=True``; the check runs before any evaluation.
 """
 

@@ -9,11 +9,11 @@ installed but neither a shared filesystem nor write access to the driver's folde
 Controllers reach the workers as data:
 
 * a baseline as its name (the worker builds it with :func:`leaderboard.registry.make_controller`);
-* an agent as its weights-only export (:mod:`agents.export`: ``agent.json``, ``policy.pt``,
+* an agent as its weights-only export (:mod:`agents.export.weights`: ``agent.json``, ``policy.pt``,
   ``normalization.npz``), read or exported once by the driver (an SB3 zip is loaded there, with ``--trust``
   where it needs it, and exported) and put in the object store once per entry as ``{file name: bytes}``. A
   worker writes it to a private temporary folder once per process and loads it with
-  :func:`agents.export.load_weights_only`, which never unpickles; no SB3 zip or pickle reaches a worker.
+  :func:`agents.export.weights.load_weights_only`, which never unpickles; no SB3 zip or pickle reaches a worker.
 
 Faults: a task whose worker process dies (killed, out of memory, node lost) is run again by Ray, up to
 ``max_retries`` times; an episode is a pure function of its job (seeded, fresh baseline controller), so the
@@ -49,7 +49,7 @@ def agent_files(entry: Entry, trust: bool) -> dict[str, bytes]:
 
     A weights-only export is read as it is; any other agent (a run directory, a shipped agent or an SB3 zip)
     is loaded here, in the driver (``trust`` as for :func:`leaderboard.registry.load_agent`), and exported to a
-    temporary folder with :func:`agents.export.export_controller` first.
+    temporary folder with :func:`agents.export.weights.export_controller` first.
 
     Raises:
         ValueError: The entry is not an agent, or its files cannot be loaded or exported.
@@ -58,7 +58,7 @@ def agent_files(entry: Entry, trust: bool) -> dict[str, bytes]:
         raise ValueError(f"{entry.name} is a {entry.kind}, not an agent: it reaches the workers by name")
     if entry.weights_only:
         return _read_folder(Path(entry.spec))
-    from agents.export import export_controller
+    from agents.export.weights import export_controller
     from leaderboard.registry import load_agent
 
     agent = load_agent(entry.spec, trust=trust)

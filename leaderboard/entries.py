@@ -172,7 +172,7 @@ def resolve_entries(
         ValueError: A token that is neither a baseline name, a keyword nor an existing path.
     """
     if agents_dir is None:
-        from agents.policy import TRUSTED_DIR
+        from agents.export import TRUSTED_DIR
 
         agents_dir = Path("trained_agents") if Path("trained_agents").is_dir() else TRUSTED_DIR
     entries: list[Entry] = []
@@ -249,7 +249,7 @@ def is_multi_seed_folder(path: str | Path) -> bool:
 
 
 def is_weights_only(path: str | Path) -> bool:
-    """Whether ``path`` is a weights-only export folder (``agent.json`` of :mod:`agents.policy`)."""
+    """Whether ``path`` is a weights-only export folder (``agent.json`` of :mod:`agents.export`)."""
     return Path(path).is_dir() and (Path(path) / "agent.json").is_file()
 
 
@@ -260,7 +260,7 @@ def agent_entry(path: str | Path, *, trust: bool = False) -> Entry:
         UntrustedFileError: The agent is a full SB3 zip outside ``trained_agents/`` and ``trust`` is false.
         ValueError: A folder without an agent, or a model archive that is not a valid zip file.
     """
-    from agents.policy import UntrustedFileError, is_trusted_path
+    from agents.export import UntrustedFileError, is_trusted_path
 
     path = Path(path)
     if is_multi_seed_folder(path):

@@ -24,7 +24,7 @@ LEARNING_CURVE_PANELS: tuple[tuple[str, str, str], ...] = (
     ("success_rate", "success", "Success rate"),
     ("rmse_pos_mean", "rmse_pos", "RMSE pos (mm)"),
 )
-"""Panels of a learning-curve plot: (point key of :mod:`agents.learning_curve`, metric of :data:`METRICS` whose
+"""Panels of a learning-curve plot: (point key of :mod:`agents.common.learning_curve`, metric of :data:`METRICS` whose
 scale the panel uses, axis label)."""
 
 
@@ -123,7 +123,7 @@ def entry_learning_curves(entry: Entry) -> list[list[dict[str, Any]]]:
 
     An unreadable curve file is skipped with a warning.
     """
-    from agents.learning_curve import LearningCurveError, find_learning_curve, read_learning_curve
+    from agents.common.learning_curve import LearningCurveError, find_learning_curve, read_learning_curve
 
     if entry.kind != "agent":
         return []

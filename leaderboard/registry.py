@@ -7,8 +7,8 @@ controller is one line in :data:`CONTROLLERS`.
 
 * a name of :data:`CONTROLLERS` (the baselines of :data:`baselines.controllers.BASELINES`) ->
   :func:`baselines.controllers.make_baseline`;
-* an existing path -> :func:`agents.policy.load_agent` (a weights-only export, a run directory or an SB3 zip),
-  checked against the environment with :func:`agents.policy.check_agent`, then composed as it was trained
+* an existing path -> :func:`agents.export.load_agent` (a weights-only export, a run directory or an SB3 zip),
+  checked against the environment with :func:`agents.export.check_agent`, then composed as it was trained
   (:func:`compose_agent`): a residual agent (:mod:`uvdms_gym.residual`) gets its base baseline from the record
   of its export or run (:class:`uvdms_gym.residual.ResidualController`), and an agent trained with the safety
   filter is filtered.
@@ -16,7 +16,7 @@ controller is one line in :data:`CONTROLLERS`.
 ``uvdms evaluate`` (:func:`evaluate`) and the leaderboard (:mod:`leaderboard.runner`) resolve through here.
 Training gets the same pieces injected (``agents`` does not import ``baselines``): :func:`action_components`
 returns the picklable factories :class:`BaselineFactory` and :class:`SafetyFilterFactory` that ``uvdms train``
-passes to :func:`agents.train.train`.
+passes to :func:`agents.training.train.train`.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from uvdms_gym.params import D1, D2
 from uvdms_gym.residual import ResidualController
 
 if TYPE_CHECKING:
-    from agents.envs import ActionComponents
+    from agents.common.envs import ActionComponents
 
 CONTROLLERS: dict[str, Callable[..., Any]] = {name: make_baseline for name in BASELINES}
 """Named controllers: name -> factory ``(name, env, **kwargs) -> controller``."""
@@ -48,14 +48,14 @@ def required_action_mode(spec: str) -> str | None:
 
 
 def load_agent(path: str | Path, trust: bool = False) -> Any:
-    """:func:`agents.policy.load_agent` with the errors of a wrong path or a corrupt archive named.
+    """:func:`agents.export.load_agent` with the errors of a wrong path or a corrupt archive named.
 
     Raises:
         ValueError: A folder holding none of :data:`AGENT_FILES`, or a model that is not a valid zip archive.
     """
     import zipfile
 
-    from agents.policy import load_agent as _load
+    from agents.export import load_agent as _load
 
     path = Path(path)
     if path.is_dir() and not any((path / name).is_file() for name in AGENT_FILES):
@@ -82,7 +82,8 @@ class BaselineFactory:
     Attributes:
         name: One of :data:`RESIDUAL_BASES`.
         collision_margin: Metres added to both thresholds ``d1`` and ``d2`` of the baseline's collision rows (0:
-            the baseline as registered). A teacher for imitation (``agents.dagger``'s ``teacher_margin``) keeps this
+            the baseline as registered). A teacher for imitation (``agents.algos.dagger``'s ``teacher_margin``) keeps
+            this
             much farther from every obstacle than the benchmark's ``d1``, so that a learner that imitates it to
             within the margin stays out of the collision zone. Only for a baseline with collision rows.
 
@@ -129,8 +130,8 @@ class SafetyFilterFactory:
 
 
 def action_components() -> ActionComponents:
-    """What ``uvdms train`` injects into :func:`agents.train.train`: the residual bases and the safety filter."""
-    from agents.envs import ActionComponents
+    """What ``uvdms train`` injects into :func:`agents.training.train.train`: the residual bases and the filter."""
+    from agents.common.envs import ActionComponents
 
     return ActionComponents(base_factory=BaselineFactory, filter_factory=SafetyFilterFactory())
 
@@ -152,7 +153,7 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
     """An agent as it was trained: its residual base added, then the safety filter if it was trained with one.
 
     Args:
-        agent: A loaded agent (:class:`agents.policy.AgentController`; its ``composition`` says what to add).
+        agent: A loaded agent (:class:`agents.export.AgentController`; its ``composition`` says what to add).
         env: The environment the controller will drive.
         safety_filter: Filter the result also if the agent was trained without the filter.
 
@@ -187,7 +188,7 @@ def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) 
     Args:
         spec: A controller name, or a path: a weights-only export directory, a run directory or an SB3 zip.
         env: The environment the controller will drive.
-        trust: Allow unpickling an agent's SB3/VecNormalize files (see :mod:`agents.policy`).
+        trust: Allow unpickling an agent's SB3/VecNormalize files (see :mod:`agents.export`).
         **kwargs: Options of a named controller (``mpc_overrides``, ``di_overrides``).
 
     Returns:
@@ -201,7 +202,7 @@ def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) 
     path = Path(spec)
     if not path.exists():
         raise ValueError(f"{spec!r} is neither a baseline ({', '.join(CONTROLLERS)}) nor an existing agent path")
-    from agents.policy import check_agent
+    from agents.export import check_agent
 
     agent = load_agent(path, trust=trust)
     check_agent(agent, env, spec)
@@ -265,7 +266,7 @@ def evaluate(
         path = Path(controller_spec)
         if not path.exists():
             raise ValueError(f"{controller_spec!r} is neither a baseline ({', '.join(CONTROLLERS)}) nor an agent path")
-        from agents.policy import check_agent
+        from agents.export import check_agent
 
         agent = load_agent(path, trust)
         kwargs.setdefault("action_mode", (agent.env_kwargs or {}).get("action_mode", "velocity"))

@@ -412,7 +412,7 @@ def learning_curve_stats(curves: Sequence[Sequence[Mapping[str, Any]]], key: str
     """Mean over training seeds, with :func:`bootstrap_ci`, of a learning-curve value at each step count.
 
     Args:
-        curves: One list of points (:mod:`agents.learning_curve`) per training seed.
+        curves: One list of points (:mod:`agents.common.learning_curve`) per training seed.
         key: The point's value (``success_rate``, ``rmse_pos_mean``, ...).
 
     Returns:

@@ -5,8 +5,8 @@
 #   scripts/train_shipped_agents.sh            # train into runs/shipped/<name>/ (logs in runs/shipped/logs/),
 #                                              # then package them
 #   scripts/train_shipped_agents.sh sac        # only the three SAC agents, all at once (as they were trained)
-#   scripts/train_shipped_agents.sh package    # copy the runs into trained_agents/<name>/ (agents.ship)
-#   .venv/bin/python -m agents.evaluate_shipped  # evaluation.json of each agent + campc/random references
+#   scripts/train_shipped_agents.sh package    # copy the runs into trained_agents/<name>/ (scripts.ship_agent)
+#   .venv/bin/python -m scripts.evaluate_shipped  # evaluation.json of each agent + campc/random references
 #
 # Hyperparameters come from train_configs/{ppo,sac}.yml (uvdms entries); the budgets below override
 # n_timesteps. Seed 0: training envs use seeds 0 and 1, the evaluation callback seeds 1000000+
@@ -61,7 +61,7 @@ if [[ "${1:-train}" == "package" ]]; then
       echo "no run for $name in $OUT: trained_agents/$name left as it is" >&2
       continue
     fi
-    "$PY" -m agents.ship "$OUT/$name"/*/"${algo}_$SEED" "trained_agents/$name" --which "${WHICH:-best}" --overwrite
+    "$PY" -m scripts.ship_agent "$OUT/$name"/*/"${algo}_$SEED" "trained_agents/$name" --which "${WHICH:-best}" --overwrite
   done
   exit 0
 fi

@@ -19,17 +19,18 @@ import torch
 import yaml
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-from agents import policy as agent_policy
 from agents.algos import ALGOS
 from agents.config import ConfigError, load_config, parse_entry, validate_config_file
-from agents.policy import (
+from agents.export import (
     UntrustedFileError,
     export_agent,
     load_agent,
     load_sb3_zip,
     load_weights_only,
 )
-from agents.train import (
+from agents.export import sb3 as agent_sb3
+from agents.export import weights as agent_weights
+from agents.training.train import (
     EnvironmentNotFoundError,
     RunDirError,
     ScaledAction,
@@ -419,7 +420,7 @@ def test_loading_pickles_requires_trust(runs, monkeypatch):
         export_agent(run_dir, run_dir.parent / "export_untrusted")
     assert load_sb3_zip(run_dir / "final_model.zip", trust=True).num_timesteps > 0
     # Files inside the repository's trained_agents/ folder are trusted without the flag.
-    monkeypatch.setattr(agent_policy, "TRUSTED_DIR", run_dir.parent)
+    monkeypatch.setattr(agent_sb3, "TRUSTED_DIR", run_dir.parent)
     assert load_agent(run_dir).algo == "sac"
 
 
@@ -448,9 +449,9 @@ def test_weights_only_export_contains_no_pickle(runs, tmp_path):
     # Tampered weights: a pickled object that would create a file when unpickled.
     marker = tmp_path / "pwned"
     torch.save({**state, "payload": _Payload(str(marker))}, export / "policy.pt")
-    with pytest.raises(agent_policy.ExportFormatError, match="SHA-256"):
+    with pytest.raises(agent_weights.ExportFormatError, match="SHA-256"):
         load_weights_only(export)
-    doc["files"]["policy.pt"] = agent_policy._sha256(export / "policy.pt")  # an attacker fixes the hash
+    doc["files"]["policy.pt"] = agent_weights._sha256(export / "policy.pt")  # an attacker fixes the hash
     (export / "agent.json").write_text(json.dumps(doc))
     with pytest.raises(pickle.UnpicklingError):
         load_weights_only(export)
@@ -458,10 +459,10 @@ def test_weights_only_export_contains_no_pickle(runs, tmp_path):
 
     # Unknown class names in the JSON are refused too.
     torch.save(state, export / "policy.pt")
-    doc["files"]["policy.pt"] = agent_policy._sha256(export / "policy.pt")
+    doc["files"]["policy.pt"] = agent_weights._sha256(export / "policy.pt")
     doc["policy_kwargs"]["activation_fn"] = "os.system"
     (export / "agent.json").write_text(json.dumps(doc))
-    with pytest.raises(agent_policy.ExportFormatError, match="activation_fn"):
+    with pytest.raises(agent_weights.ExportFormatError, match="activation_fn"):
         load_weights_only(export)
 
 
@@ -613,13 +614,13 @@ def test_subproc_vec_env(tmp_path, config_dir):
 # Training-side options, the uvdms subcommands, shipped agent folders
 # ------------------------------------------------------------------------------------------------------
 def test_algo_names_of_the_light_parser_match_algos():
-    from agents.args import ALGO_NAMES as PARSER_ALGOS
+    from agents.training.args import ALGO_NAMES as PARSER_ALGOS
 
     assert list(PARSER_ALGOS) == ALGO_NAMES
 
 
 def test_residual_observation_choices_of_the_light_parser_match_the_composition():
-    from agents.args import RESIDUAL_OBSERVATION_NAMES
+    from agents.training.args import RESIDUAL_OBSERVATION_NAMES
     from uvdms_gym.residual import RESIDUAL_OBSERVATIONS
 
     assert RESIDUAL_OBSERVATION_NAMES == RESIDUAL_OBSERVATIONS
@@ -641,7 +642,7 @@ def test_max_episode_steps_and_alive_bonus(tmp_path, config_dir):
     resolved = yaml.safe_load((run_dir / "config.yml").read_text())["config"]
     assert resolved["max_episode_steps"] == 16 and resolved["alive_bonus"] == 20.0
     assert parse_entry(resolved, "ppo").alive_bonus == 20.0
-    from agents.ship import read_monitor_episodes
+    from scripts.ship_agent import read_monitor_episodes
 
     episodes = read_monitor_episodes(run_dir)
     assert len(episodes["l"]) >= 4 and set(episodes["l"]) == {16}
@@ -690,8 +691,8 @@ def test_uvdms_train_and_export_agent_commands(tmp_path, config_dir, capsys):
 
 
 def test_shipped_agent_folder(runs, tmp_path, monkeypatch):
-    """agents.ship packages a run; load_agent loads the folder (trusted inside trained_agents/)."""
-    from agents.ship import package_run
+    """scripts.ship_agent packages a run; load_agent loads the folder (trusted inside trained_agents/)."""
+    from scripts.ship_agent import package_run
 
     env_id, env_kwargs = TEST_ENVS[2]
     run_dir = runs["sac", env_id]
@@ -710,7 +711,7 @@ def test_shipped_agent_folder(runs, tmp_path, monkeypatch):
 
     with pytest.raises(UntrustedFileError):
         load_agent(folder)
-    monkeypatch.setattr(agent_policy, "TRUSTED_DIR", trusted)
+    monkeypatch.setattr(agent_sb3, "TRUSTED_DIR", trusted)
     agent = load_agent(folder)
     reference = load_agent(run_dir, which="best", trust=True)
     assert agent.env_id == env_id and agent.env_kwargs == env_kwargs and agent.normalizer is not None
@@ -767,7 +768,7 @@ def test_action_init_scale_scales_the_last_action_layer(tmp_path, config_dir, al
 
 
 def test_scale_action_layer_on_ppo_and_td3_target():
-    from agents.train import scale_action_layer
+    from agents.training.train import scale_action_layer
 
     ppo = ALGOS["ppo"]("MlpPolicy", "Pendulum-v1", seed=0)
     before = _action_layer(ppo).weight.clone()
@@ -822,7 +823,7 @@ def test_action_scale_in_training_evaluation_and_export(tmp_path, config_dir):
     doc_path = tmp_path / "export" / "agent.json"
     doc = json.loads(doc_path.read_text())
     doc_path.write_text(json.dumps({**doc, "action_scale": 2.0}))
-    with pytest.raises(agent_policy.ExportFormatError, match="action_scale"):
+    with pytest.raises(agent_weights.ExportFormatError, match="action_scale"):
         load_weights_only(tmp_path / "export")
     for bad in (0.0, 1.5):
         with pytest.raises(ConfigError, match="'action_scale'"):
@@ -833,7 +834,7 @@ def test_agent_on_another_env_id_warns():
     """An agent evaluated on an env id other than its training env's gets a warning naming both ids."""
     import warnings
 
-    from agents.policy import EnvMismatchWarning, check_agent
+    from agents.export import EnvMismatchWarning, check_agent
     from leaderboard.registry import evaluate
 
     folder = REPO / "trained_agents" / "circle_case1_ppo"

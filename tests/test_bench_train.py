@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from agents.bench import CONFIGURATIONS, bench_train
-from agents.threads import update_threads
+from agents.common.threads import update_threads
+from agents.training.bench import CONFIGURATIONS, bench_train
 
 
 def test_bench_train_quick_reports_consistent_figures():

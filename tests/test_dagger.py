@@ -21,9 +21,9 @@ import torch
 import yaml
 from gymnasium import spaces
 
-from agents.dagger import TEACHER_INFO_KEY, DAgger, TeacherReplayBuffer
-from agents.train import run_dir_for
-from agents.wrappers import KEPT_ARRAYS, ScalarInfo
+from agents.algos.dagger import TEACHER_INFO_KEY, DAgger, TeacherReplayBuffer
+from agents.common.wrappers import KEPT_ARRAYS, ScalarInfo
+from agents.training.train import run_dir_for
 from leaderboard.registry import BaselineFactory
 from uvdms_cli.main import main as uvdms
 from uvdms_gym.params import D1, D2

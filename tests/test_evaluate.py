@@ -195,7 +195,7 @@ TINY_PPO = {
 
 @pytest.fixture(scope="module")
 def tiny_agent(tmp_path_factory) -> Path:
-    from agents.train import train
+    from agents.training.train import train
 
     folder = tmp_path_factory.mktemp("agent")
     config = folder / "ppo.yml"
@@ -204,7 +204,7 @@ def tiny_agent(tmp_path_factory) -> Path:
 
 
 def test_evaluate_a_trained_agent(tiny_agent, tmp_path):
-    from agents.policy import UntrustedFileError, export_agent
+    from agents.export import UntrustedFileError, export_agent
 
     with pytest.raises(UntrustedFileError):  # SB3 zips hold pickles: trust required outside trained_agents/
         evaluate(str(tiny_agent), CIRCLE, SHORT, episodes=1, progress=False)

@@ -375,7 +375,8 @@ def test_training_seeds_are_read_and_evaluation_seeds_are_disjoint(tmp_path):
     seeds = lb.evaluation_seeds(10)
     assert min(seeds) >= lb.SEED_BASE
     lb.check_seed_disjointness(seeds, [entry])
-    # the agents.train scheme (seed + 1000 k + i, eval seed + 1_000_000 + i) never reaches SEED_BASE for seeds < 1e9
+    # the agents.training.train scheme (seed + 1000 k + i, eval seed + 1_000_000 + i) never reaches SEED_BASE for seeds
+    # < 1e9
     assert 999_999_999 + 1_000_000 + 1000 < lb.SEED_BASE
 
 
@@ -421,22 +422,22 @@ def tiny_policy_model():
 
 
 def _export_submission(model, folder: Path) -> Path:
-    from agents.policy import AgentController, export_controller
+    from agents.export import AgentController, export_controller
 
     agent = AgentController(model.policy, algo="ppo", env_id=CIRCLE, env_kwargs={"case": 1}, source="tiny")
     return export_controller(agent, folder)
 
 
 def test_weights_only_submission_evaluates_and_ranks_without_trust(tmp_path, tiny_policy_model, monkeypatch):
-    import agents.policy
+    import agents.export
 
     submission = _export_submission(tiny_policy_model, tmp_path / "submission")
 
     def no_unpickling(*args, **kwargs):
         raise AssertionError("a weights-only submission must not be unpickled")
 
-    monkeypatch.setattr(agents.policy, "load_sb3_zip", no_unpickling)
-    monkeypatch.setattr(agents.policy, "load_vecnormalize_stats", no_unpickling)
+    monkeypatch.setattr(agents.export, "load_sb3_zip", no_unpickling)
+    monkeypatch.setattr(agents.export, "load_vecnormalize_stats", no_unpickling)
     entries = lb.resolve_entries(["campc", str(submission)], trust=False)
     assert entries[1].weights_only and entries[1].track == "velocity" and entries[1].env_id == CIRCLE
     result = lb.run_leaderboard(
@@ -457,7 +458,7 @@ def test_weights_only_submission_evaluates_and_ranks_without_trust(tmp_path, tin
 
 
 def test_pickle_zip_from_outside_the_repo_is_refused_without_trust(tmp_path, tiny_policy_model, capsys):
-    from agents.policy import UntrustedFileError
+    from agents.export import UntrustedFileError
 
     zip_path = tmp_path / "elsewhere" / "model.zip"
     zip_path.parent.mkdir()

@@ -17,9 +17,8 @@ import pytest
 import yaml
 
 import leaderboard as lb
-from agents.envs import EnvFactory, eval_env_seed
-from agents.export import export_agent
-from agents.learning_curve import (
+from agents.common.envs import EnvFactory, eval_env_seed
+from agents.common.learning_curve import (
     INFO_KEY,
     LEARNING_CURVE_FILE,
     EpisodeMetrics,
@@ -28,8 +27,8 @@ from agents.learning_curve import (
     episode_summary,
     read_learning_curve,
 )
-from agents.policy import load_agent
-from agents.train import train
+from agents.export import export_agent, load_agent
+from agents.training.train import train
 from uvdms_gym.evaluation import run_episode
 
 TRANSPORT = "uvdms/Transport-v0"
@@ -149,7 +148,7 @@ def test_training_records_the_benchmark_metrics_and_resume_continues_the_curve(t
     assert resumed[:2] == points and [p["segment"] for p in resumed[2:]] == [1, 1]
 
     # exports and shipped folders carry it
-    from agents.ship import package_run
+    from scripts.ship_agent import package_run
 
     export = export_agent(run_dir, tmp_path / "export", trust=True)
     shipped = package_run(run_dir, tmp_path / "shipped", which="final")

@@ -28,9 +28,7 @@ from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
-from agents.config import ConfigError, load_config, validate_config_file
-from agents.policy import export_agent, load_agent, load_weights_only
-from agents.ppo_lagrangian import (
+from agents.algos.ppo_lagrangian import (
     HISTORY_FILE,
     CostActorCriticPolicy,
     LagrangianHistory,
@@ -40,8 +38,10 @@ from agents.ppo_lagrangian import (
     lagrangian_advantages,
     read_history,
 )
-from agents.rollouts import RolloutVecEnv
-from agents.train import latest_checkpoint, run_dir_for, train
+from agents.common.rollouts import RolloutVecEnv
+from agents.config import ConfigError, load_config, validate_config_file
+from agents.export import export_agent, load_agent, load_weights_only
+from agents.training.train import latest_checkpoint, run_dir_for, train
 
 REPO = Path(__file__).resolve().parents[1]
 UVDMS = Path(sys.executable).with_name("uvdms")

@@ -24,11 +24,11 @@ import pytest
 import torch
 import yaml
 
+from agents.common.envs import EnvFactory, make_vec_env
 from agents.config import ConfigError, parse_entry
-from agents.envs import EnvFactory, make_vec_env
-from agents.export import export_controller, load_weights_only
-from agents.train import main as agents_train_main
-from agents.train import run_dir_for
+from agents.export.weights import export_controller, load_weights_only
+from agents.training.train import main as agents_train_main
+from agents.training.train import run_dir_for
 from baselines.controllers import make_baseline
 from baselines.safety import SafetyFilter
 from leaderboard.entries import resolve_entries

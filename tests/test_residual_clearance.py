@@ -21,7 +21,7 @@ import pinocchio as pin
 import pytest
 import yaml
 
-from agents.train import run_dir_for
+from agents.training.train import run_dir_for
 from baselines.controllers import make_baseline
 from leaderboard.registry import BaselineFactory, make_controller
 from uvdms_cli.main import main as uvdms

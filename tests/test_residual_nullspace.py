@@ -22,7 +22,7 @@ import pytest
 import yaml
 from test_residual_clearance import ACTION_DIM, CIRCLE, OBS_DIM, SCALE, SEED, TINY, LinearPolicy, _mpc_states
 
-from agents.train import run_dir_for
+from agents.training.train import run_dir_for
 from baselines.controllers import make_baseline
 from leaderboard.registry import BaselineFactory, make_controller
 from uvdms_cli.main import main as uvdms
@@ -156,7 +156,7 @@ def test_composition_records_the_space_and_old_records_read_as_full():
 
 
 def test_space_choices_of_the_light_parser_match_the_composition():
-    from agents.args import RESIDUAL_SPACE_NAMES
+    from agents.training.args import RESIDUAL_SPACE_NAMES
 
     assert RESIDUAL_SPACE_NAMES == RESIDUAL_SPACES
 

@@ -21,11 +21,11 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.running_mean_std import RunningMeanStd
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+from agents.common.envs import EnvFactory, make_vec_env
+from agents.common.rollouts import COLLECT_METHOD, ObsNormalization, RolloutPPO, RolloutVecEnv
+from agents.common.threads import run_cpus
 from agents.config import ConfigError
-from agents.envs import EnvFactory, make_vec_env
-from agents.rollouts import COLLECT_METHOD, PPO, ObsNormalization, RolloutVecEnv
-from agents.threads import run_cpus
-from agents.train import train
+from agents.training.train import train
 
 ENV = "Pendulum-v1"
 EPISODE = 30  # shorter than a rollout: every part holds truncations and resets
@@ -64,7 +64,7 @@ def test_a_parallel_rollout_is_the_replay_of_its_envs_and_of_vecnormalize():
     env = _venv("rollout")
     try:
         assert isinstance(env.venv, RolloutVecEnv)
-        model = PPO("MlpPolicy", env, seed=SEED, **PPO_KWARGS)
+        model = RolloutPPO("MlpPolicy", env, seed=SEED, **PPO_KWARGS)
         _, callback = model._setup_learn(N_STEPS * 2, None)  # resets the envs (one VecNormalize update)
         mean0, var0, count0 = env.obs_rms.mean.copy(), env.obs_rms.var.copy(), env.obs_rms.count
         assert model.collect_rollouts(env, callback, model.rollout_buffer, N_STEPS)
@@ -129,7 +129,7 @@ def test_a_parallel_rollout_is_the_replay_of_its_envs_and_of_vecnormalize():
         env.close()
 
 
-def _trained(kind: str, algo_cls: type = PPO, seed: int = SEED) -> list[np.ndarray]:
+def _trained(kind: str, algo_cls: type = RolloutPPO, seed: int = SEED) -> list[np.ndarray]:
     env = _venv(kind)
     try:
         model = algo_cls("MlpPolicy", env, seed=seed, **PPO_KWARGS)
@@ -156,7 +156,7 @@ def test_on_other_vector_envs_it_is_sb3_ppo_bit_for_bit():
 def test_a_stopping_callback_ends_the_rollout_and_the_envs_stay_usable():
     env = _venv("rollout")
     try:
-        model = PPO("MlpPolicy", env, seed=SEED, **PPO_KWARGS)
+        model = RolloutPPO("MlpPolicy", env, seed=SEED, **PPO_KWARGS)
         stop = _Stop(after=5)
         model.learn(4 * N_STEPS, callback=stop)
         assert stop.calls == 5 and model.num_timesteps == 10

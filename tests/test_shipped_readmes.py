@@ -3,7 +3,7 @@
 The README's ``python`` block (section "With plain Stable-Baselines3") is executed as written, from the
 repository root, with ``gymnasium.make`` wrapped to record what reaches the uvdms environment (and, except
 for one full episode, to cut the episode to 40 steps). The recorded actions must equal those of the project's
-:class:`agents.policy.AgentController` on the same observations; for the agent the issue was found on
+:class:`agents.export.AgentController` on the same observations; for the agent the issue was found on
 (``circle_case1_sac``, ``action_scale`` 0.3) the full episode's printed return must equal ``evaluation.json``'s.
 """
 
@@ -17,8 +17,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.policy import load_agent
-from agents.ship import README_SNIPPET_HEADING, plain_sb3_snippet
+from agents.export import load_agent
+from scripts.ship_agent import README_SNIPPET_HEADING, plain_sb3_snippet
 
 REPO = Path(__file__).resolve().parents[1]
 FOLDERS = sorted(p for p in (REPO / "trained_agents").iterdir() if (p / "model.zip").is_file())
@@ -55,7 +55,9 @@ def readme_code(folder: Path) -> str:
 @pytest.mark.parametrize("folder", FOLDERS, ids=lambda p: p.name)
 def test_plain_sb3_recipe_gives_the_agent_controller_actions(folder, monkeypatch, capsys):
     code = readme_code(folder)
-    assert code.strip() == plain_sb3_snippet(folder).strip(), "README out of date: python -m agents.ship --readme"
+    assert code.strip() == plain_sb3_snippet(folder).strip(), (
+        "README out of date: python -m scripts.ship_agent --readme"
+    )
     agent = load_agent(folder)
     if agent.action_scale != 1.0:
         assert f"lambda a: {agent.action_scale!r} * a" in code

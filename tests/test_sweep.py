@@ -23,7 +23,9 @@ import yaml
 from ray_support import in_background
 
 from agents.config import ConfigError, load_config
-from agents.sweep import (
+from agents.config.zoo import zoo_entry
+from agents.distributed.report import evaluation_summary
+from agents.distributed.sweep import (
     STORE_NAMESPACE,
     STORE_PREFIX,
     check_seeds,
@@ -32,9 +34,7 @@ from agents.sweep import (
     run_cpus,
     sweep,
 )
-from agents.sweep_report import evaluation_summary
-from agents.sweep_worker import pack_run_dir, unpack_run_dir
-from agents.zoo import zoo_entry
+from agents.distributed.worker import pack_run_dir, unpack_run_dir
 from uvdms_cli.main import main
 
 REPO = Path(__file__).resolve().parents[1]

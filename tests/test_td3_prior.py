@@ -9,8 +9,8 @@ import torch
 import yaml
 from stable_baselines3 import TD3
 
+from agents.algos.td3_prior import TD3Prior, actor_loss
 from agents.config import ConfigError, load_config
-from agents.td3_prior import TD3Prior, actor_loss
 
 KW = {"learning_starts": 20, "policy_delay": 1, "batch_size": 16, "policy_kwargs": {"net_arch": [16]}, "seed": 4}
 

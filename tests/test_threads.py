@@ -9,8 +9,8 @@ import pytest
 import torch
 from stable_baselines3 import PPO
 
-from agents.envs import EnvFactory, make_vec_env
-from agents.threads import ROLLOUT_THREADS, UpdateThreads, available_cpus, run_cpus, update_threads
+from agents.common.envs import EnvFactory, make_vec_env
+from agents.common.threads import ROLLOUT_THREADS, UpdateThreads, available_cpus, run_cpus, update_threads
 
 ENV_ID = "uvdms/CircleTrack-v0"
 

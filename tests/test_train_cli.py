@@ -3,7 +3,7 @@
 The first test runs the README's ``uvdms train`` lines with the ``uvdms`` console script of the suite's
 environment (the one next to ``sys.executable``), progress bar on, from a temporary working directory, with
 ``--total-timesteps`` lowered to a few hundred steps (the only change to the lines). The other tests call
-:func:`agents.train.train` in-process.
+:func:`agents.training.train.train` in-process.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import torch
 import yaml
 
 from agents.algos import ALGOS
-from agents.train import (
+from agents.training.train import (
     grow_replay_buffer,
     latest_checkpoint,
     replay_buffer_size,
@@ -180,7 +180,7 @@ def test_capped_replay_buffer_trains_exactly_like_the_configured_one(tmp_path, m
     capped = _train(tmp_path, "sac", _SAC, out="capped")
     meta = json.loads((capped / "meta.json").read_text())
     assert meta["segments"][0]["replay_buffer_size"] == replay_buffer_size(100_000, 2, 300) == 2 * 151
-    monkeypatch.setattr("agents.train.replay_buffer_size", lambda configured, n_envs, total: configured)
+    monkeypatch.setattr("agents.training.segment.replay_buffer_size", lambda configured, n_envs, total: configured)
     full = _train(tmp_path, "sac", _SAC, out="full")
     assert json.loads((full / "meta.json").read_text())["segments"][0]["replay_buffer_size"] == 100_000
     a = ALGOS["sac"].load(capped / "final_model.zip").policy.state_dict()

@@ -17,10 +17,10 @@ import yaml
 from test_sweep import ENV, TINY_PPO, tiny_config  # noqa: F401  (fixture)
 
 from agents.config import ConfigError, default_config_path, load_config
-from agents.policy_kwargs import ACTIVATIONS
-from agents.search_space import default_search_space_path, load_search_space
-from agents.train import resolve_config
-from agents.tune import _check_space, _searcher
+from agents.config.policy_kwargs import ACTIVATIONS
+from agents.distributed.search_space import default_search_space_path, load_search_space
+from agents.distributed.tune import _check_space, _searcher
+from agents.training.train import resolve_config
 from uvdms_cli.main import main
 
 ALGOS = ("ppo", "sac", "td3", "tqc")
@@ -212,7 +212,7 @@ def test_tune_writes_a_config_that_trains(tiny_config, tmp_path, capsys, ray_pro
 
 
 def test_tune_without_the_composition_layer_refuses_a_residual(tiny_config, tmp_path):  # noqa: F811
-    from agents.tune import tune
+    from agents.distributed.tune import tune
 
     with pytest.raises(ConfigError, match="uvdms train"):
         residual = {"n_steps": 64, "residual_base": "mpc", "residual_scale": 0.5}

@@ -9,8 +9,8 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from agents.envs import EnvFactory, make_vec_env
-from agents.vecenv import HybridVecEnv
+from agents.common.envs import EnvFactory, make_vec_env
+from agents.common.vecenv import HybridVecEnv
 
 ENV_ID = "uvdms/CircleTrack-v0"
 

@@ -24,7 +24,7 @@ import yaml
 
 from agents.algos import ALGOS
 from agents.config import ConfigError, load_config, parse_entry, validate_config_file
-from agents.zoo import TRAIN_OPTIONS
+from agents.config.zoo import TRAIN_OPTIONS
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIGS = sorted((REPO / "train_configs").glob("*.yml"))
@@ -228,12 +228,13 @@ def test_rl_zoo_trains_from_the_shipped_sac_config(tmp_path):
 
 @pytest.mark.parametrize("algo", sorted(ALGOS))
 def test_scale_initial_actions_callback_scales_like_the_trainer(algo):
-    """RL Zoo applies ``action_init_scale`` through the callback; agents.train calls scale_action_layer directly."""
+    """RL Zoo applies ``action_init_scale`` through the callback; agents.training.train calls scale_action_layer
+    directly."""
     import gymnasium as gym
     import torch
 
-    from agents.callbacks import ScaleInitialActions
-    from agents.models import scale_action_layer
+    from agents.training.callbacks import ScaleInitialActions
+    from agents.training.models import scale_action_layer
 
     def fresh():
         return ALGOS[algo]("MlpPolicy", gym.make("Pendulum-v1"), policy_kwargs={"net_arch": [8]}, seed=3)
@@ -253,7 +254,7 @@ def test_scale_initial_actions_callback_scales_like_the_trainer(algo):
 
 
 def test_kv_parser_names_option_and_key():
-    from agents.train import parse_key_values as agents_parser
+    from agents.training.train import parse_key_values as agents_parser
     from uvdms_gym.kwargs import parse_kv as parse_key_values
 
     items = ["case=1", "radius=0.15", "goal=paper", "left_center=[1, 0, 2]", "name=", "flag=true"]
@@ -276,7 +277,7 @@ def test_delay_actor_updates_keeps_the_actor_and_trains_the_critic(algo):
     import gymnasium as gym
     import torch
 
-    from agents.callbacks import DelayActorUpdates
+    from agents.training.callbacks import DelayActorUpdates
 
     def fresh():
         kwargs = {"learning_starts": 10, "policy_kwargs": {"net_arch": [8]}, "seed": 5}

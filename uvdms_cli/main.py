@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import yaml
 
 if TYPE_CHECKING:
-    from agents.envs import ActionComponents
+    from agents.common.envs import ActionComponents
 
 log = logging.getLogger("uvdms")
 
@@ -46,7 +46,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from uvdms_gym.provenance import timing_record
 
     if args.what == "train":
-        from agents.bench import bench_train as fn
+        from agents.training.bench import bench_train as fn
     elif args.what == "leaderboard":
         from leaderboard.bench import bench_leaderboard as fn
     elif args.what == "mpc":
@@ -110,7 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _register_commands(sub: argparse._SubParsersAction) -> None:
     """Subcommands implemented beside the packages they drive (each module's ``register(subparsers)``)."""
     from agents import cli as agents_cli
-    from agents import sweep_cli
+    from agents.distributed import cli as sweep_cli
     from baselines import cli as baselines_cli
     from leaderboard import cli as leaderboard_cli
     from uvdms_cli import evaluate

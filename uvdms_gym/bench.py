@@ -1,7 +1,8 @@
 """Benchmarks behind ``uvdms bench {sim,env} --json``: medians (µs) and ratios measured in one run.
 
 ``uvdms bench mpc`` runs :func:`baselines.bench.benchmark_all` and ``uvdms bench train``
-:func:`agents.bench.bench_train`; the command layer (:mod:`uvdms_cli.main`) dispatches them, so this package imports
+:func:`agents.training.bench.bench_train`; the command layer (:mod:`uvdms_cli.main`) dispatches them, so this package
+imports
 neither. Timings are medians of repeated blocks (each block averages many calls, so timer overhead is
 negligible). They are measurements, never test assertions.
 """

@@ -153,7 +153,7 @@ class EpisodeTracker:
 
     The one home of the success rule and of what ``rmse_pos`` averages: :func:`run_episode` feeds it, and so does
     anything else that steps an environment itself (a trainer's evaluation episodes,
-    ``agents.learning_curve.EpisodeMetrics``), so both report the same numbers for the same episode.
+    ``agents.common.learning_curve.EpisodeMetrics``), so both report the same numbers for the same episode.
 
     Args:
         env: The environment (wrapped or not; its ``unwrapped`` has ``tracking_transient``).

@@ -20,7 +20,8 @@ from pathlib import Path
 from typing import Any
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-"""The checkout holding this package (for ``git``, and the project's one repository-root lookup: ``agents.paths`` and
+"""The checkout holding this package (for ``git``, and the project's one repository-root lookup:
+``agents.common.paths`` and
 the tools import it); ``site-packages`` after a regular install."""
 
 PACKAGES: Mapping[str, str] = {

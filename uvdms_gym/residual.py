@@ -428,7 +428,7 @@ class ResidualAction(gym.Wrapper):
         space: ``residual_space`` (:data:`RESIDUAL_SPACES`): ``"nullspace"`` projects the policy's output with
             the :class:`NullspaceProjection` at the current state before it is scaled and added.
         teacher_factory: Builds a teacher controller for ``env`` (``None``: none), for imitation learning
-            (``agents.dagger``): at every state the teacher acts on the same ``(obs, info)`` as the base, and
+            (``agents.algos.dagger``): at every state the teacher acts on the same ``(obs, info)`` as the base, and
             ``step``'s ``info[TEACHER_KEY]`` is :func:`teacher_residual` at the state *the action was taken in* (the
             label of the observation the policy acted on). The teacher never acts on the environment.
 

@@ -43,7 +43,7 @@ class CircleTrackEnv(UVDMSEnv):
     1 per distance inside 0.05 m) and ``reward_contact = -contact_weight`` on a step with physical contact.
     Every term is <= 0, so with ``terminate_on_contact=True`` a policy that crashes early collects a shorter
     negative sum than one that keeps tracking: RL training adds a per-step constant (``alive_bonus`` of
-    ``agents.config.TrainConfig``), and the leaderboard ranks by contacts and tracking error, not by return.
+    ``agents.config.schema.TrainConfig``), and the leaderboard ranks by contacts and tracking error, not by return.
 
     ## Costs
     Safety-Gymnasium convention: ``info["cost_contact"]`` = 1 if PyBullet reports a contact between robot

@@ -1,0 +1,249 @@
+"""DAgger for a residual policy: imitate a teacher's correction of the base, on the states the learner visits.
+
+Imitation learning with dataset aggregation (Ross, Gordon & Bagnell, "A Reduction of Imitation Learning and
+Structured Prediction to No-Regret Online Learning", AISTATS 2011), in its online form: the learner's own
+deterministic policy plus Gaussian exploration noise acts (DAgger with ``beta = 0``, the noise as in DART,
+Laskey et al., CoRL 2017), every visited state is labelled with the teacher's action there, all labelled
+states stay in a replay buffer, and each gradient step fits the policy to a batch of them by least squares::
+
+    loss = mean((pi(s) - a_teacher(s))^2)
+
+For a residual agent (:mod:`uvdms_gym.residual`) the label is :func:`uvdms_gym.residual.teacher_residual`, the
+residual output closest to the teacher's command, which :class:`uvdms_gym.residual.ResidualAction` computes at
+every state when it is given a ``teacher_factory`` and reports in ``info[TEACHER_KEY]``; :class:`TeacherReplayBuffer`
+stores it with each transition. The teacher never acts on the environment and is not part of the trained agent:
+at evaluation the agent is its base plus the learned network, and whatever the teacher did that the base does
+not (for CAMPC over plain MPC: the collision rows) has to be in the network's weights.
+
+Everything else is SB3's ``TD3`` (its deterministic actor, exploration noise, rollout collection, checkpoints and
+exports); the critics are built but never trained, and the reward is not used for learning (only for the
+evaluation callback's reports). ``uvdms train`` builds the teacher named by the ``teacher`` hyperparameter
+(``--hyperparams teacher=campc``), with its collision thresholds moved outward by ``teacher_margin``; this module
+only learns from the labels.
+"""
+
+# NOTE: no ``from __future__ import annotations`` here: agents.config.schema validates YAML keys against the evaluated
+# annotations of ``DAgger.__init__`` (as for agents.algos.td3_prior).
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3 import TD3
+from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.noise import ActionNoise
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
+from stable_baselines3.common.vec_env import VecNormalize
+from stable_baselines3.td3.policies import TD3Policy
+from torch.nn import functional as F
+
+TEACHER_INFO_KEY = "teacher_residual"
+"""``info`` key of the label (``uvdms_gym.residual.TEACHER_KEY``; a test checks that they agree)."""
+DEFAULT_TEACHER = "campc"
+"""The teacher ``uvdms train`` builds when the configuration names none."""
+
+
+def teacher_margin(hyperparams: Mapping[str, Any]) -> float:
+    """The teacher's collision margin a DAgger configuration names (``teacher_margin``, m, default 0).
+
+    Raises:
+        ValueError: ``teacher_margin`` is not a finite number >= 0.
+    """
+    value = hyperparams.get("teacher_margin", 0.0)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
+        raise ValueError(f"teacher_margin must be a finite number >= 0 (metres), got {value!r}")
+    return float(value)
+
+
+def teacher_name(hyperparams: Mapping[str, Any]) -> str:
+    """The teacher a DAgger configuration names (``teacher``, default :data:`DEFAULT_TEACHER`).
+
+    Raises:
+        ValueError: ``teacher`` is not a non-empty string.
+    """
+    name = hyperparams.get("teacher", DEFAULT_TEACHER)
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"teacher must be the name of a velocity-mode baseline (e.g. campc), got {name!r}")
+    return name
+
+
+class TeacherReplayBuffer(ReplayBuffer):
+    """SB3's ``ReplayBuffer`` that also stores the teacher's label of each transition's observation.
+
+    ``add`` reads the label from each env's ``info[TEACHER_INFO_KEY]`` (the label of the observation the action
+    was taken on, see :class:`uvdms_gym.residual.ResidualAction`); :meth:`sample_labelled` draws observations and
+    their labels. Saved and loaded with the rest of the buffer (``save_replay_buffer``).
+
+    Raises:
+        ValueError: (``add``) an ``info`` without a label of the action's shape.
+    """
+
+    def __init__(
+        self,
+        buffer_size: int,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        device: th.device | str = "auto",
+        n_envs: int = 1,
+        optimize_memory_usage: bool = False,
+        handle_timeout_termination: bool = True,
+    ) -> None:
+        super().__init__(
+            buffer_size,
+            observation_space,
+            action_space,
+            device=device,
+            n_envs=n_envs,
+            optimize_memory_usage=optimize_memory_usage,
+            handle_timeout_termination=handle_timeout_termination,
+        )
+        self.labels = np.zeros((self.buffer_size, self.n_envs, self.action_dim), dtype=np.float32)
+
+    def add(
+        self,
+        obs: np.ndarray,
+        next_obs: np.ndarray,
+        action: np.ndarray,
+        reward: np.ndarray,
+        done: np.ndarray,
+        infos: list[dict[str, Any]],
+    ) -> None:
+        """Store the transition and the label of ``obs`` from ``infos``."""
+        labels = []
+        for i, info in enumerate(infos):
+            label = info.get(TEACHER_INFO_KEY)
+            if label is None or np.shape(label) != (self.action_dim,):
+                raise ValueError(
+                    f"DAgger needs the teacher's label in info[{TEACHER_INFO_KEY!r}] of shape ({self.action_dim},) "
+                    f"(env {i} gave {None if label is None else np.shape(label)}): train a residual agent "
+                    "(--residual BASE) with `uvdms train`, which builds the teacher named by --hyperparams teacher=..."
+                )
+            labels.append(label)
+        self.labels[self.pos] = np.asarray(labels, dtype=np.float32)
+        super().add(obs, next_obs, action, reward, done, infos)
+
+    def sample_labelled(self, batch_size: int, env: VecNormalize | None = None) -> tuple[th.Tensor, th.Tensor]:
+        """``batch_size`` stored observations (normalised as the policy sees them) and their labels.
+
+        Draws indices as SB3's ``ReplayBuffer.sample`` does (NumPy's global generator, which SB3 seeds).
+        """
+        upper = self.buffer_size if self.full else self.pos
+        # SB3's buffers draw from NumPy's global generator, which SB3's set_random_seed seeds: the same here
+        batch_inds = np.random.randint(0, upper, size=batch_size)  # noqa: NPY002
+        env_inds = np.random.randint(0, high=self.n_envs, size=(batch_size,))  # noqa: NPY002
+        obs = self._normalize_obs(self.observations[batch_inds, env_inds, :], env)
+        return self.to_torch(obs), self.to_torch(self.labels[batch_inds, env_inds, :])
+
+
+class DAgger(TD3):
+    """SB3's TD3 with the actor fitted to a teacher's labels instead of the critic (see the module).
+
+    Args:
+        policy: As ``TD3`` (and every other argument but ``teacher``; ``replay_buffer_class`` is always
+            :class:`TeacherReplayBuffer`).
+        env: The environment; its ``info`` must carry the teacher's label.
+        teacher: Name of the teacher controller, built by ``uvdms train`` (recorded here for the run's record).
+        teacher_margin: Metres by which ``uvdms train`` moves the teacher's collision thresholds ``d1`` and ``d2``
+            outward (``leaderboard.registry.BaselineFactory``'s ``collision_margin``): the learner imitates a
+            teacher that keeps this much clear of the collision zone, which its imitation error then may use.
+
+    Raises:
+        ValueError: ``teacher`` is not a non-empty string, ``teacher_margin`` not a finite number >= 0, or
+            another replay buffer class is requested.
+    """
+
+    def __init__(
+        self,
+        policy: str | type[TD3Policy],
+        env: GymEnv | str,
+        learning_rate: float | Schedule = 1e-3,
+        buffer_size: int = 1_000_000,
+        learning_starts: int = 0,
+        batch_size: int = 256,
+        tau: float = 0.005,
+        gamma: float = 0.99,
+        train_freq: int | tuple[int, str] = 1,
+        gradient_steps: int = 1,
+        action_noise: ActionNoise | None = None,
+        replay_buffer_class: type[ReplayBuffer] | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        optimize_memory_usage: bool = False,
+        n_steps: int = 1,
+        policy_delay: int = 1,
+        target_policy_noise: float = 0.2,
+        target_noise_clip: float = 0.5,
+        teacher: str = DEFAULT_TEACHER,
+        teacher_margin: float = 0.0,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: th.device | str = "auto",
+        _init_setup_model: bool = True,
+    ) -> None:
+        self.check_hyperparams({"teacher": teacher, "teacher_margin": teacher_margin})
+        if replay_buffer_class not in (None, TeacherReplayBuffer):
+            raise ValueError(
+                f"DAgger stores its labels in TeacherReplayBuffer, got replay_buffer_class={replay_buffer_class}"
+            )
+        self.teacher = teacher
+        self.teacher_margin = float(teacher_margin)
+        super().__init__(
+            policy,
+            env,
+            learning_rate=learning_rate,
+            buffer_size=buffer_size,
+            learning_starts=learning_starts,
+            batch_size=batch_size,
+            tau=tau,
+            gamma=gamma,
+            train_freq=train_freq,
+            gradient_steps=gradient_steps,
+            action_noise=action_noise,
+            replay_buffer_class=TeacherReplayBuffer,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            optimize_memory_usage=optimize_memory_usage,
+            n_steps=n_steps,
+            policy_delay=policy_delay,
+            target_policy_noise=target_policy_noise,
+            target_noise_clip=target_noise_clip,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            policy_kwargs=policy_kwargs,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
+
+    @staticmethod
+    def check_hyperparams(hyperparams: Mapping[str, Any]) -> None:
+        """Range checks of the keyword arguments of this class (``agents.config.schema`` calls it on a config entry).
+
+        Raises:
+            ValueError: ``teacher`` is not a non-empty string, or ``teacher_margin`` not a finite number >= 0.
+        """
+        teacher_name(hyperparams)
+        teacher_margin(hyperparams)
+
+    def train(self, gradient_steps: int, batch_size: int = 100) -> None:
+        """``gradient_steps`` least-squares steps of the actor toward the teacher's labels (the module's loss)."""
+        self.policy.set_training_mode(True)
+        self._update_learning_rate([self.actor.optimizer])
+        buffer = self.replay_buffer
+        assert isinstance(buffer, TeacherReplayBuffer)
+        losses = []
+        for _ in range(gradient_steps):
+            self._n_updates += 1
+            obs, labels = buffer.sample_labelled(batch_size, env=self._vec_normalize_env)
+            loss = F.mse_loss(self.actor(obs), labels)
+            losses.append(loss.item())
+            self.actor.optimizer.zero_grad()
+            loss.backward()
+            self.actor.optimizer.step()
+        self.policy.set_training_mode(False)
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        self.logger.record("train/imitation_loss", float(np.mean(losses)))

@@ -1,0 +1,45 @@
+"""Where the training configurations and the shipped agents live, in a source checkout and in an install.
+
+In the repository they are the top-level folders ``train_configs/`` and ``trained_agents/``. A regular
+(non-editable) ``pip install .`` copies them into the ``agents`` package as package data
+(``agents/train_configs/*.yml``; ``agents/trained_agents/<name>/`` with ``model.zip``, ``vecnormalize.pkl``,
+``config.yml``, ``meta.json``, ``evaluation.json`` and ``README.md``, without the training logs and plots;
+``pyproject.toml`` lists them). The functions below return the installed copy when it exists, else the
+checkout's folder, so ``uvdms train`` and ``uvdms leaderboard`` work from any working directory either way.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from uvdms_gym.provenance import REPO_ROOT  # the one repository-root lookup (site-packages after an install)
+
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
+"""The ``agents`` package directory."""
+TRAIN_CONFIGS = "train_configs"
+"""Folder name of the training configurations."""
+TRAINED_AGENTS = "trained_agents"
+"""Folder name of the shipped agents."""
+
+
+def data_dir(name: str) -> Path:
+    """The installed package-data folder ``agents/<name>`` if it exists, else ``<checkout>/<name>``.
+
+    Args:
+        name: :data:`TRAIN_CONFIGS` or :data:`TRAINED_AGENTS`.
+
+    Returns:
+        The folder (it may be missing if neither exists; callers report that with its path).
+    """
+    installed = PACKAGE_DIR / name
+    return installed if installed.is_dir() else REPO_ROOT / name
+
+
+def train_configs_dir() -> Path:
+    """Folder of the ``<algo>.yml`` training configurations."""
+    return data_dir(TRAIN_CONFIGS)
+
+
+def trained_agents_dir() -> Path:
+    """Folder of the shipped agents (``<name>/model.zip`` ...)."""
+    return data_dir(TRAINED_AGENTS)

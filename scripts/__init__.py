@@ -1,0 +1,1 @@
+"""Maintainer tools run from a source checkout (``python -m scripts.<name>``); not part of the installed library."""
