@@ -101,7 +101,7 @@ def _train_argv(args: argparse.Namespace) -> list[str]:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from uvdms_gym.kwargs import check_make_kwargs, parse_kv
+    from uvdms_gym.utils.kwargs import check_make_kwargs, parse_kv
 
     if args.resume is None and (args.algo is None or args.env_id is None):
         args._train_parser.error("--algo and --env are required unless --resume DIR is given")

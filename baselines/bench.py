@@ -186,7 +186,7 @@ def benchmark_mpc(
 
     from baselines.campc import MPCController, task_config
     from uvdms_gym.envs.tasks import make_circle_task
-    from uvdms_gym.frames import quat_xyzw_to_rot, rot_to_euler
+    from uvdms_gym.physics.frames import quat_xyzw_to_rot, rot_to_euler
 
     cfg = config or task_config("circle")
     task = make_circle_task(case)
@@ -244,7 +244,7 @@ def benchmark_di(n_steps: int = 500, use_nn: bool = True) -> dict[str, float | i
         ``{"di_us_median", "di_us_p90", "n_steps"}``.
     """
     from baselines.di import DIConfig, DynamicInversionController
-    from uvdms_gym.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG
+    from uvdms_gym.physics.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG
 
     ctl = DynamicInversionController(DIConfig(use_nn=use_nn))
     rng = np.random.default_rng(0)

@@ -1,6 +1,6 @@
 """Model-based front end of the kinematic MPC: state + reference window -> :class:`~baselines.mpc.MPCProblem`.
 
-:class:`MPCController` owns a :class:`~uvdms_gym.kinematics.KinematicModel` and a
+:class:`MPCController` owns a :class:`~uvdms_gym.physics.kinematics.KinematicModel` and a
 :class:`~baselines.mpc.KinematicMPC`; each :meth:`MPCController.step` runs kinematics, (CAMPC) distances and
 ``J_dis``, builds the QP and solves it. Tracked outputs:
 
@@ -24,9 +24,9 @@ import numpy as np
 
 from baselines.mpc import KinematicMPC, MPCConfig, MPCProblem, MPCStepRecord
 from uvdms_gym import distances
-from uvdms_gym.frames import euler_rate_matrix, euler_to_rot_batch, rot_error_batch, wrap_angle
-from uvdms_gym.kinematics import KinematicModel
-from uvdms_gym.params import UVDMSParams
+from uvdms_gym.physics.frames import euler_rate_matrix, euler_to_rot_batch, rot_error_batch, wrap_angle
+from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.params import UVDMSParams
 
 OutputKind = Literal["ee_positions", "object_pose"]
 N_JOINTS_POSTURE = 12

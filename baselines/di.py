@@ -4,7 +4,7 @@ Velocity-tracking control of ``zeta`` towards the MPC command ``zeta_cmd``:
 
 * nominal model ``Mbar zetadot + bbar(q, zeta) = tau`` (``bbar = Hbar zeta + gbar``), by default
   :class:`UVDMSNominalModel` (Pinocchio rigid body + nominal vehicle added mass, damping and hydrostatics from
-  :mod:`uvdms_gym.nominal`, optionally perturbed by scale factors and with the gripped object as a payload);
+  :mod:`uvdms_gym.physics.nominal`, optionally perturbed by scale factors and with the gripped object as a payload);
 * control law ``tau = Mbar a + bbar``;
 * reference model ``a_rm = K_rm (zeta_cmd - zeta_rm)``, ``zeta_rm`` starts at the measured ``zeta``;
 * errors ``e1 = int (zeta_rm - zeta) dt``, ``e2 = zeta_rm - zeta``, ``e = [e1; e2]`` (36);
@@ -41,10 +41,10 @@ from typing import Protocol
 import numpy as np
 import scipy.linalg
 
-from uvdms_gym.frames import wrap_angle
-from uvdms_gym.kinematics import KinematicModel
-from uvdms_gym.nominal import NominalDynamics, NominalScale
-from uvdms_gym.params import UVDMSParams
+from uvdms_gym.physics.frames import wrap_angle
+from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.nominal import NominalDynamics, NominalScale
+from uvdms_gym.physics.params import UVDMSParams
 
 N_DOF = 18
 
@@ -58,7 +58,7 @@ class NominalModel(Protocol):
 
 
 class UVDMSNominalModel:
-    """The UVDMS nominal model of :mod:`uvdms_gym.nominal`, optionally with the gripped object as payload.
+    """The UVDMS nominal model of :mod:`uvdms_gym.physics.nominal`, optionally with the gripped object as payload.
 
     The payload (transport) adds the object's rigid-body mass ``J_o^T M_o J_o`` and its net weight (weight minus
     buoyancy) at its centre, split evenly between the two grasp Jacobians (which agree on a closed chain);
@@ -84,7 +84,7 @@ class UVDMSNominalModel:
         i_ax = 0.5 * m * o.radius**2
         i_tr = m * (3.0 * o.radius**2 + o.length**2) / 12.0
         self._m_obj = m
-        self._i_obj = np.diag([i_tr, i_ax, i_tr])  # object axis along its own y (see uvdms_gym.model)
+        self._i_obj = np.diag([i_tr, i_ax, i_tr])  # object axis along its own y (see uvdms_gym.physics.model)
         self._net_weight = (m - self.params.water_density * o.volume) * 9.81  # N, down (+z NED)
         self._f_obj = np.array([0.0, 0.0, self._net_weight])
 

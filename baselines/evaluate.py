@@ -15,7 +15,7 @@ old name                 new home
 ``controller_settings``  :func:`uvdms_gym.evaluation.controller_settings`
 ``EPISODE_KEYS``         :data:`uvdms_gym.evaluation.EPISODE_KEYS` (also ``TRAJECTORY_KEYS``,
                          ``CIRCLE_SUCCESS_RMSE``)
-``write_json_atomic``    :func:`uvdms_gym.io.write_json_atomic`
+``write_json_atomic``    :func:`uvdms_gym.utils.io.write_json_atomic`
 ``evaluate``             :func:`leaderboard.registry.evaluate` (baseline names and agent paths); the
                          alias here takes baseline names only, since ``baselines`` may not import ``agents``
 =======================  ===========================================================================
@@ -35,7 +35,7 @@ _MOVED: dict[str, str] = {
     "EPISODE_KEYS": "uvdms_gym.evaluation",
     "TRAJECTORY_KEYS": "uvdms_gym.evaluation",
     "CIRCLE_SUCCESS_RMSE": "uvdms_gym.evaluation",
-    "write_json_atomic": "uvdms_gym.io",
+    "write_json_atomic": "uvdms_gym.utils.io",
 }
 """Deprecated name -> the module that holds it now."""
 
@@ -44,9 +44,10 @@ def __getattr__(name: str) -> Any:
     """The moved names, with a ``DeprecationWarning`` (PEP 562)."""
     if name not in _MOVED:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    from uvdms_gym import evaluation, io
+    from uvdms_gym import evaluation
+    from uvdms_gym.utils import io
 
-    module = {"uvdms_gym.evaluation": evaluation, "uvdms_gym.io": io}[_MOVED[name]]
+    module = {"uvdms_gym.evaluation": evaluation, "uvdms_gym.utils.io": io}[_MOVED[name]]
     warnings.warn(
         f"baselines.evaluate.{name} is deprecated; import it from {_MOVED[name]}", DeprecationWarning, stacklevel=2
     )

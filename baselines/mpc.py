@@ -8,7 +8,8 @@ The controller is split into four parts, each usable on its own:
   ``N_p x N_c``): ``c_{j,i} = 1`` for ``i < min(j, N_c - 1)`` and ``c_{j,N_c-1} = max(0, j - N_c + 1)``.
 * **cost** — ``sum_{j=1..N_p} |y_d(k+j) - ybar(j)|^2_Q + sum_{j=0..N_c-1} |zeta_j|^2_R`` plus the slack penalty.
   The caller gives the *reference error* ``e0(j) = y_d(k+j) - y(k)`` (``N_p x m``) with angles already
-  wrapped (for an orientation: the rotation-error vector of :func:`uvdms_gym.frames.rot_error_batch`, which the angular
+  wrapped (for an orientation: the rotation-error vector of :func:`uvdms_gym.physics.frames.rot_error_batch`, which the
+  angular
   rows of ``J_y`` integrate to first order), so the predicted error is ``e0(j) - T_c J_y sum_{i<j} zeta_i``.
 * **constraints** (all on the frozen state at time ``k``):
 
@@ -61,7 +62,7 @@ from typing import Literal
 
 import numpy as np
 
-from uvdms_gym.params import D1, D2, UVDMSParams
+from uvdms_gym.physics.params import D1, D2, UVDMSParams
 
 PORTABLE_PROXSUITE_BUILD = "proxsuite_pywrap"
 """Name of ProxSuite's Python module compiled for the base instruction set (SSE2 on x86-64), see

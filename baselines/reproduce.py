@@ -27,9 +27,9 @@ from typing import Any
 import numpy as np
 
 from uvdms_gym.evaluation import run_episode
-from uvdms_gym.frames import wrap_angle
-from uvdms_gym.io import write_json_atomic
-from uvdms_gym.params import D1, D2
+from uvdms_gym.physics.frames import wrap_angle
+from uvdms_gym.physics.params import D1, D2
+from uvdms_gym.utils.io import write_json_atomic
 
 ROW_RIGHT_LINK3_FRAME = 8
 """Distance row of right link 3 vs the nearest frame plate (rows 6-11: right links 1..6 vs plates)."""
@@ -57,7 +57,7 @@ def _episode(spec: str, env_id: str, env_kwargs: dict, seed: int = 0, save: bool
 def _nearest_left_link(traj: dict, row: int) -> str | None:
     """Name of the left-arm link closest to the monitored right link at the time ``row`` is smallest."""
     from uvdms_gym import distances
-    from uvdms_gym.kinematics import KinematicModel
+    from uvdms_gym.physics.kinematics import KinematicModel
 
     d = np.array(traj["distances"])
     k = int(np.argmin(d[:, row]))

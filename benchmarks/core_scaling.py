@@ -28,7 +28,7 @@ import sys
 import time
 from typing import Any
 
-from uvdms_gym.provenance import load_average, machine_info
+from uvdms_gym.utils.provenance import load_average, machine_info
 
 ENV_ID = "uvdms/CircleTrack-v0"
 ENV_KWARGS: dict[str, Any] = {"case": 1}

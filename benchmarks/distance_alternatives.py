@@ -22,9 +22,9 @@ import numpy as np
 import pinocchio as pin
 
 from uvdms_gym import distances as D
-from uvdms_gym.kinematics import KinematicModel
-from uvdms_gym.model import link_segment
-from uvdms_gym.params import UVDMSParams
+from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.model import link_segment
+from uvdms_gym.physics.params import UVDMSParams
 
 
 def _coal_geometry(params, model):

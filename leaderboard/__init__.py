@@ -108,7 +108,7 @@ Cache
 
 Timings
     ``controller_ms_median`` is wall-clock time, so every computed episode stores a ``timing`` record
-    (:func:`uvdms_gym.provenance.timing_record`: CPU model, core count, 1-minute load average at the start and
+    (:func:`uvdms_gym.utils.provenance.timing_record`: CPU model, core count, 1-minute load average at the start and
     end of the episode) in its cached result, and the run keeps one for itself. ``leaderboard.md`` states the
     machine(s) and loads, and marks with :data:`OVERLOAD_MARK` every timing cell of a row in which an episode
     ran with a load above the core count; ``leaderboard.csv`` has ``timing_episodes_overloaded``,

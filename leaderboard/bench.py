@@ -47,7 +47,7 @@ def bench_leaderboard(quick: bool = False) -> dict[str, Any]:
     import torch
 
     import leaderboard as lb
-    from uvdms_gym.cluster import ray_session
+    from uvdms_gym.utils.cluster import ray_session
 
     torch.set_num_threads(1)
     tasks = lb.select_tasks(None, quick=True)

@@ -14,7 +14,7 @@ import uvdms_gym
 from baselines.mpc import PROXSUITE_BUILD
 from leaderboard.entries import Entry
 from leaderboard.tasks import Task
-from uvdms_gym.io import to_jsonable
+from uvdms_gym.utils.io import to_jsonable
 
 PACKAGE_VERSION = uvdms_gym.__version__
 CACHE_FORMAT = 2

@@ -2,7 +2,7 @@
 
 Each (entry, task, seed) episode that is not cached is one Ray task declaring one CPU (the episode is one
 single-threaded process: PyBullet, numpy, and a policy with ``torch.set_num_threads(1)``). The driver connects
-through :func:`uvdms_gym.cluster.ray_session` (a local instance sized to the machine, or the cluster at
+through :func:`uvdms_gym.utils.cluster.ray_session` (a local instance sized to the machine, or the cluster at
 ``address``), keeps the cache and writes every result itself as it arrives, so workers need the package
 installed but neither a shared filesystem nor write access to the driver's folders.
 
@@ -136,7 +136,7 @@ def run_on_ray(
         ConnectionError: The cluster at ``address`` cannot be reached.
         Exception: The first episode that raised, re-raised with the episode named in the log.
     """
-    from uvdms_gym.cluster import ray_session
+    from uvdms_gym.utils.cluster import ray_session
 
     if max_retries < 0:
         raise ValueError(f"max_retries must be >= 0, got {max_retries}")

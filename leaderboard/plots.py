@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 from leaderboard.entries import Entry
 from leaderboard.stats import METRICS, learning_curve_stats
 from leaderboard.tasks import TRACKS
-from uvdms_gym.params import D1, D2
+from uvdms_gym.physics.params import D1, D2
 
 if TYPE_CHECKING:
     from leaderboard.runner import LeaderboardResult

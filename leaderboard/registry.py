@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from baselines.controllers import BASELINES, make_baseline
-from uvdms_gym.params import D1, D2
+from uvdms_gym.physics.params import D1, D2
 from uvdms_gym.residual import ResidualController
 
 if TYPE_CHECKING:

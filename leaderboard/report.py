@@ -15,7 +15,7 @@ from leaderboard.entries import Entry
 from leaderboard.plots import write_plots
 from leaderboard.stats import METRICS, RATE_METRICS, RankedRow, timing_summary
 from leaderboard.tasks import TRACKS, env_version
-from uvdms_gym.io import write_json_atomic
+from uvdms_gym.utils.io import write_json_atomic
 
 if TYPE_CHECKING:
     from leaderboard.runner import LeaderboardResult

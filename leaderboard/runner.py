@@ -22,8 +22,8 @@ from leaderboard.report import write_outputs
 from leaderboard.reuse import CACHE_KEY_FIELD, check_reuse_dir, reusable_results
 from leaderboard.stats import RankedRow, aggregate, aggregate_runs, rank_rows
 from leaderboard.tasks import DEFAULT_EPISODES, TASKS, TRACKS, Task, evaluation_seeds
-from uvdms_gym.io import write_json_atomic
-from uvdms_gym.provenance import timing_record
+from uvdms_gym.utils.io import write_json_atomic
+from uvdms_gym.utils.provenance import timing_record
 
 log = logging.getLogger("uvdms.leaderboard")
 

@@ -182,7 +182,7 @@ class RankedRow:
 
 
 def timing_summary(episodes: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    """Summary of the per-episode timing records (:func:`uvdms_gym.provenance.timing_record`).
+    """Summary of the per-episode timing records (:func:`uvdms_gym.utils.provenance.timing_record`).
 
     Returns:
         ``{"overloaded": episodes whose 1-minute load exceeded the core count, "unknown": episodes without a

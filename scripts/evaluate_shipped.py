@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from uvdms_gym.provenance import REPO_ROOT
+from uvdms_gym.utils.provenance import REPO_ROOT
 
 SHIPPED_DIR = REPO_ROOT / "trained_agents"
 REFERENCE_DIR = SHIPPED_DIR / "reference"
@@ -101,7 +101,7 @@ def evaluate_random(
 
     import uvdms_gym  # noqa: F401
     from uvdms_gym.evaluation import run_episode, summarize
-    from uvdms_gym.io import write_json_atomic
+    from uvdms_gym.utils.io import write_json_atomic
 
     env = gym.make(env_id, **task)
     try:

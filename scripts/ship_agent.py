@@ -42,7 +42,7 @@ import yaml
 from agents.common.learning_curve import copy_learning_curve
 from agents.export import SHIPPED_MODEL, SHIPPED_STATS
 from agents.training.rundir import zip_num_timesteps
-from uvdms_gym.provenance import git_info, package_versions
+from uvdms_gym.utils.provenance import git_info, package_versions
 
 MAX_MODEL_BYTES = 5 * 1024 * 1024
 

@@ -14,7 +14,7 @@ import uvdms_gym  # noqa: F401
 from baselines.controllers import BASELINES, Controller, make_controller
 from baselines.reproduce import ROW_RIGHT_LINK3_FRAME, ROW_RIGHT_LINK5_LEFT_ARM, transport_numbers
 from uvdms_gym.evaluation import run_episode
-from uvdms_gym.params import D1
+from uvdms_gym.physics.params import D1
 
 CIRCLE, TRANSPORT = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from uvdms_gym.bench import BENCH_ENV_IDS, bench_env
+from uvdms_cli.bench import BENCH_ENV_IDS, bench_env
 
 
 def test_bench_env_reports_block_medians():

@@ -22,7 +22,7 @@ import pytest
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 from uvdms_cli.main import main as uvdms_main
-from uvdms_gym import display, provenance
+from uvdms_gym.utils import display, provenance
 
 REPO = Path(__file__).resolve().parents[1]
 UVDMS = Path(sys.executable).parent / "uvdms"
@@ -163,8 +163,8 @@ def test_version_is_the_installed_distributions(workspace):
 def test_gui_without_a_display_raises_instead_of_exiting(tmp_path):
     """PyBullet's GUI connect would call exit(1) here; the simulator raises a catchable exception instead."""
     code = (
-        "from uvdms_gym.display import DisplayUnavailableError\n"
-        "from uvdms_gym.sim import UVDMSSim\n"
+        "from uvdms_gym.utils.display import DisplayUnavailableError\n"
+        "from uvdms_gym.physics.sim import UVDMSSim\n"
         "try:\n"
         "    UVDMSSim(gui=True)\n"
         "except DisplayUnavailableError as exc:\n"
@@ -261,7 +261,7 @@ def test_timing_record_reports_machine_and_load(monkeypatch):
 
 
 def test_bench_json_records_machine_and_load(monkeypatch, capsys):
-    from uvdms_gym import bench
+    from uvdms_cli import bench
 
     monkeypatch.setattr(bench, "bench_sim", lambda quick: {"physics_step_us": 1.0})
     monkeypatch.setattr(provenance, "load_average", lambda: 99.0)
@@ -337,7 +337,7 @@ def test_corrupt_archives_are_named_before_any_episode(workspace):
 
 
 def test_make_kwargs_are_checked_against_the_entry_points_signature():
-    from uvdms_gym.kwargs import check_make_kwargs, parse_kv
+    from uvdms_gym.utils.kwargs import check_make_kwargs, parse_kv
 
     check_make_kwargs(CIRCLE, {"case": 1, "control_dt": 0.02, "max_episode_steps": 5})  # subclass and base keys
     check_make_kwargs("uvdms_gym:" + TRANSPORT, {"goal": "paper", "hydro_randomization": 0.3})

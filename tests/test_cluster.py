@@ -1,10 +1,10 @@
-"""``uvdms_gym.cluster.ray_session``: without an address, a new local instance, whatever else runs here."""
+"""``uvdms_gym.utils.cluster.ray_session``: without an address, a new local instance, whatever else runs here."""
 
 from __future__ import annotations
 
 from ray_support import ray_processes  # noqa: F401  (fixture)
 
-from uvdms_gym.cluster import ray_session
+from uvdms_gym.utils.cluster import ray_session
 
 
 def test_no_address_starts_a_local_instance_beside_a_running_cluster(ray_processes, monkeypatch):  # noqa: F811

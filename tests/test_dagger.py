@@ -26,7 +26,7 @@ from agents.common.wrappers import KEPT_ARRAYS, ScalarInfo
 from agents.training.train import run_dir_for
 from leaderboard.registry import BaselineFactory
 from uvdms_cli.main import main as uvdms
-from uvdms_gym.params import D1, D2
+from uvdms_gym.physics.params import D1, D2
 from uvdms_gym.residual import TEACHER_KEY, ResidualAction, compose_residual, teacher_residual
 
 CIRCLE = "uvdms/CircleTrack-v1"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import subprocess
 import sys
 
@@ -9,7 +10,9 @@ import gymnasium as gym
 import pytest
 
 import uvdms_gym  # noqa: F401  (registers the environments)
-from uvdms_gym import evaluation, io, kwargs
+from uvdms_gym import evaluation
+from uvdms_gym._moved import MOVED
+from uvdms_gym.utils import io
 
 MOVED_FROM_BASELINES_EVALUATE = {
     "run_episode": evaluation,
@@ -64,19 +67,29 @@ def test_controller_protocol_is_reexported_by_baselines():
         env.close()
 
 
-@pytest.mark.parametrize("name", ["parse_kv", "env_spec", "check_make_kwargs", "GYM_MAKE_KWARGS"])
-def test_uvdms_gym_cli_helpers_warn_and_are_the_new_objects(name):
-    import uvdms_gym.cli as old
+@pytest.mark.parametrize("old", sorted(MOVED))
+def test_old_module_paths_are_aliases_of_the_new_homes_with_a_warning(old):
+    """``import uvdms_gym.sim`` (a path before the subpackages) gives the module at its home, and says where."""
+    code = (
+        "import importlib, warnings\n"
+        "warnings.simplefilter('error', DeprecationWarning)\n"
+        "import uvdms_gym\n"
+        f"new = importlib.import_module({MOVED[old]!r})\n"
+        "try:\n"
+        f"    importlib.import_module({old!r})\n"
+        "except DeprecationWarning as w:\n"
+        "    print('warned:', w)\n"
+        "warnings.simplefilter('ignore', DeprecationWarning)\n"
+        f"alias = importlib.import_module({old!r})\n"
+        "assert alias is new and alias.__spec__.name == new.__name__, (alias, new, alias.__spec__)\n"
+        "print('same module')\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert f"warned: {old} moved to {MOVED[old]}" in proc.stdout and "same module" in proc.stdout
 
-    with pytest.warns(DeprecationWarning, match="uvdms_gym.kwargs"):
-        value = getattr(old, name)
-    assert value is getattr(kwargs, name)
 
-
-def test_uvdms_gym_cli_main_is_gone_with_a_pointer():
-    import uvdms_gym.cli as old
-
-    with pytest.raises(AttributeError, match=r"uvdms_cli\.main\.main"):
-        old.main  # noqa: B018
-    proc = subprocess.run([sys.executable, "-m", "uvdms_gym.cli"], capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 1 and "python -m uvdms_cli" in proc.stderr
+def test_the_removed_cli_alias_is_gone():
+    """``uvdms_gym.cli`` (deprecated in 0.2) was removed with the package's regrouping; the command is ``uvdms``."""
+    with pytest.raises(ModuleNotFoundError):
+        importlib.import_module("uvdms_gym.cli")

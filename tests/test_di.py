@@ -7,9 +7,9 @@ import pinocchio as pin
 import pytest
 
 from baselines.di import DIConfig, DynamicInversionController, UVDMSNominalModel, lyapunov_matrix
-from uvdms_gym.frames import quat_xyzw_to_rot, rot_to_euler
-from uvdms_gym.nominal import NominalScale
-from uvdms_gym.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG, UVDMSParams
+from uvdms_gym.physics.frames import quat_xyzw_to_rot, rot_to_euler
+from uvdms_gym.physics.nominal import NominalScale
+from uvdms_gym.physics.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG, UVDMSParams
 
 # A decoupled 18-DOF test plant with UVDMS-like inertias (vehicle, then two arms) and linear damping.
 MASS = np.r_[[170.0, 140.0, 140.0, 15.0, 14.0, 15.0], np.tile([2.0, 1.0, 1.0, 0.5, 0.3, 0.1], 2)]

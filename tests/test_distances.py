@@ -23,11 +23,12 @@ import pytest
 from pybullet_utils import bullet_client
 from scipy.optimize import minimize_scalar
 
+import uvdms_gym
 from uvdms_gym import distances as D
-from uvdms_gym import distances_pybullet as DP
-from uvdms_gym import frames, model
-from uvdms_gym.kinematics import KinematicModel
-from uvdms_gym.params import JOINT_NAMES, UVDMSParams
+from uvdms_gym.distances import pybullet_queries as DP
+from uvdms_gym.physics import frames, model
+from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.params import JOINT_NAMES, UVDMSParams
 
 PARAMS = UVDMSParams()
 
@@ -471,14 +472,14 @@ def test_exact_kernel_rejects_wrong_shapes(kin):
 
 def test_kernels_work_without_a_writable_numba_cache(tmp_path):
     """Package imported from a zip file, no writable cache location: numba compiles instead of failing."""
-    root = Path(D.__file__).resolve().parent
+    root = Path(uvdms_gym.__file__).resolve().parent
     archive = tmp_path / "pkg.zip"
     with zipfile.ZipFile(archive, "w") as zf:
         for f in root.rglob("*.py"):
             zf.write(f, Path("uvdms_gym") / f.relative_to(root))
     code = (
         "import numpy as np, uvdms_gym.distances as D\n"
-        "from uvdms_gym.kinematics import KinematicModel\n"
+        "from uvdms_gym.physics.kinematics import KinematicModel\n"
         f"assert D.__file__.startswith({str(archive)!r})\n"
         "kin = KinematicModel(); kin.set_state(np.r_[1.0, 2.0, 3.0, 0.1, 0.2, 0.3], np.full(12, 0.4))\n"
         "a, b = D.compute_distances(kin), D.compute_distances_reference(kin)\n"

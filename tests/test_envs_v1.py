@@ -10,7 +10,7 @@ import pytest
 
 from uvdms_gym.distances import velocity_damper
 from uvdms_gym.envs.v1 import V1_WEIGHTS
-from uvdms_gym.params import D1, D2
+from uvdms_gym.physics.params import D1, D2
 
 PAIRS = (("uvdms/CircleTrack-v0", "uvdms/CircleTrack-v1"), ("uvdms/Transport-v0", "uvdms/Transport-v1"))
 TERMS = ("track", "orientation", "effort", "proximity", "contact")

@@ -4,10 +4,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from uvdms_gym import frames
 from uvdms_gym.envs import tasks
-from uvdms_gym.model import mount_rotation, rot_to_rpy
-from uvdms_gym.params import GRAVITY, UVDMSParams
+from uvdms_gym.physics import frames
+from uvdms_gym.physics.model import mount_rotation, rot_to_rpy
+from uvdms_gym.physics.params import GRAVITY, UVDMSParams
 
 RNG = np.random.default_rng(0)
 

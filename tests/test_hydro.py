@@ -1,4 +1,4 @@
-"""Hydrodynamic model (uvdms_gym.hydro) against independent matrix formulas and the parameters."""
+"""Hydrodynamic model (uvdms_gym.physics.hydro) against independent matrix formulas and the parameters."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from uvdms_gym import hydro, model
-from uvdms_gym.params import GRAVITY, UVDMSParams
+from uvdms_gym.physics import hydro, model
+from uvdms_gym.physics.params import GRAVITY, UVDMSParams
 
 P = UVDMSParams()
 
@@ -189,7 +189,7 @@ def test_hydro_is_pure():
 
 def test_compiled_link_forces_match_link_force_with_rotated_axes():
     """link_forces_world = link_force(v, R(q) e, ...) per link, R from frames (an independent rotation)."""
-    from uvdms_gym.frames import quat_xyzw_to_rot
+    from uvdms_gym.physics.frames import quat_xyzw_to_rot
 
     c = hydro.hydro_coefficients(P, hydro.HydroScale(link_drag=1.3, buoyancy=0.9))
     table = hydro.link_table(c)

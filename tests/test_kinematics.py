@@ -1,4 +1,4 @@
-"""Tests of uvdms_gym.kinematics against finite differences, closed forms and PyBullet."""
+"""Tests of uvdms_gym.physics.kinematics against finite differences, closed forms and PyBullet."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import pybullet as p
 import pytest
 from pybullet_utils import bullet_client
 
-from uvdms_gym import frames
-from uvdms_gym.kinematics import KinematicModel, euler_to_quat_xyzw, pybullet_velocity_map
-from uvdms_gym.model import build_urdf, link_segment, write_urdf
-from uvdms_gym.params import GRAVITY, JOINT_NAMES, UVDMSParams
+from uvdms_gym.physics import frames
+from uvdms_gym.physics.kinematics import KinematicModel, euler_to_quat_xyzw, pybullet_velocity_map
+from uvdms_gym.physics.model import build_urdf, link_segment, write_urdf
+from uvdms_gym.physics.params import GRAVITY, JOINT_NAMES, UVDMSParams
 
 H = 1e-6
 N_CONFIGS = 50

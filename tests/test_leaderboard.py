@@ -15,7 +15,7 @@ import leaderboard as lb
 import leaderboard.cache
 import leaderboard.runner
 from uvdms_cli.main import main as uvdms_main
-from uvdms_gym.io import _umask, mirror_file, write_json_atomic
+from uvdms_gym.utils.io import _umask, mirror_file, write_json_atomic
 
 CIRCLE = "uvdms/CircleTrack-v0"
 TINY_TASKS = (

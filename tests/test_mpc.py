@@ -15,8 +15,8 @@ from baselines.mpc import (
     MPCProblem,
     hold_matrix,
 )
-from uvdms_gym.frames import euler_to_rot, euler_to_rot_batch, rot_error, rot_error_batch
-from uvdms_gym.params import UVDMSParams
+from uvdms_gym.physics.frames import euler_to_rot, euler_to_rot_batch, rot_error, rot_error_batch
+from uvdms_gym.physics.params import UVDMSParams
 
 PARAMS = UVDMSParams()
 
@@ -364,8 +364,8 @@ def _kinematic_loop(task_name: str, collision: bool, t_end: float):
     from baselines.campc import make_mpc_controller
     from uvdms_gym import distances
     from uvdms_gym.envs.tasks import make_circle_task, make_transport_task
-    from uvdms_gym.frames import quat_xyzw_to_rot, rot_to_euler
-    from uvdms_gym.kinematics import KinematicModel
+    from uvdms_gym.physics.frames import quat_xyzw_to_rot, rot_to_euler
+    from uvdms_gym.physics.kinematics import KinematicModel
 
     ctl = make_mpc_controller(task_name, collision)
     if task_name == "circle":

@@ -1,9 +1,9 @@
 import numpy as np
 
-from uvdms_gym.kinematics import KinematicModel
-from uvdms_gym.model import link_segment
-from uvdms_gym.nominal import NominalDynamics, NominalScale
-from uvdms_gym.params import GRAVITY
+from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.model import link_segment
+from uvdms_gym.physics.nominal import NominalDynamics, NominalScale
+from uvdms_gym.physics.params import GRAVITY
 
 
 def _independent_hydrostatics(kin: KinematicModel, scale: float = 1.0) -> np.ndarray:

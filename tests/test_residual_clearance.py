@@ -27,8 +27,8 @@ from leaderboard.registry import BaselineFactory, make_controller
 from uvdms_cli.main import main as uvdms
 from uvdms_gym import distances as D
 from uvdms_gym.evaluation import run_episode
-from uvdms_gym.kinematics import KinematicModel
-from uvdms_gym.params import D1, D2
+from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.params import D1, D2
 from uvdms_gym.residual import (
     CLEARANCE_RATE_SCALE,
     FEATURE_CLIP,

@@ -27,7 +27,7 @@ from baselines.controllers import make_baseline
 from leaderboard.registry import BaselineFactory, make_controller
 from uvdms_cli.main import main as uvdms
 from uvdms_gym.evaluation import run_episode
-from uvdms_gym.kinematics import KinematicModel
+from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.residual import (
     RESIDUAL_SPACES,
     ActionComposition,

@@ -1,4 +1,4 @@
-"""The PyBullet plant (uvdms_gym.sim) against independent computations: Pinocchio, ODEs, hydrostatics."""
+"""The PyBullet plant (uvdms_gym.physics.sim) against independent computations: Pinocchio, ODEs, hydrostatics."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import pybullet as pb
 import pytest
 from scipy.integrate import solve_ivp
 
-from uvdms_gym import frames, hydro, model
-from uvdms_gym.hydro import HydroScale
-from uvdms_gym.params import GRAVITY, JOINT_NAMES, UVDMSParams
-from uvdms_gym.sim import NU_LIMIT, PhysicsError, SimState, StepInfo, UVDMSSim
+from uvdms_gym.physics import frames, hydro, model
+from uvdms_gym.physics.hydro import HydroScale
+from uvdms_gym.physics.params import GRAVITY, JOINT_NAMES, UVDMSParams
+from uvdms_gym.physics.sim import NU_LIMIT, PhysicsError, SimState, StepInfo, UVDMSSim
 
 P = UVDMSParams()
 # Bare vehicle with buoyancy equal to weight: no net heave force, so 1-DOF responses can be isolated.
@@ -98,7 +98,7 @@ def test_pybullet_damping_is_disabled(sim):
 
 
 def _reference_acceleration(s: UVDMSSim, pm, pd, st: SimState, tau: np.ndarray, nudot_est: np.ndarray):
-    """Pinocchio ABA with the reference hydrodynamics of uvdms_gym.hydro applied at the documented points."""
+    """Pinocchio ABA with the reference hydrodynamics of uvdms_gym.physics.hydro applied at the documented points."""
     h, params = s.hydro, s.params
     r_nb = frames.euler_to_rot(st.eta[3:])
     qp, v = pin_config(st.eta, st.q), st.zeta
@@ -145,7 +145,7 @@ def _com_acceleration_world(st: SimState, acc: np.ndarray) -> np.ndarray:
 def test_one_step_dynamics_match_pinocchio_with_reference_hydrodynamics(sim_nc):
     sim = sim_nc
     # The simulator evaluates the hydrodynamics inline for speed: one explicit step from random states must
-    # equal Pinocchio's ABA with the reference functions of uvdms_gym.hydro (forces at the documented points,
+    # equal Pinocchio's ABA with the reference functions of uvdms_gym.physics.hydro (forces at the documented points,
     # vehicle wrench at the origin, lagged residual added mass), to round-off.
     pm = model.pinocchio_model(P)
     pd = pm.createData()
@@ -561,7 +561,7 @@ def test_zeta_matches_state(sim):
 
 
 def test_count_contacts(sim):
-    from uvdms_gym.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG
+    from uvdms_gym.physics.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG
 
     sim.reset(np.zeros(6))
     assert sim.count_contacts() == 0

@@ -255,7 +255,7 @@ def test_scale_initial_actions_callback_scales_like_the_trainer(algo):
 
 def test_kv_parser_names_option_and_key():
     from agents.training.train import parse_key_values as agents_parser
-    from uvdms_gym.kwargs import parse_kv as parse_key_values
+    from uvdms_gym.utils.kwargs import parse_kv as parse_key_values
 
     items = ["case=1", "radius=0.15", "goal=paper", "left_center=[1, 0, 2]", "name=", "flag=true"]
     expected = {"case": 1, "radius": 0.15, "goal": "paper", "left_center": [1, 0, 2], "name": "", "flag": True}

@@ -44,7 +44,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from leaderboard.registry import evaluate
-    from uvdms_gym.kwargs import check_make_kwargs, parse_kv
+    from uvdms_gym.utils.kwargs import check_make_kwargs, parse_kv
 
     env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
     check_make_kwargs(args.env, env_kwargs)  # errors are reported by uvdms_cli.main.main as one line

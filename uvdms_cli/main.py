@@ -1,7 +1,8 @@
 """The ``uvdms`` command: thin wrappers over library functions (each subcommand imports lazily).
 
 Errors [D]: library code raises specific exceptions with messages naming the problem (``ValueError`` and its
-subclasses for bad arguments, ``OSError`` subclasses for files, :class:`~uvdms_gym.display.DisplayUnavailableError`
+subclasses for bad arguments, ``OSError`` subclasses for files,
+:class:`~uvdms_gym.utils.display.DisplayUnavailableError`
 for a missing display, ...). :func:`main` is the one place that turns the user-facing ones
 (:func:`user_error_types`) into a single line ``uvdms: error: <message>`` on stderr and exit status 2
 (argparse's convention for usage errors); anything else is a bug and keeps its traceback. ``--debug`` (or the
@@ -36,14 +37,14 @@ def _emit_json(obj: dict) -> None:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from uvdms_gym.demo import run_demo
+    from uvdms_cli.demo import run_demo
 
     run_demo(seconds=args.seconds, gui=args.gui, png=args.png, trace_every=args.trace_every)
     return 0
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from uvdms_gym.provenance import timing_record
+    from uvdms_gym.utils.provenance import timing_record
 
     if args.what == "train":
         from agents.training.bench import bench_train as fn
@@ -52,7 +53,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     elif args.what == "mpc":
         from baselines.bench import benchmark_all as fn
     else:
-        from uvdms_gym import bench
+        from uvdms_cli import bench
 
         fn = {"sim": bench.bench_sim, "env": bench.bench_env}[args.what]
     with timing_record() as timing:
@@ -141,7 +142,7 @@ def user_error_types() -> tuple[type[BaseException], ...]:
 
     from gymnasium import error as gym_error
 
-    from uvdms_gym.display import DisplayUnavailableError
+    from uvdms_gym.utils.display import DisplayUnavailableError
 
     return (ValueError, OSError, zipfile.BadZipFile, gym_error.Error, yaml.YAMLError, DisplayUnavailableError)
 
@@ -167,7 +168,7 @@ def _import_pybullet_quietly() -> None:
     """Import PyBullet once with its ``pybullet build time: ...`` line suppressed (3 ms; it is needed anyway)."""
     if "pybullet" in sys.modules:
         return
-    from uvdms_gym.io import quiet_c_stream
+    from uvdms_gym.utils.io import quiet_c_stream
 
     with quiet_c_stream(sys.stderr), contextlib.suppress(ImportError):
         import pybullet  # noqa: F401

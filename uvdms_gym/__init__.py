@@ -11,11 +11,13 @@ Importing the package registers the environments (entry points are strings, so n
 (RL Zoo's ``--gym-packages uvdms_gym``).
 """
 
+import sys
 import warnings
 
 from gymnasium.envs.registration import register, registry
 
-from uvdms_gym.params import UVDMSParams
+from uvdms_gym._moved import MovedModuleFinder
+from uvdms_gym.physics.params import UVDMSParams
 
 __version__ = "0.1.0"
 __all__ = ["ENV_IDS", "UVDMSParams", "__version__"]
@@ -36,3 +38,8 @@ for _env_id, _entry_point, _max_steps in _REGISTRATIONS:
 # v0 is not deprecated: it is the version of the published results and stays supported beside v1. Gymnasium's
 # make() warns that any version but the newest is "out of date"; silence that for the uvdms ids only.
 warnings.filterwarnings("ignore", message=r".*The environment uvdms/\S+ is out of date", category=DeprecationWarning)
+
+# The module paths before the package was grouped into subpackages (uvdms_gym.sim, uvdms_gym.params, ...) still
+# import, as aliases of the modules at their new homes, with a DeprecationWarning (uvdms_gym/_moved.py).
+if not any(isinstance(_finder, MovedModuleFinder) for _finder in sys.meta_path):
+    sys.meta_path.append(MovedModuleFinder())

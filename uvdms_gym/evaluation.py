@@ -48,8 +48,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from uvdms_gym.io import to_jsonable, write_json_atomic
-from uvdms_gym.provenance import git_info, package_versions, timing_record
+from uvdms_gym.utils.io import to_jsonable, write_json_atomic
+from uvdms_gym.utils.provenance import git_info, package_versions, timing_record
 
 EPISODE_KEYS: tuple[str, ...] = (
     "seed",
@@ -140,7 +140,7 @@ def tracking_rmse(
     if not transport:
         e = (y - y_ref).reshape(-1, 2, 3)
         return float(np.sqrt(np.mean(np.sum(e**2, axis=2)))), None
-    from uvdms_gym.frames import euler_to_rot_batch
+    from uvdms_gym.physics.frames import euler_to_rot_batch
 
     pos = float(np.sqrt(np.mean(np.sum((y[:, :3] - y_ref[:, :3]) ** 2, axis=1))))
     r_rel = np.einsum("nji,njk->nik", euler_to_rot_batch(y_ref[:, 3:]), euler_to_rot_batch(y[:, 3:]))
@@ -367,7 +367,7 @@ def evaluate_controller(
         episodes: Number of episodes (>= 1).
         seed: Seed of the first episode.
         label: What ``meta["controller"]`` records (a baseline name, an agent path) and the progress bar shows.
-        out: JSON file to write (:func:`uvdms_gym.io.write_json_atomic`); ``None`` writes nothing.
+        out: JSON file to write (:func:`uvdms_gym.utils.io.write_json_atomic`); ``None`` writes nothing.
         save_trajectory: Keep each episode's time series.
         progress: Show a tqdm progress bar.
         check: Called as ``check(controller, env)`` before the first episode (raises on a mismatch).
@@ -375,7 +375,7 @@ def evaluate_controller(
     Returns:
         ``{"episodes": [...], "summary": {...}, "meta": {...}}``; ``meta`` holds the controller label, env id,
         effective env kwargs, seeds, package versions, git revision, wall time, the machine and the load
-        around the timed episodes (``timing``: :func:`uvdms_gym.provenance.timing_record`; the per-episode
+        around the timed episodes (``timing``: :func:`uvdms_gym.utils.provenance.timing_record`; the per-episode
         ``controller_ms_median`` is only comparable between runs with ``overloaded`` false on the same
         machine) and the controller's settings (:func:`controller_settings`).
 

@@ -19,7 +19,7 @@ Environments without the uvdms tracking interface (``Pendulum-v1``) get no wrapp
 :func:`agents.export.weights.export_controller` and :func:`scripts.ship_agent.package_run` copy the file into the agent
 folder
 (:func:`copy_learning_curve`); the leaderboard plots it (:mod:`leaderboard.plots`). It is written through
-:func:`uvdms_gym.io.write_json_atomic`.
+:func:`uvdms_gym.utils.io.write_json_atomic`.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from uvdms_gym.io import mirror_file, to_jsonable, write_json_atomic
+from uvdms_gym.utils.io import mirror_file, to_jsonable, write_json_atomic
 
 log = logging.getLogger("agents.train")
 
@@ -199,7 +199,7 @@ class LearningCurve:
         }
 
     def save(self) -> Path:
-        """Write the file atomically (:func:`uvdms_gym.io.write_json_atomic`)."""
+        """Write the file atomically (:func:`uvdms_gym.utils.io.write_json_atomic`)."""
         return write_json_atomic(self.path, to_jsonable(self.document()))
 
 

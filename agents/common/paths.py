@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from uvdms_gym.provenance import REPO_ROOT  # the one repository-root lookup (site-packages after an install)
+from uvdms_gym.utils.provenance import REPO_ROOT  # the one repository-root lookup (site-packages after an install)
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 """The ``agents`` package directory."""

@@ -125,7 +125,7 @@ def _check_env(env_id: str, packages: list[str]) -> None:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from agents.distributed.report import format_table
     from agents.distributed.sweep import parse_grid, sweep
-    from uvdms_gym.kwargs import parse_kv
+    from uvdms_gym.utils.kwargs import parse_kv
 
     env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
     hyperparams = parse_kv(args.hyperparams, "--hyperparams")
@@ -162,7 +162,7 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     import json
 
     from agents.distributed.tune import METRIC, NoTrialCompletedError, tune
-    from uvdms_gym.kwargs import parse_kv
+    from uvdms_gym.utils.kwargs import parse_kv
 
     env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
     hyperparams = parse_kv(args.hyperparams, "--hyperparams")

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from uvdms_gym.io import to_jsonable, write_json_atomic
+from uvdms_gym.utils.io import to_jsonable, write_json_atomic
 
 SUMMARY_COLUMNS: tuple[str, ...] = (
     "run",

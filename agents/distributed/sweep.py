@@ -12,7 +12,7 @@ evaluate``, ``uvdms export-agent`` and ``uvdms train --resume`` take it), under 
                                            evaluation returns, episode length, steps, wall time, retries, status)
 
 Backends: ``local`` trains the runs one after another in this process; ``ray`` submits each run as a Ray task
-(through :func:`uvdms_gym.cluster.ray_session`: a local instance, or the cluster at ``--address``). Both run
+(through :func:`uvdms_gym.utils.cluster.ray_session`: a local instance, or the cluster at ``--address``). Both run
 :func:`agents.distributed.worker.run_job` and produce the same files; with the same seed a run gives the same
 evaluations either way (training is deterministic on the CPU with one torch thread). No shared filesystem is
 needed: runs train in a temporary directory on their worker and come back to the driver as archives, and
@@ -51,8 +51,8 @@ from agents.distributed.report import evaluation_summary, write_summary
 from agents.distributed.worker import CheckpointStore, RunJob, StoreClient, relocate_records, run_job, unpack_run_dir
 from agents.training.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
 from agents.training.rundir import RunDirError, latest_checkpoint, run_dir_for, utc_now
-from uvdms_gym.cluster import ray_session
-from uvdms_gym.kwargs import check_make_kwargs, parse_kv
+from uvdms_gym.utils.cluster import ray_session
+from uvdms_gym.utils.kwargs import check_make_kwargs, parse_kv
 
 log = logging.getLogger("agents.sweep")
 
@@ -92,7 +92,7 @@ def parse_grid(items: Sequence[str] | None) -> dict[str, list[Any]]:
     works as well, for values that contain commas themselves; a single value is an axis of one.
 
     Raises:
-        ValueError: A malformed item (:func:`uvdms_gym.kwargs.parse_kv`), a key given twice, an empty axis, or a
+        ValueError: A malformed item (:func:`uvdms_gym.utils.kwargs.parse_kv`), a key given twice, an empty axis, or a
             value repeated within an axis.
     """
     items = list(items or ())

@@ -45,9 +45,9 @@ from agents.distributed.sweep import check_fits
 from agents.training.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
 from agents.training.rundir import RunDirError, latest_checkpoint, utc_now
 from agents.training.spec import RunSpec
-from uvdms_gym.cluster import ray_session
-from uvdms_gym.io import to_jsonable, write_json_atomic
-from uvdms_gym.kwargs import check_make_kwargs
+from uvdms_gym.utils.cluster import ray_session
+from uvdms_gym.utils.io import to_jsonable, write_json_atomic
+from uvdms_gym.utils.kwargs import check_make_kwargs
 
 METRIC = "eval_return"
 """The reported metric: mean return of an evaluation (evaluation callback, ``alive_bonus`` included)."""

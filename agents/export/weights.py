@@ -30,8 +30,8 @@ from agents.common.wrappers import is_unit_scale
 from agents.config import ConfigError
 from agents.config.policy_kwargs import plain_policy_kwargs, resolve_policy_kwargs
 from agents.export.controller import AgentController, ExportFormatError, ObsNormalizer, recorded_composition
-from uvdms_gym.io import mirror_file, write_json_atomic
-from uvdms_gym.provenance import package_versions
+from uvdms_gym.utils.io import mirror_file, write_json_atomic
+from uvdms_gym.utils.provenance import package_versions
 
 FORMAT_NAME = "uvdms-agent-weights"
 FORMAT_VERSION = 1

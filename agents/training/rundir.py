@@ -24,8 +24,8 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 from agents.common.envs import EVAL_SEED_OFFSET, SEGMENT_SEED_STRIDE
-from uvdms_gym.io import to_jsonable, write_json_atomic
-from uvdms_gym.provenance import git_info, package_versions
+from uvdms_gym.utils.io import to_jsonable, write_json_atomic
+from uvdms_gym.utils.provenance import git_info, package_versions
 
 log = logging.getLogger("agents.train")
 

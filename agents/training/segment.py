@@ -52,8 +52,8 @@ from agents.training.models import (
     scale_action_layer,
 )
 from agents.training.rundir import CHECKPOINT_PREFIX, Checkpoint, RunDirError, _write_json, save_final, utc_now
-from uvdms_gym.provenance import git_info, package_versions
 from uvdms_gym.residual import ControllerFactory, FilterFactory
+from uvdms_gym.utils.provenance import git_info, package_versions
 
 Factories = tuple[ControllerFactory | None, FilterFactory | None, ControllerFactory | None]
 """``(base_factory, filter_factory, teacher_factory)`` (:func:`agents.training.train.composition_factories`)."""

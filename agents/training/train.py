@@ -104,9 +104,9 @@ from agents.training.rundir import (
 )
 from agents.training.segment import TrainingSegment
 from agents.training.spec import RunSpec, command_prefix, resolve_config
-from uvdms_gym.kwargs import parse_kv as _parse_key_values
-from uvdms_gym.provenance import git_info, package_versions
 from uvdms_gym.residual import ControllerFactory, FilterFactory
+from uvdms_gym.utils.kwargs import parse_kv as _parse_key_values
+from uvdms_gym.utils.provenance import git_info, package_versions
 
 __all__ = [  # the names other modules and the tests import from here (the implementations live in the modules above)
     "CHECKPOINT_PREFIX",
@@ -490,7 +490,7 @@ def _check_vec_env(cfg: TrainConfig, vec_env: str) -> None:
 # Command line
 # ------------------------------------------------------------------------------------------------------
 def parse_key_values(items: Sequence[str] | None, option: str = "--env-kwargs") -> dict[str, Any]:
-    """Parse ``key=value`` strings (:func:`uvdms_gym.kwargs.parse_kv`), raising :class:`ConfigError`.
+    """Parse ``key=value`` strings (:func:`uvdms_gym.utils.kwargs.parse_kv`), raising :class:`ConfigError`.
 
     Args:
         items: Strings such as ``["case=1", "goal=paper", "hydro_randomization=0.3"]``.

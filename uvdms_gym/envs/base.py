@@ -30,16 +30,16 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from uvdms_gym._jit import jit
-from uvdms_gym.display import gui_available, require_display
 from uvdms_gym.distances import compute_distances, contact_thresholds, velocity_damper
 from uvdms_gym.envs.lowlevel import VelocityLoop
-from uvdms_gym.frames import euler_to_rot, rot_error
-from uvdms_gym.hydro import HydroScale
-from uvdms_gym.kinematics import KinematicModel
-from uvdms_gym.nominal import NominalDynamics
-from uvdms_gym.params import D1, D2, UVDMSParams
-from uvdms_gym.sim import PhysicsError, UVDMSSim
+from uvdms_gym.physics.frames import euler_to_rot, rot_error
+from uvdms_gym.physics.hydro import HydroScale
+from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.nominal import NominalDynamics
+from uvdms_gym.physics.params import D1, D2, UVDMSParams
+from uvdms_gym.physics.sim import PhysicsError, UVDMSSim
+from uvdms_gym.utils.display import gui_available, require_display
+from uvdms_gym.utils.jit import jit
 
 PREVIEW_TIMES: tuple[float, ...] = (0.0, 0.4, 0.8)
 """Reference preview horizon of the observation, s."""
@@ -63,8 +63,8 @@ class UVDMSEnv(gym.Env):
 
     Each instance has its own ``metadata``: ``render_fps`` is ``1 / control_dt`` (one frame per step, so that
     recorded videos play in real time) and ``render_modes`` lists ``"human"`` only where PyBullet's GUI can
-    open (:mod:`uvdms_gym.display`); ``render_mode="human"`` without a display raises
-    :class:`~uvdms_gym.display.DisplayUnavailableError`.
+    open (:mod:`uvdms_gym.utils.display`); ``render_mode="human"`` without a display raises
+    :class:`~uvdms_gym.utils.display.DisplayUnavailableError`.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
@@ -401,10 +401,10 @@ def errors_positions(y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple
 def errors_pose(p: np.ndarray, r: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
     """Object transport: position error and orientation error (rotation vector), both in the body frame.
 
-    The orientation errors are :func:`uvdms_gym.frames.rot_error` of ``euler_to_rot(ref)`` and ``r``, written
+    The orientation errors are :func:`uvdms_gym.physics.frames.rot_error` of ``euler_to_rot(ref)`` and ``r``, written
     out in one compiled kernel for the few preview rows (numpy's per-call cost on 3x3 arrays was most of the
     work); near-identity and half-turn errors, where the kernel's axis formula loses accuracy, go to
-    :func:`~uvdms_gym.frames.rot_error` itself.
+    :func:`~uvdms_gym.physics.frames.rot_error` itself.
 
     Returns:
         The observation block (per preview row: ``r_nb^T e_p / POS_SCALE``, ``r_nb^T e_o``), ``|e_p|`` and

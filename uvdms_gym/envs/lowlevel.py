@@ -5,7 +5,7 @@ It is part of the environment, not of any baseline: an agent or controller in ve
 
 ``tau = g_n(q, eta2) + D_n(nu_cmd) nu_cmd + b qdot_cmd + K_p (zeta_cmd - zeta) + K_i int (zeta_cmd - zeta) dt``
 
-* ``g_n`` + ``D_n``: model-based feedforward from the nominal model (:mod:`uvdms_gym.nominal`: Pinocchio
+* ``g_n`` + ``D_n``: model-based feedforward from the nominal model (:mod:`uvdms_gym.physics.nominal`: Pinocchio
   rigid body + nominal hydrostatics and vehicle damping), evaluated once per control step;
 * PI on the velocity error with per-DOF gains from the effective inertia ``m_i = 1 / (M_n^-1)_ii`` (the
   mass-matrix diagonal overestimates the inertia of small distal links and made the loop blow up there):
@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uvdms_gym._jit import jit
-from uvdms_gym.nominal import NominalDynamics
+from uvdms_gym.physics.nominal import NominalDynamics
+from uvdms_gym.utils.jit import jit
 
 
 @dataclass(frozen=True)

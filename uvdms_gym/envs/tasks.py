@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from uvdms_gym._jit import jit
-from uvdms_gym.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG
+from uvdms_gym.physics.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG
+from uvdms_gym.utils.jit import jit
 
 CIRCLE_CASES: dict[int, dict[str, tuple[float, ...] | float]] = {
     1: {"left_center": (2.4, -0.25, 3.08), "right_center": (2.4, 0.25, 3.08), "radius": 0.18},
@@ -167,7 +167,7 @@ def _check_circle_feasible(task: CircleTask, arm_bases_body: tuple[np.ndarray, n
     if arm_bases_body is None:
         return
     v = task.vehicle_start
-    from uvdms_gym.frames import euler_to_rot
+    from uvdms_gym.physics.frames import euler_to_rot
 
     r_nb = euler_to_rot(v[3:])
     grid = task.reference(np.linspace(0.0, task.period, 64, endpoint=False))

@@ -8,8 +8,8 @@ import numpy as np
 
 from uvdms_gym.envs.base import UVDMSEnv, errors_pose
 from uvdms_gym.envs.tasks import TransportTask, make_transport_task
-from uvdms_gym.frames import euler_to_rot
-from uvdms_gym.kinematics import KinematicModel
+from uvdms_gym.physics.frames import euler_to_rot
+from uvdms_gym.physics.kinematics import KinematicModel
 
 SUCCESS_POSITION = 0.02
 """Success: object position error below this (m) ..."""

@@ -32,7 +32,7 @@ from uvdms_gym.distances import velocity_damper
 from uvdms_gym.envs.base import ACTION_DIM, UVDMSEnv
 from uvdms_gym.envs.circle import CircleTrackEnv
 from uvdms_gym.envs.transport import TransportEnv
-from uvdms_gym.params import D1, D2
+from uvdms_gym.physics.params import D1, D2
 
 V1_WEIGHTS: dict[str, float] = {
     "track_weight": 1.0,

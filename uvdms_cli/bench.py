@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from uvdms_gym.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG, UVDMSParams
+from uvdms_gym.physics.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG, UVDMSParams
 
 BENCH_ENV_IDS: tuple[str, ...] = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0")
 """Environments of ``uvdms bench env`` (the v1 environments step the same physics; only their reward differs)."""
@@ -53,9 +53,9 @@ def bench_sim(quick: bool = False) -> dict:
         distance_jacobian,
         distance_jacobian_reference,
     )
-    from uvdms_gym.distances_pybullet import pybullet_distances
-    from uvdms_gym.kinematics import KinematicModel
-    from uvdms_gym.sim import UVDMSSim
+    from uvdms_gym.distances.pybullet_queries import pybullet_distances
+    from uvdms_gym.physics.kinematics import KinematicModel
+    from uvdms_gym.physics.sim import UVDMSSim
 
     calls, blocks = (200, 5) if quick else (1000, 15)
     params = UVDMSParams()
@@ -111,7 +111,7 @@ _FIRST_CALL_SCRIPT = """
 import json, time
 import numpy as np
 from uvdms_gym.distances import compute_distances, distance_jacobian
-from uvdms_gym.kinematics import KinematicModel
+from uvdms_gym.physics.kinematics import KinematicModel
 kin = KinematicModel()
 kin.set_state(np.zeros(6), np.full(12, 0.3))
 t0 = time.perf_counter()
@@ -160,7 +160,7 @@ def bench_env(quick: bool = False) -> dict:
     """
     import gymnasium as gym
 
-    from uvdms_gym.sim import UVDMSSim
+    from uvdms_gym.physics.sim import UVDMSSim
 
     n_blocks, block_steps, warmup = (3, 100, 10) if quick else (7, 400, 20)
     eta0 = np.array([2.0, 0.0, 3.0, 0.0, 0.0, 0.0])

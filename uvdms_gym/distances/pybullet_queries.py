@@ -7,21 +7,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from uvdms_gym import frames
-from uvdms_gym.distances import _LEFT_FRAMES, _PLATE_ROWS_FRAMES, LINK_FRAMES, N_ROWS, DistanceResult
+from uvdms_gym.distances.exact import _LEFT_FRAMES, _PLATE_ROWS_FRAMES, LINK_FRAMES, N_ROWS, DistanceResult
+from uvdms_gym.physics import frames
 
 
 def pybullet_distances(client, body_id: int, link_index: dict[str, int], params, max_distance: float = 1.0):
     """The 18 distances from PyBullet closest-point queries on a loaded UVDMS multibody.
 
-    The body is the URDF of :func:`uvdms_gym.model.build_urdf` (loaded with ``URDF_USE_INERTIA_FROM_FILE``). One
+    The body is the URDF of :func:`uvdms_gym.physics.model.build_urdf` (loaded with ``URDF_USE_INERTIA_FROM_FILE``). One
     ``getClosestPoints(bodyA=b, bodyB=b, linkIndexA=i, linkIndexB=j)`` per candidate pair (42 link-link, 48
     link-plate; queries within one body work, independent of the self-collision flags). PyBullet reports surface
     distances and surface points in its z-up world; they are converted to NED
-    (:func:`uvdms_gym.frames.world_to_ned`) and to the axis/core convention: ``d = d_surface + 2 r`` (link-link),
+    (:func:`uvdms_gym.physics.frames.world_to_ned`) and to the axis/core convention: ``d = d_surface + 2 r``
+    (link-link),
     ``d_surface + r + t/2`` (link-plate), ``P = P_s + r n_B``, ``E = E_s - rho n_B`` (``n_B`` PyBullet's normal from
     B to A, ``rho`` the obstacle's core offset). URDF capsule ``length`` is the distance between the cap centres
-    (measured), so the axis is exactly :func:`uvdms_gym.model.link_segment`. The plates' collision shape is the
+    (measured), so the axis is exactly :func:`uvdms_gym.physics.model.link_segment`. The plates' collision shape is the
     rectangle swept by a ball of radius ``t/2`` (a box plus four edge capsules, see ``model.build_urdf``), so
     ``d_surface + r + t/2`` equals the exact core distance everywhere, including near plate edges.
 
@@ -30,7 +31,7 @@ def pybullet_distances(client, body_id: int, link_index: dict[str, int], params,
         body_id: the UVDMS body.
         link_index: PyBullet link index per link name (``"right_link3"``, ``"left_link0"``,
             ``"plate_front"``...).
-        params: :class:`uvdms_gym.params.UVDMSParams` (radius, plate thickness).
+        params: :class:`uvdms_gym.physics.params.UVDMSParams` (radius, plate thickness).
         max_distance: surface distance beyond which PyBullet reports nothing; a row with no pair within it
             gets ``d = inf`` and NaN points.
 

@@ -1,9 +1,9 @@
-"""The "true" plant: PyBullet rigid-body dynamics of the UVDMS plus the hydrodynamics of :mod:`uvdms_gym.hydro`.
+"""The "true" plant: PyBullet rigid-body dynamics of the UVDMS plus the hydrodynamics of :mod:`uvdms_gym.physics.hydro`.
 
 One :class:`UVDMSSim` owns exactly one PyBullet client (``DIRECT``, or ``GUI``) and one multibody: the
 vehicle base with the virtual ``added_mass`` link, the frame plates and both 6-joint arms, loaded from
-:func:`uvdms_gym.model.build_urdf` with ``URDF_USE_INERTIA_FROM_FILE``. Every public quantity is NED/FRD
-(:mod:`uvdms_gym.frames`); PyBullet's world is z-up (``p_W = diag(1, -1, -1) p_NED``).
+:func:`uvdms_gym.physics.model.build_urdf` with ``URDF_USE_INERTIA_FROM_FILE``. Every public quantity is NED/FRD
+(:mod:`uvdms_gym.physics.frames`); PyBullet's world is z-up (``p_W = diag(1, -1, -1) p_NED``).
 
 Physics set-up [D]:
 
@@ -22,7 +22,7 @@ Physics set-up [D]:
   gripped object costs about 45 µs instead of 12 µs, the closed chain's constraint solve either way.
 * ``physics_dt = 0.01 s`` by default: the hydrodynamic forces are explicit, and the stiffest explicit
   term is the one-step-lagged residual added mass (ratio 0.24, independent of ``dt``, see
-  :mod:`uvdms_gym.hydro`); the damping terms are far below their explicit limit ``dt d / m < 2`` (vehicle
+  :mod:`uvdms_gym.physics.hydro`); the damping terms are far below their explicit limit ``dt d / m < 2`` (vehicle
   ``0.01 * 290 / 130``, links ``< 0.1`` below 10 m/s); the 1-DOF surge, heave and yaw responses match
   their ODEs within about 1 % (the surge residue is the pitch coupling of the low centre of gravity,
   unchanged at ``dt = 0.002``); the grasp welds stay within 0.2 mm (tested). Smaller ``dt`` costs
@@ -37,7 +37,7 @@ Physics set-up [D]:
 Per physics step (:meth:`UVDMSSim.step` runs ``n_substeps`` of them with the same ``tau``): one
 ``getLinkStates`` call reads the body origin (the ``added_mass`` link sits there) and the 12 moving links
 with ``computeLinkVelocity=1, computeForwardKinematics=1``; the vehicle's loads are evaluated in plain float
-arithmetic, the 12 links' in one compiled call (:func:`uvdms_gym.hydro.link_forces_world`); the vehicle
+arithmetic, the 12 links' in one compiled call (:func:`uvdms_gym.physics.hydro.link_forces_world`); the vehicle
 wrench (control ``tau_v`` plus hydrodynamics, converted from the body frame) is applied at the body origin as
 a force and a torque in ``WORLD_FRAME``, each link's drag and buoyancy at its midpoint; joint torques via
 ``TORQUE_CONTROL``; then ``stepSimulation``. PyBullet clears external forces *and* joint torques after every
@@ -65,17 +65,17 @@ import numpy as np
 import pybullet as pb
 from pybullet_utils import bullet_client
 
-from uvdms_gym import frames, model
-from uvdms_gym.display import require_display
-from uvdms_gym.hydro import (
+from uvdms_gym.physics import frames, model
+from uvdms_gym.physics.hydro import (
     HydroCoefficients,
     HydroScale,
     hydro_coefficients,
     link_forces_world,
     link_table,
 )
-from uvdms_gym.io import quiet_c_stream
-from uvdms_gym.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
+from uvdms_gym.physics.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
+from uvdms_gym.utils.display import require_display
+from uvdms_gym.utils.io import quiet_c_stream
 
 NU_LIMIT = 50.0
 """Sanity bound on every component of ``nu`` (m/s, rad/s); beyond it the state is a blow-up."""
@@ -196,7 +196,7 @@ class UVDMSSim:
         params: physical parameters (default :class:`UVDMSParams`).
         physics_dt: physics time step, s.
         gui: open PyBullet's GUI instead of a headless ``DIRECT`` client
-            (:class:`~uvdms_gym.display.DisplayUnavailableError` where no display is available).
+            (:class:`~uvdms_gym.utils.display.DisplayUnavailableError` where no display is available).
         arms: ``False`` loads the bare vehicle (no arms; ``tau`` then has 6 components).
         hydro_scale: model-mismatch factors (see :meth:`set_hydro_scale`).
         self_collision: simulate contact forces between non-adjacent robot links (arm-arm, arm-plate). Off by
@@ -562,7 +562,7 @@ class UVDMSSim:
         (Double precision: ``getLinkStates`` would be one query but returns single-precision values.)
         The conversion is written in scalars around the few numpy calls whose rounding it must keep (the
         3x3 matrix products and the inverse trigonometric functions give the same bits as
-        :mod:`uvdms_gym.frames`; plain Python products and ``math.atan2`` would differ in the last bit).
+        :mod:`uvdms_gym.physics.frames`; plain Python products and ``math.atan2`` would differ in the last bit).
         """
         self._check_open()
         (px, py, pz), (x, y, z, w), (vx, vy, vz), (wx, wy, wz), js = self._read_state()
@@ -626,7 +626,7 @@ class UVDMSSim:
     def object_pose_rotation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`object_pose` and :meth:`object_rotation` from one conversion: ``(p, rpy, R_N,object)``.
 
-        The Euler angles are :func:`uvdms_gym.frames.rot_to_euler` of the matrix, with its numpy functions.
+        The Euler angles are :func:`uvdms_gym.physics.frames.rot_to_euler` of the matrix, with its numpy functions.
         """
         r = self.object_rotation()
         (r00, _, _), (r10, _, _), (r20, r21, r22) = r.tolist()
@@ -807,11 +807,11 @@ class UVDMSSim:
     def _substep(
         self, tau_v: list[float], tau_q: list[float], feedback: Callable[[np.ndarray], np.ndarray] | None = None
     ) -> None:
-        """One physics step: read state, evaluate hydrodynamics (see :mod:`uvdms_gym.hydro`), apply, step.
+        """One physics step: read state, evaluate hydrodynamics (see :mod:`uvdms_gym.physics.hydro`), apply, step.
 
         The vehicle in plain float arithmetic on the tuples PyBullet returns (numpy's per-call overhead exceeds
         the arithmetic on these 3-vectors), the links in one compiled call; both in the operation order of
-        :mod:`uvdms_gym.hydro`'s reference functions.
+        :mod:`uvdms_gym.physics.hydro`'s reference functions.
         """
         cid, body = self._cid, self._body
         st = _get_link_states(body, self._state_links, 1, 1, cid)
@@ -886,7 +886,7 @@ class UVDMSSim:
         self._t += self._dt
 
     def _object_hydro(self) -> None:
-        """Apply the object's hydrodynamic wrench (:func:`uvdms_gym.hydro.object_wrench`, inlined)."""
+        """Apply the object's hydrodynamic wrench (:func:`uvdms_gym.physics.hydro.object_wrench`, inlined)."""
         cid, obj, h = self._cid, self._obj, self._hydro
         pos, (qx, qy, qz, qw) = _base_pose(obj, cid)
         (vx, vy, vz), _ = _base_velocity(obj, cid)

@@ -3,7 +3,7 @@
 ``M_n zetadot + b_n(q, zeta) = tau`` with
 
 * ``M_n`` = Pinocchio's rigid-body mass matrix (which already holds the isotropic added mass and the
-  rotational added inertia as the virtual ``added_mass`` body, see :mod:`uvdms_gym.params`) plus the
+  rotational added inertia as the virtual ``added_mass`` body, see :mod:`uvdms_gym.physics.params`) plus the
   residual anisotropic added mass on the vehicle block;
 * ``b_n`` = rigid-body Coriolis and gravity + residual added-mass Coriolis ``C_A,res(nu) nu``
   + vehicle damping ``D(nu) nu`` + joint gear friction ``b qdot`` + hydrostatics (buoyancy of the hull
@@ -25,9 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from uvdms_gym.kinematics import KinematicModel
-from uvdms_gym.model import link_segment
-from uvdms_gym.params import ARM_SIDES, GRAVITY
+from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.model import link_segment
+from uvdms_gym.physics.params import ARM_SIDES, GRAVITY
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""URDF of the UVDMS generated from :mod:`uvdms_gym.params`: the single source for PyBullet and Pinocchio.
+"""URDF of the UVDMS generated from :mod:`uvdms_gym.physics.params`: the single source for PyBullet and Pinocchio.
 
 Structure (link names)::
 
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uvdms_gym.params import ARM_SIDES, UVDMSParams
+from uvdms_gym.physics.params import ARM_SIDES, UVDMSParams
 
 TINY_MASS = 1e-4
 """Mass of frame-only links (PyBullet gives a link without ``<inertial>`` 1 kg)."""

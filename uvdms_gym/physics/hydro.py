@@ -1,12 +1,12 @@
 """Hydrodynamic and hydrostatic loads of the UVDMS as pure functions of state and parameters.
 
 Everything here is frame-agnostic plain arithmetic on floats (no PyBullet, no global state), so the
-simulator (:mod:`uvdms_gym.sim`) can call it on every physics step and tests can check it against
+simulator (:mod:`uvdms_gym.physics.sim`) can call it on every physics step and tests can check it against
 independent matrix formulas. The simulator evaluates the same equations (inlined for speed, see
 ``UVDMSSim._substep``); :func:`vehicle_wrench`, :func:`morison_force` and :func:`object_wrench` are the
 reference implementations.
 
-Model (docs/MODEL.md section 3; coefficients from :mod:`uvdms_gym.params`, all scaled by :class:`HydroScale`):
+Model (docs/MODEL.md section 3; coefficients from :mod:`uvdms_gym.physics.params`, all scaled by :class:`HydroScale`):
 
 Vehicle (body frame FRD, wrench about the body origin)
     * damping ``-D(nu) nu``, ``D = diag(d_lin + d_quad |nu|)`` (Fossen; no off-diagonal terms).
@@ -72,9 +72,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uvdms_gym._jit import jit
-from uvdms_gym.model import link_axis, link_segment, mount_rotation
-from uvdms_gym.params import ARM_SIDES, GRAVITY, UVDMSParams
+from uvdms_gym.physics.model import link_axis, link_segment, mount_rotation
+from uvdms_gym.physics.params import ARM_SIDES, GRAVITY, UVDMSParams
+from uvdms_gym.utils.jit import jit
 
 
 @dataclass(frozen=True)

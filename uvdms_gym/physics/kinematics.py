@@ -1,6 +1,6 @@
 """Kinematics and rigid-body dynamics of the UVDMS on Pinocchio, in NED (docs/MODEL.md sections 1 and 4).
 
-:class:`KinematicModel` wraps the free-flyer Pinocchio model of :func:`uvdms_gym.model.pinocchio_model`:
+:class:`KinematicModel` wraps the free-flyer Pinocchio model of :func:`uvdms_gym.physics.model.pinocchio_model`:
 
 * configuration ``[x y z (NED), quat xyzw of R_NB, q_l (6), q_r (6)]`` (19);
 * velocity ``zeta = [nu (body FRD: linear at the body origin, angular); qdot_l; qdot_r]`` (18), which is
@@ -27,8 +27,8 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from uvdms_gym.model import link_segment, pinocchio_model
-from uvdms_gym.params import ARM_SIDES, GRAVITY, JOINT_NAMES, N_DOF, N_JOINTS, UVDMSParams
+from uvdms_gym.physics.model import link_segment, pinocchio_model
+from uvdms_gym.physics.params import ARM_SIDES, GRAVITY, JOINT_NAMES, N_DOF, N_JOINTS, UVDMSParams
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _N_CONFIG = 7 + N_JOINTS
@@ -81,7 +81,7 @@ def pybullet_velocity_map(params: UVDMSParams | None = None, joint_order: np.nda
     Args:
         params: physical parameters (for ``r_G``); defaults to :class:`UVDMSParams`.
         joint_order: ``joint_order[k]`` is the index in ``q = [q_l; q_r]`` of PyBullet's ``k``-th revolute
-            joint; ``None`` means the same order (true for :func:`uvdms_gym.model.build_urdf`).
+            joint; ``None`` means the same order (true for :func:`uvdms_gym.physics.model.build_urdf`).
 
     Returns:
         ``T`` with ``[omega_B; v_C; qdot_pb] = T zeta``.
@@ -252,7 +252,8 @@ class KinematicModel:
     def link_segments(self) -> np.ndarray:
         """Capsule axes of all links in NED: shape (2, 7, 2, 3) = [side][link 0..6][A, B][xyz].
 
-        Side 0 is left, 1 right; ``A`` is the end nearer the arm base (see :func:`uvdms_gym.model.link_segment`).
+        Side 0 is left, 1 right; ``A`` is the end nearer the arm base (see
+        :func:`uvdms_gym.physics.model.link_segment`).
         """
         # oMf.tolist() (~0.1 µs per frame) instead of oMf[i] (~1 µs per item access, measured)
         omf = self.data.oMf.tolist()

@@ -3,7 +3,7 @@
 Sources are given per value: ``[T1]`` paper Table 1, ``[T2]`` paper Table 2, ``[S4]`` paper Section 4 text,
 ``[MODEL]`` ``docs/MODEL.md``, ``[D]`` a project decision recorded here with its reason.
 
-Frames (see :mod:`uvdms_gym.frames`): body frame FRD (x forward, y starboard/right, z down) with its
+Frames (see :mod:`uvdms_gym.physics.frames`): body frame FRD (x forward, y starboard/right, z down) with its
 origin at the vehicle's geometric centre; inertial frame NED. All values SI, angles in radians.
 
 Everything here is a frozen dataclass; use :func:`dataclasses.replace` to derive a perturbed model

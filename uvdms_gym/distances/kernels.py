@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from uvdms_gym._jit import jit
+from uvdms_gym.utils.jit import jit
 
 _TINY = 1e-300  # the reference's floor for denominators (never 0/0)
 PLATE_COLS = 14  # per plate: u, v, n (body rows), basis . centre (3), hx, hy

@@ -13,10 +13,10 @@ closest point on the monitored link, ``E`` on the obstacle, ``n = (E - P)/|E - P
 Three interchangeable methods:
 
 * ``"exact"``: analytic segment-segment and segment-rectangle distances, computed by the compiled kernels
-  of :mod:`uvdms_gym._distkernels` (numba); :func:`compute_distances_reference` is the vectorized numpy
+  of :mod:`uvdms_gym.distances.kernels` (numba); :func:`compute_distances_reference` is the vectorized numpy
   form of the same computation, kept as the reference the kernels are tested against;
 * ``"sampled"``: the paper's Algorithm 1 (point samples on the monitored link, ``d' = d - r``);
-* :func:`uvdms_gym.distances_pybullet.pybullet_distances`: PyBullet closest-point queries on the loaded
+* :func:`uvdms_gym.distances.pybullet_queries.pybullet_distances`: PyBullet closest-point queries on the loaded
   multibody, converted to the same axis/core convention.
 
 All geometry helpers broadcast over leading dimensions (points and vectors are ``(..., 3)``).
@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uvdms_gym import _distkernels
-from uvdms_gym.geometry import (  # and the helpers imported "as" themselves below are re-exported
+from uvdms_gym.distances import kernels as _distkernels
+from uvdms_gym.distances.geometry import (  # and the helpers imported "as" themselves below are re-exported
     _TINY,
     _cross,
     algorithm1_rectangle,
@@ -37,19 +37,19 @@ from uvdms_gym.geometry import (  # and the helpers imported "as" themselves bel
     point_rectangle,
     point_segment,
 )
-from uvdms_gym.geometry import (
+from uvdms_gym.distances.geometry import (
     rectangle_edges as rectangle_edges,
 )
-from uvdms_gym.geometry import (
+from uvdms_gym.distances.geometry import (
     sample_segment as sample_segment,
 )
-from uvdms_gym.geometry import (
+from uvdms_gym.distances.geometry import (
     segment_rectangle as segment_rectangle,
 )
-from uvdms_gym.geometry import (
+from uvdms_gym.distances.geometry import (
     segment_segment as segment_segment,
 )
-from uvdms_gym.params import D1, D2
+from uvdms_gym.physics.params import D1, D2
 
 N_ROWS = 18
 SIDES = ("left", "right")
@@ -124,7 +124,7 @@ def contact_thresholds(params, obstacle_index: np.ndarray | None = None) -> np.n
     given by ``obstacle_index``; the thinnest plate if ``None``).
 
     Args:
-        params: :class:`uvdms_gym.params.UVDMSParams`.
+        params: :class:`uvdms_gym.physics.params.UVDMSParams`.
         obstacle_index: :attr:`DistanceResult.obstacle_index`, or ``None``.
     """
     r = params.arm.link_radius
@@ -350,7 +350,7 @@ _OBSTACLE_FRAMES_CACHE: dict[bytes, tuple[str, ...]] = {}
 
 
 def _plate_table(params) -> np.ndarray:
-    """:func:`uvdms_gym._distkernels.plate_table` of ``params.plates``, cached per plates object.
+    """:func:`uvdms_gym.distances.kernels.plate_table` of ``params.plates``, cached per plates object.
 
     Keyed by identity (hashing the frozen plate dataclasses costs ~2 µs per call); the cached entry keeps
     the plates object alive, so its id cannot be reused by another object.
@@ -372,12 +372,12 @@ def _obstacle_frames(idx: np.ndarray) -> tuple[str, ...]:
 
 
 def compute_distances(kin, method: str = "exact", n: int = 20) -> DistanceResult:
-    """The 18 distances of the current state of ``kin`` (a :class:`uvdms_gym.kinematics.KinematicModel`).
+    """The 18 distances of the current state of ``kin`` (a :class:`uvdms_gym.physics.kinematics.KinematicModel`).
 
     The link axes come from ``kin.link_segments()``. The plates are ``kin.params.plates`` placed with the
     vehicle pose ``kin.frame_placement("vehicle")`` (the same rectangles as ``kin.plates()``, whose
     body-frame constants are prepared once); ``"sampled"`` reads ``kin.plates()``. ``"exact"`` runs the
-    compiled kernel :func:`uvdms_gym._distkernels.exact_rows`, which agrees with
+    compiled kernel :func:`uvdms_gym.distances.kernels.exact_rows`, which agrees with
     :func:`compute_distances_reference` (numpy) to rounding.
 
     Args:
@@ -467,12 +467,12 @@ def distance_jacobian(kin, res: DistanceResult) -> np.ndarray:
     points ride on the vehicle); ``tests/test_distances.py`` checks this against the full point Jacobians of
     ``KinematicModel.point_jacobian`` and against finite differences of ``d``.
     Rows with ``E = P`` (``d = 0``, axes intersecting) have no direction and are zero. Computed by the
-    compiled kernel :func:`uvdms_gym._distkernels.jdis_rows` (reference: :func:`distance_jacobian_reference`).
+    compiled kernel :func:`uvdms_gym.distances.kernels.jdis_rows` (reference: :func:`distance_jacobian_reference`).
 
     Args:
-        kin: the :class:`uvdms_gym.kinematics.KinematicModel` at the state of ``res``.
+        kin: the :class:`uvdms_gym.physics.kinematics.KinematicModel` at the state of ``res``.
         res: distances from :func:`compute_distances` or
-            :func:`uvdms_gym.distances_pybullet.pybullet_distances` at that state.
+            :func:`uvdms_gym.distances.pybullet_queries.pybullet_distances` at that state.
 
     Returns:
         ``J_dis`` (18, 18), columns acting on ``zeta = [nu; qdot_l; qdot_r]``.
@@ -486,7 +486,7 @@ def distance_jacobian_reference(kin, res: DistanceResult) -> np.ndarray:
     """:func:`distance_jacobian` in numpy (the reference the compiled kernel is tested against).
 
     Args:
-        kin: the :class:`uvdms_gym.kinematics.KinematicModel` at the state of ``res``.
+        kin: the :class:`uvdms_gym.physics.kinematics.KinematicModel` at the state of ``res``.
         res: distances at that state.
     """
     sel = _row_masks(kin.model, res)

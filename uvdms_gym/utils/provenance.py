@@ -19,7 +19,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
+REPO_ROOT = Path(__file__).resolve().parents[2]
 """The checkout holding this package (for ``git``, and the project's one repository-root lookup:
 ``agents.common.paths`` and
 the tools import it); ``site-packages`` after a regular install."""

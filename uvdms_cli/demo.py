@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from uvdms_gym.envs.tasks import CIRCLE_VEHICLE_START
-from uvdms_gym.kinematics import KinematicModel
-from uvdms_gym.nominal import NominalDynamics
-from uvdms_gym.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG, UVDMSParams
-from uvdms_gym.sim import UVDMSSim
+from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.nominal import NominalDynamics
+from uvdms_gym.physics.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG, UVDMSParams
+from uvdms_gym.physics.sim import UVDMSSim
 
 log = logging.getLogger(__name__)
 
@@ -41,7 +41,7 @@ def run_demo(seconds: float = 5.0, gui: bool = False, png: str | None = None, tr
     Raises:
         ValueError: ``seconds`` or ``trace_every`` not a finite positive number.
         FileNotFoundError: the folder of ``png`` does not exist (checked before simulating).
-        DisplayUnavailableError: ``gui`` without a display (:mod:`uvdms_gym.display`).
+        DisplayUnavailableError: ``gui`` without a display (:mod:`uvdms_gym.utils.display`).
     """
     for name, value in (("seconds", seconds), ("trace_every", trace_every)):
         if not (math.isfinite(value) and value > 0.0):

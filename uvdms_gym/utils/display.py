@@ -3,7 +3,7 @@
 PyBullet's ``connect(GUI)`` on Linux without a reachable X server prints ``cannot connect to X server`` and
 calls the C ``exit()``: the Python process ends with status 1 and no exception to catch (Gymnasium's
 ``check_env`` and ``uvdms demo --gui`` died that way). :func:`require_display` raises
-:class:`DisplayUnavailableError` instead; :class:`~uvdms_gym.sim.UVDMSSim` calls it before a GUI connect, and
+:class:`DisplayUnavailableError` instead; :class:`~uvdms_gym.physics.sim.UVDMSSim` calls it before a GUI connect, and
 the environments list ``"human"`` in their instance's ``metadata["render_modes"]`` only where
 :func:`gui_unavailable_reason` finds a display.
 
