@@ -161,8 +161,8 @@ def plan_sweep(
         EnvironmentNotFoundError: The env id is not registered.
         ValueError: Bad seeds or ``env_kwargs`` keys the environment does not take.
     """
+    from agents.training.composition import composition_factories
     from agents.training.spec import RunSpec
-    from agents.training.train import composition_factories
 
     if algo not in ALGOS:
         raise ConfigError(f"unknown algorithm {algo!r}; choose one of {sorted(ALGOS)}")

@@ -240,7 +240,7 @@ def tune(
         RunDirError: ``out_dir`` already holds a search.
         NoTrialCompletedError: No trial completed.
     """
-    from agents.training.train import composition_factories
+    from agents.training.composition import composition_factories
 
     if algo not in ALGOS:
         raise ConfigError(f"unknown algorithm {algo!r}; choose one of {sorted(ALGOS)}")

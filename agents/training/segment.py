@@ -56,7 +56,7 @@ from uvdms_gym.residual import ControllerFactory, FilterFactory
 from uvdms_gym.utils.provenance import git_info, package_versions
 
 Factories = tuple[ControllerFactory | None, FilterFactory | None, ControllerFactory | None]
-"""``(base_factory, filter_factory, teacher_factory)`` (:func:`agents.training.train.composition_factories`)."""
+"""``(base_factory, filter_factory, teacher_factory)`` (:func:`agents.training.composition.composition_factories`)."""
 
 
 @dataclasses.dataclass

@@ -71,7 +71,6 @@ import torch
 import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 
-from agents.algos.dagger import teacher_margin, teacher_name
 from agents.common.envs import (
     EVAL_SEED_OFFSET,
     SEGMENT_SEED_STRIDE,
@@ -83,10 +82,10 @@ from agents.common.envs import (
     import_gym_packages,
     train_env_seed,
 )
-from agents.common.rollouts import check_rollout_vec_env
 from agents.common.wrappers import AliveBonus, ScaledAction
-from agents.config import ConfigError, TrainConfig, parse_entry
+from agents.config import ConfigError, parse_entry
 from agents.training.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
+from agents.training.composition import check_vec_env, composition_factories
 from agents.training.models import (
     grow_replay_buffer,
     replay_buffer_size,
@@ -104,7 +103,6 @@ from agents.training.rundir import (
 )
 from agents.training.segment import TrainingSegment
 from agents.training.spec import RunSpec, command_prefix, resolve_config
-from uvdms_gym.residual import ControllerFactory, FilterFactory
 from uvdms_gym.utils.kwargs import parse_kv as _parse_key_values
 from uvdms_gym.utils.provenance import git_info, package_versions
 
@@ -279,7 +277,7 @@ def train_run(
     torch.set_num_threads(1)
     check_env_id(spec.env_id, spec.gym_packages)
     cfg = spec.resolve()
-    _check_vec_env(cfg, spec.vec_env)
+    check_vec_env(cfg, spec.vec_env)
     factories = composition_factories(cfg, components)  # before the run directory exists
     run_dir = create_run_dir(
         run_dir_for(out_dir, spec.env_id, spec.algo, spec.seed),
@@ -366,7 +364,7 @@ def resume_run(
                 f"--resume: {name} cannot change ({getattr(cfg, name)!r} in {config_file}, got {value!r}); "
                 "the run keeps its composition"
             )
-    _check_vec_env(cfg, request.vec_env)
+    check_vec_env(cfg, request.vec_env)
     factories = composition_factories(cfg, components)
     gym_packages = tuple(resolved.get("gym_packages", DEFAULT_GYM_PACKAGES))
     check_env_id(env_id, gym_packages)
@@ -410,80 +408,6 @@ def resume_run(
     )
     segment.run(progress, callbacks, after_eval)
     return run_dir
-
-
-def composition_factories(
-    cfg: TrainConfig, components: ActionComponents | None
-) -> tuple[ControllerFactory | None, FilterFactory | None, ControllerFactory | None]:
-    """The base, filter and teacher factories of a configuration's residual base, safety filter and teacher.
-
-    Args:
-        cfg: The configuration.
-        components: The composition layer's factories (``None``: none available).
-
-    Returns:
-        ``(base_factory, filter_factory, teacher_factory)``, each ``None`` when not configured; the teacher is that
-        of an imitation learner (``dagger``'s ``teacher`` hyperparameter, :mod:`agents.algos.dagger`), built like a
-        base.
-
-    Raises:
-        ConfigError: A residual base or the filter without ``components`` (the message names ``uvdms train``), a
-            base or teacher name the components reject, a ``residual_penalty`` without a residual base, or a
-            ``dagger`` configuration without a residual base, with ``residual_space: nullspace`` or with
-            ``action_scale`` other than 1 (its labels are residuals in the base's action units, on the full space).
-    """
-    composition = cfg.composition
-    if cfg.residual_penalty and not composition.is_residual:
-        raise ConfigError(
-            f"residual_penalty={cfg.residual_penalty} shapes a residual agent's reward, but the configuration has no "
-            "residual_base (--residual)"
-        )
-    imitation = cfg.algo == "dagger"
-    if imitation:
-        problems = []
-        if not composition.is_residual:
-            problems.append("no residual_base (--residual mpc)")
-        if composition.residual_space != "full":
-            problems.append(f"residual_space={composition.residual_space!r} (its labels live on the full space)")
-        if cfg.action_scale != 1.0:
-            problems.append(f"action_scale={cfg.action_scale} (its labels are in the residual's own units: use 1.0)")
-        if problems:
-            raise ConfigError(
-                f"dagger imitates a teacher's correction of a residual base, but this configuration has "
-                f"{'; '.join(problems)}"
-            )
-    if composition.is_plain:
-        return None, None, None
-    if components is None:
-        parts = []
-        if composition.is_residual:
-            parts.append(f"a residual on {composition.residual_base!r}")
-        if composition.safety_filter:
-            parts.append("the safety filter")
-        raise ConfigError(
-            f"this configuration trains {' with '.join(parts)}, whose controllers live in the baselines package, "
-            "which agents does not import: train it with `uvdms train` (python -m agents.train cannot), or pass "
-            "components= to agents.training.train.train"
-        )
-    base_factory = teacher_factory = None
-    if composition.is_residual:
-        try:
-            base_factory = components.base_factory(str(composition.residual_base))
-            if imitation:
-                margin = teacher_margin(cfg.hyperparams)
-                teacher_factory = components.base_factory(teacher_name(cfg.hyperparams), collision_margin=margin)
-        except ValueError as exc:
-            raise ConfigError(f"{exc}" if not imitation else f"dagger's teacher or base: {exc}") from None
-    return base_factory, components.filter_factory if composition.safety_filter else None, teacher_factory
-
-
-def _check_vec_env(cfg: TrainConfig, vec_env: str) -> None:
-    """``--vec-env rollout`` only for the algorithms that collect parallel rollouts (:mod:`agents.common.rollouts`)."""
-    if vec_env == "rollout":
-        try:
-            check_rollout_vec_env(cfg.algo, bool(cfg.hyperparams.get("use_sde", False)))
-        except ValueError as exc:
-            raise ConfigError(str(exc)) from None
 
 
 # ------------------------------------------------------------------------------------------------------
