@@ -10,7 +10,7 @@
 #
 # Hyperparameters come from train_configs/{ppo,sac}.yml (uvdms entries); the budgets below override
 # n_timesteps. Seed 0: training envs use seeds 0 and 1, the evaluation callback seeds 1000000+
-# (agents/train.py). The shipped agents are evaluated on seeds 1000-1009 (README, "Train an agent").
+# (agents/training/train.py). The shipped agents are evaluated on seeds 1000-1009 (README, "Train an agent").
 # A run whose directory already exists is skipped (resume it with `uvdms train --resume DIR`).
 # The machine has 2 cores: two lanes, nice 10, torch.set_num_threads(1) (agents.train does that).
 set -euo pipefail

@@ -14,9 +14,9 @@
 #   residual-mpc-*         a residual of at most 0.5 (circles, TD3-prior) / 0.3 (transport, SAC) of the action range
 #                          over plain `mpc`
 #                          (no collision rows: whatever avoidance it shows, it learned)
-#   residual-mpc-dagger-*  the residual over `mpc` fitted by DAgger to CAMPC's correction (agents/dagger.py)
+#   residual-mpc-dagger-*  the residual over `mpc` fitted by DAgger to CAMPC's correction (agents/algos/dagger.py)
 #   ppo-lagrangian-*       PPO-Lagrangian on info["cost"] (train_configs/ppo_lagrangian.yml), 2 envs (--vec-env rollout:
-#                          each env collects its part of every rollout, agents/rollouts.py)
+#                          each env collects its part of every rollout, agents/common/rollouts.py)
 # All train on the randomised tasks with hydro_randomization=0.3 (the leaderboard's held-out variants use other
 # seeds); the leaderboard also runs them on the paper's fixed tasks.
 set -euo pipefail
@@ -53,7 +53,7 @@ CIRCLE_MIX="case=mix hydro_randomization=0.3"
 # tracking to mpc; a hand-written field in that space kept 9-10 of 10 random circles contact-free (README).
 RESIDUAL_CIRCLE_NULLSPACE="$RESIDUAL_CIRCLE_CLEARANCE --residual-space nullspace"
 RESIDUAL_TRANSPORT="--residual mpc --residual-scale 0.3 --hyperparams action_scale=1.0"
-# DAgger (agents/dagger.py): the same residual over plain `mpc` (scale 0.5, clearance features), fitted to CAMPC's
+# DAgger (agents/algos/dagger.py): the same residual over plain `mpc` (scale 0.5, clearance features), fitted to CAMPC's
 # correction of mpc at every state the learner visits; CAMPC labels the training states and is not part of the
 # agent (at evaluation: mpc + the network, no collision rows). Trained on case=mix, where the paper cases give
 # the near-collision states that random circles rarely reach; the reward is not used for learning. The teacher
