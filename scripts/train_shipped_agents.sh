@@ -24,14 +24,14 @@ mkdir -p "$OUT/logs"
 
 # name algo env env-kwargs budget
 AGENTS_A=(
-  "circle_case1_ppo ppo uvdms/CircleTrack-v0 case=1 $PPO_STEPS"
-  "circle_case2_ppo ppo uvdms/CircleTrack-v0 case=2 $PPO_STEPS"
-  "transport_paper_ppo ppo uvdms/Transport-v0 goal=paper $PPO_STEPS"
+  "ppo-circle-case1-v0 ppo uvdms/CircleTrack-v0 case=1 $PPO_STEPS"
+  "ppo-circle-case2-v0 ppo uvdms/CircleTrack-v0 case=2 $PPO_STEPS"
+  "ppo-transport-paper-v0 ppo uvdms/Transport-v0 goal=paper $PPO_STEPS"
 )
 AGENTS_B=(
-  "circle_case1_sac sac uvdms/CircleTrack-v0 case=1 $SAC_STEPS"
-  "circle_case2_sac sac uvdms/CircleTrack-v0 case=2 $SAC_STEPS"
-  "transport_paper_sac sac uvdms/Transport-v0 goal=paper $SAC_STEPS"
+  "sac-circle-case1-v0 sac uvdms/CircleTrack-v0 case=1 $SAC_STEPS"
+  "sac-circle-case2-v0 sac uvdms/CircleTrack-v0 case=2 $SAC_STEPS"
+  "sac-transport-paper-v0 sac uvdms/Transport-v0 goal=paper $SAC_STEPS"
 )
 
 run_one() {

@@ -697,7 +697,7 @@ def test_shipped_agent_folder(runs, tmp_path, monkeypatch):
     env_id, env_kwargs = TEST_ENVS[2]
     run_dir = runs["sac", env_id]
     trusted = tmp_path / "trained_agents"
-    folder = package_run(run_dir, trusted / "circle_case1_sac", which="best")
+    folder = package_run(run_dir, trusted / "sac-circle-case1-v0", which="best")
     names = {p.name for p in folder.iterdir()}
     assert {"model.zip", "vecnormalize.pkl", "config.yml", "meta.json", "training_curve.png", "training_logs"} <= names
     assert (folder / "model.zip").stat().st_size < 5 * 2**20
@@ -837,18 +837,18 @@ def test_agent_on_another_env_id_warns():
     from agents.export import EnvMismatchWarning, check_agent
     from leaderboard.registry import evaluate
 
-    folder = REPO / "trained_agents" / "circle_case1_ppo"
+    folder = REPO / "trained_agents" / "ppo-circle-case1-v0"
     agent = load_agent(folder)
     assert agent.env_id == "uvdms/CircleTrack-v0"
     message = r"trained on uvdms/CircleTrack-v0 but runs on uvdms/Transport-v0"
     env = gym.make("uvdms/Transport-v0")
     with pytest.warns(EnvMismatchWarning, match=message):
-        check_agent(agent, env, "circle_case1_ppo")
+        check_agent(agent, env, "ppo-circle-case1-v0")
     env.close()
     env = gym.make("uvdms/CircleTrack-v0", case=2)
     with warnings.catch_warnings():
         warnings.simplefilter("error", EnvMismatchWarning)
-        check_agent(agent, env, "circle_case1_ppo")  # same id, another task: fine
+        check_agent(agent, env, "ppo-circle-case1-v0")  # same id, another task: fine
     env.close()
     with pytest.warns(EnvMismatchWarning, match=message):  # what `uvdms evaluate` runs
         evaluate(str(folder), "uvdms/Transport-v0", {"max_episode_steps": 3}, episodes=1, progress=False)

@@ -27,7 +27,7 @@ from uvdms_gym.utils import display, provenance
 REPO = Path(__file__).resolve().parents[1]
 UVDMS = Path(sys.executable).parent / "uvdms"
 CIRCLE, TRANSPORT = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"
-SHIPPED = REPO / "trained_agents" / "circle_case1_ppo"
+SHIPPED = REPO / "trained_agents" / "ppo-circle-case1-v0"
 
 
 def run_uvdms(args: list[str], cwd: Path, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:

@@ -25,7 +25,7 @@ from leaderboard.runner import plan_jobs
 from uvdms_cli.main import main
 
 REPO = Path(__file__).resolve().parents[1]
-SHIPPED_SAC = REPO / "trained_agents" / "circle_case1_sac"
+SHIPPED_SAC = REPO / "trained_agents" / "sac-circle-case1-v0"
 TIMING_PREFIXES = ("timing_", "controller_ms_")
 """``leaderboard.csv`` columns that measure time (everything else is a quality column)."""
 
@@ -58,7 +58,7 @@ def test_ray_backend_writes_the_quick_leaderboard_of_the_local_backend(tmp_path,
         quality_columns(tmp_path / "ray" / "leaderboard.csv"),
     )
     # every baseline and every shipped agent on the three paper tasks, and the same bits in every quality column
-    assert {row["entry"] for row in local} >= {"mpc", "campc", "campc-di", "campc-nndi", "circle_case1_sac"}
+    assert {row["entry"] for row in local} >= {"mpc", "campc", "campc-di", "campc-nndi", "sac-circle-case1-v0"}
     assert {row["task"] for row in local} == {"case1", "case2", "transport"}
     assert distributed == local
     assert len(ray_processes.seen) > 2  # Ray's own processes and its workers were started and watched
@@ -76,7 +76,7 @@ def test_two_node_cluster(tmp_path, ray_processes):
         argv += ["--max-episode-steps", "6", "--backend", "ray", "--address", cluster.address]
         assert main(leaderboard_argv(out, *argv)) == 0
         rows = quality_columns(out / "leaderboard.csv")
-        assert sorted((row["entry"], row["episodes"]) for row in rows) == [("circle_case1_sac", "2"), ("mpc", "2")]
+        assert sorted((row["entry"], row["episodes"]) for row in rows) == [("sac-circle-case1-v0", "2"), ("mpc", "2")]
         entries = lb.resolve_entries(["mpc", str(SHIPPED_SAC)])
         tasks = [replace(t, max_episode_steps=6) for t in lb.TASKS if t.name == "case1"]
         check_cache(out / "cache", plan_jobs(entries, tasks, lb.evaluation_seeds(2), out / "cache"))

@@ -151,10 +151,10 @@ SHRUNK: dict[str, Shrunk] = {
         "uvdms export-agent runs/uvdms_CircleTrack-v0/sac_0 exported/sac_case1 --which best --trust",
         creates=("exported/sac_case1/agent.json", "exported/sac_case1/policy.pt"),
     ),
-    "uvdms evaluate --controller trained_agents/circle_case1_ppo --env uvdms/CircleTrack-v0 --env-kwargs case=1 "
+    "uvdms evaluate --controller trained_agents/ppo-circle-case1-v0 --env uvdms/CircleTrack-v0 --env-kwargs case=1 "
     "--episodes 10 --seed 1000 --out eval.json": Shrunk(
         "evaluate",
-        "uvdms evaluate --controller trained_agents/circle_case1_ppo --env uvdms/CircleTrack-v0 --env-kwargs case=1 "
+        "uvdms evaluate --controller trained_agents/ppo-circle-case1-v0 --env uvdms/CircleTrack-v0 --env-kwargs case=1 "
         "max_episode_steps=20 --episodes 1 --seed 1000 --out eval.json --no-progress",
         creates=("eval.json",),
         stdout_json=True,
@@ -197,7 +197,7 @@ SHRUNK: dict[str, Shrunk] = {
 """README command (normalised: see :func:`readme_commands`) -> how it is run."""
 
 SETUP: dict[str, tuple[str, ...]] = {
-    "leaderboard": ("uvdms export-agent trained_agents/circle_case1_ppo my_export",),  # the submission placeholder
+    "leaderboard": ("uvdms export-agent trained_agents/ppo-circle-case1-v0 my_export",),  # the submission placeholder
 }
 """Commands (not from the README) a chain runs first."""
 ORDER: tuple[str, ...] = (

@@ -4,7 +4,7 @@ The README's ``python`` block (section "With plain Stable-Baselines3") is execut
 repository root, with ``gymnasium.make`` wrapped to record what reaches the uvdms environment (and, except
 for one full episode, to cut the episode to 40 steps). The recorded actions must equal those of the project's
 :class:`agents.export.AgentController` on the same observations; for the agent the issue was found on
-(``circle_case1_sac``, ``action_scale`` 0.3) the full episode's printed return must equal ``evaluation.json``'s.
+(``sac-circle-case1-v0``, ``action_scale`` 0.3) the full episode's printed return must equal ``evaluation.json``'s.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from scripts.ship_agent import README_SNIPPET_HEADING, plain_sb3_snippet
 
 REPO = Path(__file__).resolve().parents[1]
 FOLDERS = sorted(p for p in (REPO / "trained_agents").iterdir() if (p / "model.zip").is_file())
-FULL_EPISODE = "circle_case1_sac"
+FULL_EPISODE = "sac-circle-case1-v0"
 SHORT_EPISODE_STEPS = 40
 
 

@@ -43,3 +43,34 @@ def train_configs_dir() -> Path:
 def trained_agents_dir() -> Path:
     """Folder of the shipped agents (``<name>/model.zip`` ...)."""
     return data_dir(TRAINED_AGENTS)
+
+
+SHIPPED_ALIASES: dict[str, str] = {
+    "circle_case1_ppo": "ppo-circle-case1-v0",
+    "circle_case1_sac": "sac-circle-case1-v0",
+    "circle_case2_ppo": "ppo-circle-case2-v0",
+    "circle_case2_sac": "sac-circle-case2-v0",
+    "transport_paper_ppo": "ppo-transport-paper-v0",
+    "transport_paper_sac": "sac-transport-paper-v0",
+}
+"""Former names of shipped agent folders -> their names under the one scheme ``<family>-<task>[-<variant>]-<env
+version>``
+(``sac-circle-v1``, ``residual-mpc-sac-transport-v1``, ``ppo-circle-case1-v0``); the documented old paths still load."""
+
+
+def resolve_shipped(path: str | Path) -> Path:
+    """``path``, or, for a shipped agent's former name that no longer exists, the folder it was renamed to.
+
+    ``trained_agents/circle_case1_ppo`` (or just ``circle_case1_ppo``) resolves to
+    ``trained_agents/ppo-circle-case1-v0``
+    in the same ``trained_agents`` folder if it is there, else in :func:`trained_agents_dir`. Every other path is
+    returned unchanged (as a :class:`~pathlib.Path`).
+    """
+    path = Path(path)
+    new = SHIPPED_ALIASES.get(path.name)
+    if new is None or path.exists() or path.parent.name not in ("", TRAINED_AGENTS):
+        return path
+    for candidate in (path.parent / new, trained_agents_dir() / new):
+        if candidate.is_dir():
+            return candidate
+    return path

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from agents.common.paths import resolve_shipped
 from agents.export.controller import AgentController, Which
 from agents.export.sb3 import load_sb3_agent
 from agents.export.weights import AGENT_JSON, export_controller, load_weights_only
@@ -36,7 +37,7 @@ def load_agent(
         UntrustedFileError: If SB3/VecNormalize pickles would have to be loaded without trust.
         FileNotFoundError: If the model or its required normalisation statistics are missing.
     """
-    path = Path(path)
+    path = resolve_shipped(path)  # a shipped agent's former name loads the renamed folder
     if path.is_dir() and (path / AGENT_JSON).is_file():
         return load_weights_only(path)
     return load_sb3_agent(path, which=which, trust=trust, algo=algo)
