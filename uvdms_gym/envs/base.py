@@ -29,6 +29,7 @@ from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.utils import EzPickle
 
 from uvdms_gym.distances import compute_distances, contact_thresholds, velocity_damper
 from uvdms_gym.envs.lowlevel import VelocityLoop
@@ -55,8 +56,12 @@ PHYSICS_ERROR_REWARD = -100.0
 """Reward of the step on which the physics blew up (the episode then terminates)."""
 
 
-class UVDMSEnv(gym.Env):
+class UVDMSEnv(gym.Env, EzPickle):
     """Base class: one simulator, one kinematic model, a task; see the module docstring.
+
+    Pickling and ``copy.deepcopy`` work the Gymnasium way (:class:`gymnasium.utils.EzPickle`): the constructor's
+    arguments are pickled and the copy is a new environment built from them, with its own PyBullet client; the
+    state (episode, simulator, random generator) is not copied. ``reset()`` after ``close()`` connects a new client.
 
     Subclasses implement :meth:`_build_task`, :meth:`_initial_state`, :meth:`_output` and
     :meth:`_errors` and set :attr:`with_object`.
@@ -69,6 +74,12 @@ class UVDMSEnv(gym.Env):
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
     with_object: ClassVar[bool] = False
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> UVDMSEnv:
+        """Record the most-derived constructor's arguments for pickling (each subclass takes its own keywords)."""
+        env = super().__new__(cls)
+        EzPickle.__init__(env, *args, **kwargs)
+        return env
 
     def __init__(
         self,
@@ -144,7 +155,7 @@ class UVDMSEnv(gym.Env):
         self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = gym.spaces.Box(-OBS_CLIP, OBS_CLIP, (OBS_DIM,), np.float32)
 
-        self._sim = UVDMSSim(self.params, physics_dt=self.physics_dt, gui=render_mode == "human")
+        self._sim = self._make_sim()
         self._kin = KinematicModel(self.params)
         self._nominal = NominalDynamics(self._kin)
         self._loop = VelocityLoop(self._nominal, self.tau_max)
@@ -158,6 +169,10 @@ class UVDMSEnv(gym.Env):
         self._nu_scale = self.zeta_max[:6].copy()
         self._qdot_scale = self.zeta_max[6:].copy()
         self._closed = False
+
+    def _make_sim(self) -> UVDMSSim:
+        """A simulator with its own PyBullet client (DIRECT, or the GUI with ``render_mode="human"``)."""
+        return UVDMSSim(self.params, physics_dt=self.physics_dt, gui=self.render_mode == "human")
 
     # ----------------------------------------------------------------- task hooks
     def _build_task(self, rng: np.random.Generator) -> Any:  # pragma: no cover - abstract
@@ -205,6 +220,9 @@ class UVDMSEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Start an episode: draw the task (and hydrodynamic factors) from the seeded generator."""
         super().reset(seed=seed)
+        if self._closed:  # reset after close: a new client, as Gymnasium's classic environments do
+            self._sim = self._make_sim()
+            self._closed = False
         self.task = self._build_task(self.np_random)
         self._apply_hydro_randomization()
         eta, q = self._initial_state()

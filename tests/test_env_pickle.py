@@ -1,0 +1,103 @@
+"""Environments pickle and deep-copy the Gymnasium way, and reset after close (uvdms_gym/envs/base.py).
+
+A copy is a new environment built from the same constructor arguments (``gymnasium.utils.EzPickle``), with its own
+PyBullet client: stepping or closing it leaves the original alone. State is not copied, as in Gymnasium.
+"""
+
+from __future__ import annotations
+
+import copy
+import pickle
+import warnings
+
+import cloudpickle
+import gymnasium as gym
+import numpy as np
+import pytest
+from stable_baselines3.common.env_checker import check_env
+
+import uvdms_gym
+
+COPIES = {
+    "pickle": lambda env: pickle.loads(pickle.dumps(env)),
+    "cloudpickle": lambda env: cloudpickle.loads(cloudpickle.dumps(env)),
+    "deepcopy": copy.deepcopy,
+}
+KWARGS = {  # non-default keywords, so that a copy that dropped them would show
+    "uvdms/CircleTrack-v0": {"case": 2},
+    "uvdms/CircleTrack-v1": {"case": "random", "hydro_randomization": 0.2},
+    "uvdms/Transport-v0": {"goal": "random"},
+    "uvdms/Transport-v1": {"goal": "paper", "contact_weight": 5.0},
+}
+STEPS = 4
+SEED = 11
+
+
+def _actions(env: gym.Env, n: int = STEPS) -> list[np.ndarray]:
+    rng = np.random.default_rng(0)
+    return [rng.uniform(-0.5, 0.5, env.action_space.shape).astype(np.float32) for _ in range(n)]
+
+
+def _trajectory(env: gym.Env, actions: list[np.ndarray]) -> list[np.ndarray]:
+    out = [env.reset(seed=SEED)[0]]
+    out += [env.step(a)[0] for a in actions]
+    return out
+
+
+@pytest.mark.parametrize("env_id", uvdms_gym.ENV_IDS)
+@pytest.mark.parametrize("how", sorted(COPIES))
+def test_a_copy_is_an_independent_environment(env_id, how):
+    original = gym.make(env_id, **KWARGS[env_id])
+    fresh = gym.make(env_id, **KWARGS[env_id])
+    try:
+        actions = _actions(original)
+        expected = _trajectory(fresh, actions)
+        first = original.reset(seed=SEED)[0]
+        duplicate = COPIES[how](original)
+        assert duplicate.unwrapped is not original.unwrapped
+        assert duplicate.unwrapped._sim is not original.unwrapped._sim
+        # same constructor arguments: the same first observation for the same seed
+        np.testing.assert_array_equal(duplicate.reset(seed=SEED)[0], first)
+        for a in _actions(duplicate, 2 * STEPS)[::-1]:  # the copy moves first, differently
+            duplicate.step(a)
+        observed = [first] + [original.step(a)[0] for a in actions]
+        for got, want in zip(observed, expected):
+            np.testing.assert_array_equal(got, want)  # the original's trajectory is the undisturbed one
+        duplicate.close()
+        original.step(actions[0])  # closing the copy leaves the original's client alone
+    finally:
+        original.close()
+        fresh.close()
+
+
+def test_reset_after_close_connects_a_new_client():
+    env = gym.make("uvdms/CircleTrack-v1")
+    first = env.reset(seed=SEED)[0]
+    env.close()
+    env.close()  # idempotent
+    np.testing.assert_array_equal(env.reset(seed=SEED)[0], first)
+    env.step(env.action_space.sample())
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", ["uvdms/CircleTrack-v0", "uvdms/Transport-v1"])
+def test_stable_baselines3_check_env_with_the_render_check(env_id):
+    env = gym.make(env_id, render_mode="rgb_array", render_width=32, render_height=24).unwrapped
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # SB3 reports problems as warnings
+            check_env(env, warn=True, skip_render_check=False)  # calls close() then reset()
+    finally:
+        env.close()
+
+
+def test_async_vector_env():
+    envs = gym.make_vec("uvdms/CircleTrack-v1", num_envs=2, vectorization_mode="async", case="random")
+    try:
+        obs, _ = envs.reset(seed=[1, 2])
+        assert obs.shape == (2, *envs.single_observation_space.shape) and not np.array_equal(obs[0], obs[1])
+        for _ in range(2):
+            obs, reward, *_ = envs.step(envs.action_space.sample())
+        assert np.all(np.isfinite(reward))
+    finally:
+        envs.close()
