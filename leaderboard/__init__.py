@@ -152,19 +152,11 @@ from leaderboard.entries import (
     slugify,
     training_seeds,
 )
+from leaderboard.jobs import DEFAULT_BACKEND, Backend, Job, compute_job, make_env, plan_jobs
 from leaderboard.plots import PLOT_METRICS, write_learning_curves, write_plots
 from leaderboard.report import OVERLOAD_MARK, TABLE_METRICS, TIMING_METRICS, markdown_tables, timing_text, write_outputs
-from leaderboard.runner import (
-    DEFAULT_BACKEND,
-    Backend,
-    Job,
-    LeaderboardResult,
-    compute_job,
-    make_env,
-    plan_jobs,
-    row_for,
-    run_leaderboard,
-)
+from leaderboard.result import LeaderboardResult
+from leaderboard.runner import row_for, run_leaderboard
 from leaderboard.stats import (
     BOOTSTRAP_SEED,
     CONFIDENCE,

@@ -93,12 +93,12 @@ def _remove_materialised() -> None:
 
 
 def ray_episode(job: Any, backend: Any, trust: bool, files: Mapping[str, bytes] | None) -> dict[str, Any]:
-    """Body of one Ray task: the episode of ``job`` (:func:`leaderboard.runner.compute_job`) in a worker.
+    """Body of one Ray task: the episode of ``job`` (:func:`leaderboard.jobs.compute_job`) in a worker.
 
     ``files`` is the agent's weights-only export (``None`` for a baseline); the job's entry is pointed at the
     folder it is written to. Nothing is written to the cache here.
     """
-    from leaderboard.runner import compute_job, worker_setup
+    from leaderboard.jobs import compute_job, worker_setup
 
     worker_setup()
     if files is not None:
@@ -124,8 +124,8 @@ def run_on_ray(
     """Run the episodes of ``todo`` as Ray tasks and yield ``(job, result)`` as each finishes.
 
     Args:
-        todo: :class:`leaderboard.runner.Job` s to compute.
-        backend: :class:`leaderboard.runner.Backend` (module-level callables: Ray pickles them by reference).
+        todo: :class:`leaderboard.jobs.Job` s to compute.
+        backend: :class:`leaderboard.jobs.Backend` (module-level callables: Ray pickles them by reference).
         trust: Allow unpickling agents outside ``trained_agents/`` (in the driver only, for the export).
         address: Ray cluster address (``None``: a local instance of ``num_cpus`` CPUs).
         num_cpus: CPUs of the local instance (default: every core of this machine).

@@ -14,7 +14,7 @@ from leaderboard.tasks import TRACKS
 from uvdms_gym.physics.params import D1, D2
 
 if TYPE_CHECKING:
-    from leaderboard.runner import LeaderboardResult
+    from leaderboard.result import LeaderboardResult
 
 log = logging.getLogger("uvdms.leaderboard")
 

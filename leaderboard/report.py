@@ -18,7 +18,7 @@ from leaderboard.tasks import TRACKS, env_version
 from uvdms_gym.utils.io import write_json_atomic
 
 if TYPE_CHECKING:
-    from leaderboard.runner import LeaderboardResult
+    from leaderboard.result import LeaderboardResult
 
 OVERLOAD_MARK = "†"
 """Marks a controller timing taken with a 1-minute load average above the core count (tables)."""

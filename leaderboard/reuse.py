@@ -33,7 +33,7 @@ from leaderboard.cache import PACKAGE_VERSION, REQUIRED_KEYS
 from leaderboard.entries import Entry
 
 if TYPE_CHECKING:
-    from leaderboard.runner import Job
+    from leaderboard.jobs import Job
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +47,7 @@ def reusable_results(jobs: Sequence[Job], entries: Sequence[Entry], reuse_dir: s
     """The results of ``jobs`` found in the leaderboard output folder ``reuse_dir``, by the job's cache path.
 
     Args:
-        jobs: Planned episodes (:func:`leaderboard.runner.plan_jobs`); the runner passes those not in the cache.
+        jobs: Planned episodes (:func:`leaderboard.jobs.plan_jobs`); the runner passes those not in the cache.
         entries: The run's entries (each job's entry is one of them or one of their members).
         reuse_dir: A folder written by :func:`leaderboard.run_leaderboard` (``entries/*.json`` inside).
 

@@ -1,148 +1,42 @@
 """Running the leaderboard: the episodes to compute (cached), in this process or a process pool, then ranking.
 
-:func:`run_leaderboard` is the entry point; the :class:`Backend` says how environments, controllers
-(:func:`leaderboard.registry.make_controller`) and episodes (:func:`uvdms_gym.evaluation.run_episode`) are made,
-so that tests can substitute fakes.
+:func:`run_leaderboard` is the entry point; the episodes are :mod:`leaderboard.jobs` (the :class:`Backend` there
+says how environments, controllers and episodes are made, so that tests can substitute fakes), the result a
+:class:`leaderboard.result.LeaderboardResult`.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from leaderboard.cache import CorruptCacheError, cache_key, cache_material, cache_path, compact_result, read_cached
+from leaderboard.cache import CorruptCacheError, read_cached
 from leaderboard.entries import Entry, check_seed_disjointness
+from leaderboard.jobs import (
+    DEFAULT_BACKEND,
+    Backend,
+    Job,
+    close_worker_env,
+    compute_job,
+    plan_jobs,
+    store_result,
+    worker_setup,
+)
 from leaderboard.report import write_outputs
+from leaderboard.result import LeaderboardResult
 from leaderboard.reuse import CACHE_KEY_FIELD, check_reuse_dir, reusable_results
 from leaderboard.stats import RankedRow, aggregate, aggregate_runs, rank_rows
 from leaderboard.tasks import DEFAULT_EPISODES, TASKS, TRACKS, Task, evaluation_seeds
-from uvdms_gym.utils.io import write_json_atomic
 from uvdms_gym.utils.provenance import timing_record
 
 log = logging.getLogger("uvdms.leaderboard")
 
 EXECUTORS: tuple[str, ...] = ("local", "ray")
 """Where episodes run: this machine's processes, or Ray tasks (:mod:`leaderboard.distributed`)."""
-
-
-@dataclass(frozen=True)
-class Backend:
-    """How episodes are run (module-level callables, so that worker processes can receive them).
-
-    Attributes:
-        make_env: ``(task spec) -> env``.
-        make_controller: ``(spec, env, trust) -> controller``.
-        run_episode: ``(env, controller, seed, save_trajectory) -> dict`` (per-episode metrics).
-    """
-
-    make_env: Callable[[Mapping[str, Any]], Any]
-    make_controller: Callable[[str, Any, bool], Any]
-    run_episode: Callable[[Any, Any, int, bool], dict[str, Any]]
-
-
-def make_env(spec: Mapping[str, Any]) -> Any:
-    """``gymnasium.make`` of a task spec (:meth:`Task.spec`)."""
-    import gymnasium as gym
-
-    kwargs = dict(spec["env_kwargs"])
-    if spec.get("max_episode_steps") is not None:
-        kwargs["max_episode_steps"] = spec["max_episode_steps"]
-    return gym.make(spec["env_id"], **kwargs)
-
-
-def _real_make_controller(spec: str, env: Any, trust: bool) -> Any:
-    from leaderboard.registry import make_controller
-
-    return make_controller(spec, env, trust=trust)
-
-
-def _real_run_episode(env: Any, controller: Any, seed: int, save_trajectory: bool) -> dict[str, Any]:
-    from uvdms_gym.evaluation import run_episode
-
-    return run_episode(env, controller, seed, save_trajectory=save_trajectory)
-
-
-DEFAULT_BACKEND = Backend(make_env=make_env, make_controller=_real_make_controller, run_episode=_real_run_episode)
-
-
-@dataclass(frozen=True)
-class Job:
-    """One episode to compute."""
-
-    entry: Entry
-    task: Task
-    seed: int
-    save_trajectory: bool
-    key: str
-    material: dict[str, Any]
-    path: Path
-
-
-_WORKER: dict[str, Any] = {}
-"""Per-process reuse of the environment (and of stateless agent controllers) across consecutive jobs."""
-
-
-def worker_setup() -> None:
-    """Prepare a worker process for episodes, once: one torch thread, and the last simulator closed at exit."""
-    if _WORKER.get("setup"):
-        return
-    import atexit
-
-    atexit.register(_close_worker_env)  # disconnect the worker's last simulator before interpreter teardown
-    try:
-        import torch
-
-        torch.set_num_threads(1)
-    except ImportError:  # pragma: no cover - torch is a dependency
-        pass
-    _WORKER["setup"] = True
-
-
-def _close_worker_env() -> None:
-    env = _WORKER.pop("env", None)
-    _WORKER.pop("controller", None)
-    _WORKER.pop("key", None)
-    if env is not None:
-        env.close()
-
-
-def compute_job(job: Job, backend: Backend, trust: bool) -> dict[str, Any]:
-    """Run one episode and return its compact result (the driver stores it with :func:`store_result`)."""
-    group = (job.entry.name, job.entry.checksum, json.dumps(job.entry.task_spec(job.task), sort_keys=True))
-    if _WORKER.get("key") != group:
-        _close_worker_env()
-        _WORKER["env"] = backend.make_env(job.entry.task_spec(job.task))
-        _WORKER["key"] = group
-    env = _WORKER["env"]
-    # baselines are stateful (adaptive networks, warm starts): a fresh one per episode; so is a residual agent's base
-    reusable = job.entry.kind == "agent" and job.entry.residual_base is None
-    controller = _WORKER.get("controller") if reusable else None
-    if controller is None:
-        controller = backend.make_controller(job.entry.spec, env, trust)
-        if job.entry.safety_filter:
-            from leaderboard.registry import with_safety_filter
-
-            controller = with_safety_filter(controller, env)
-        if reusable:
-            _WORKER["controller"] = controller
-    with timing_record() as timing:
-        raw = backend.run_episode(env, controller, job.seed, job.save_trajectory)
-    result = compact_result(raw)
-    result["seed"] = int(job.seed)
-    result["timing"] = timing
-    return result
-
-
-def store_result(job: Job, result: dict[str, Any]) -> dict[str, Any]:
-    """Write ``result`` to the job's cache file atomically (only the driver writes the cache) and return it."""
-    write_json_atomic(job.path, {"key": job.key, "material": job.material, "result": result}, indent=None)
-    return result
 
 
 def _execute(
@@ -174,7 +68,7 @@ def _execute(
                     raise
                 yield job, result
         finally:
-            _close_worker_env()
+            close_worker_env()
         return
     import multiprocessing
 
@@ -192,46 +86,6 @@ def _execute(
             yield job, result
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-
-
-@dataclass
-class LeaderboardResult:
-    """What :func:`run_leaderboard` computed."""
-
-    rows: list[RankedRow]
-    entries: list[Entry]
-    tasks: tuple[Task, ...]
-    seeds: list[int]
-    computed: int
-    cached: int
-    corrupt: list[Path]
-    out_dir: Path
-    markdown: str = ""
-    timing: dict[str, Any] = field(default_factory=dict)
-    reused: int = 0
-
-
-def plan_jobs(
-    entries: Sequence[Entry], tasks: Sequence[Task], seeds: Sequence[int], cache_dir: str | Path
-) -> list[Job]:
-    """Every (entry, task, seed) episode of the run, grouped by entry and task.
-
-    A multi-seed entry contributes the episodes of each of its members (:meth:`Entry.runs`): the job's entry is
-    the member, so each (entry, training seed, task, evaluation seed) episode is cached on its own.
-    """
-    jobs = []
-    for entry in entries:
-        for task in tasks:
-            if not entry.runs_on(task):
-                continue
-            for run in entry.runs():
-                for i, seed in enumerate(seeds):
-                    save = task.trajectory and i == 0
-                    material = cache_material(run, task, seed, save)
-                    key = cache_key(material)
-                    path = cache_path(cache_dir, run, task, seed, key)
-                    jobs.append(Job(run, task, seed, save, key, material, path))
-    return jobs
 
 
 def row_for(entry: Entry, task: Task, episodes: Mapping[Entry, Sequence[dict[str, Any]]]) -> RankedRow:

@@ -21,7 +21,7 @@ from ray_support import descendants_matching, in_background
 import leaderboard as lb
 from leaderboard.cache import read_cached
 from leaderboard.distributed import agent_files, materialise
-from leaderboard.runner import plan_jobs
+from leaderboard.jobs import plan_jobs
 from uvdms_cli.main import main
 
 REPO = Path(__file__).resolve().parents[1]

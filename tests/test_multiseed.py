@@ -20,7 +20,7 @@ import pytest
 from scipy import stats as sps
 
 import leaderboard as lb
-from leaderboard.runner import LeaderboardResult
+from leaderboard.result import LeaderboardResult
 
 REPO = Path(__file__).resolve().parents[1]
 CIRCLE = "uvdms/CircleTrack-v0"
