@@ -76,7 +76,7 @@ def test_two_node_cluster(tmp_path, ray_processes):
         argv += ["--max-episode-steps", "6", "--backend", "ray", "--address", cluster.address]
         assert main(leaderboard_argv(out, *argv)) == 0
         rows = quality_columns(out / "leaderboard.csv")
-        assert sorted((row["entry"], row["episodes"]) for row in rows) == [("sac-circle-case1-v0", "2"), ("mpc", "2")]
+        assert sorted((row["entry"], row["episodes"]) for row in rows) == [("mpc", "2"), ("sac-circle-case1-v0", "2")]
         entries = lb.resolve_entries(["mpc", str(SHIPPED_SAC)])
         tasks = [replace(t, max_episode_steps=6) for t in lb.TASKS if t.name == "case1"]
         check_cache(out / "cache", plan_jobs(entries, tasks, lb.evaluation_seeds(2), out / "cache"))
