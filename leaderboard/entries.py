@@ -32,7 +32,7 @@ from typing import Any
 
 import yaml
 
-from leaderboard.registry import TRACK_OF
+from leaderboard.registry import TRACK_OF, resolve_controller
 from leaderboard.tasks import TRACKS, Task, env_family
 from uvdms_gym.residual import ActionComposition
 
@@ -191,7 +191,7 @@ def resolve_entries(
                 key = spec
                 entry = Entry(name=spec, kind="baseline", spec=spec, track=BASELINES[spec])
             else:
-                path = Path(spec)
+                path = Path(resolve_controller(spec))  # a shipped name from any directory, a former name
                 if not path.exists():
                     raise ValueError(
                         f"entry {spec!r} is neither a baseline ({', '.join(BASELINES)}), 'baselines', 'agents', "

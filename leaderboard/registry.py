@@ -182,6 +182,24 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
     return controller
 
 
+def resolve_controller(spec: str) -> str:
+    """``spec`` as given if it is a baseline name or an existing path; else the shipped agent it names.
+
+    ``trained_agents/NAME[/seed_k]`` (or ``NAME[/seed_k]``) that does not exist from the working directory resolves
+    in the shipped agents' folder (the checkout's or the installed copy,
+    :func:`agents.common.paths.trained_agents_dir`),
+    with a former name of a renamed shipped folder mapped to its new name (:data:`agents.common.paths.SHIPPED_ALIASES`).
+    """
+    from agents.common.paths import SHIPPED_ALIASES, TRAINED_AGENTS, trained_agents_dir
+
+    path = Path(spec)
+    if spec in CONTROLLERS or path.exists() or path.is_absolute() or not path.parts:
+        return spec
+    parts = path.parts[1:] if path.parts[0] == TRAINED_AGENTS and len(path.parts) > 1 else path.parts
+    candidate = trained_agents_dir().joinpath(SHIPPED_ALIASES.get(parts[0], parts[0]), *parts[1:])
+    return str(candidate) if candidate.exists() else spec
+
+
 def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) -> Any:
     """A controller from a name of :data:`CONTROLLERS` or a path to a trained agent.
 
@@ -199,7 +217,7 @@ def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) 
     """
     if spec in CONTROLLERS:
         return CONTROLLERS[spec](spec, env, **kwargs)
-    path = Path(spec)
+    path = Path(resolve_controller(spec))
     if not path.exists():
         raise ValueError(f"{spec!r} is neither a baseline ({', '.join(CONTROLLERS)}) nor an existing agent path")
     from agents.export import check_agent
@@ -263,7 +281,7 @@ def evaluate(
             return with_safety_filter(controller, env) if safety_filter else controller
 
     else:
-        path = Path(controller_spec)
+        path = Path(resolve_controller(controller_spec))
         if not path.exists():
             raise ValueError(f"{controller_spec!r} is neither a baseline ({', '.join(CONTROLLERS)}) nor an agent path")
         from agents.export import check_agent

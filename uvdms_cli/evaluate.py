@@ -1,4 +1,4 @@
-"""``uvdms evaluate``: a baseline name or an agent path over seeded episodes (:func:`leaderboard.registry.evaluate`)."""
+"""``uvdms evaluate``: a baseline, an agent or a multi-seed entry over seeded episodes (:mod:`leaderboard.evaluate`)."""
 
 from __future__ import annotations
 
@@ -13,12 +13,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "evaluate",
         help="evaluate a baseline or a trained agent over seeded episodes (JSON metrics)",
         description="Run a controller (baseline name or agent path) on an environment for N seeded episodes and "
-        "write per-episode metrics and their means as JSON (see uvdms_gym.evaluation).",
+        "write per-episode metrics and their means as JSON (see uvdms_gym.evaluation). A folder of training seeds "
+        "(seed_<k>/ sub-folders, as the leaderboard ranks them) is evaluated seed by seed and aggregated as the "
+        "leaderboard does (IQM over seeds x episodes, stratified bootstrap; summary keys aggregate, per_seed).",
     )
     ev.add_argument(
         "--controller",
         required=True,
-        help="mpc | campc | campc-di | campc-nndi, or a path to an agent (weights-only export, run dir or SB3 zip)",
+        help="mpc | campc | campc-di | campc-nndi, a path to an agent (weights-only export, run dir or SB3 zip) or "
+        "to a folder of seed_<k> agents; trained_agents/NAME also resolves from any directory",
     )
     ev.add_argument("--env", required=True, help="environment id, e.g. uvdms/CircleTrack-v0")
     ev.add_argument(
@@ -43,12 +46,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from leaderboard.registry import evaluate
+    from leaderboard.evaluate import evaluate_entry
     from uvdms_gym.utils.kwargs import check_make_kwargs, parse_kv
 
     env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
     check_make_kwargs(args.env, env_kwargs)  # errors are reported by uvdms_cli.main.main as one line
-    result = evaluate(
+    result = evaluate_entry(
         args.controller,
         args.env,
         env_kwargs,
