@@ -143,13 +143,18 @@ def _cmd_export(args: argparse.Namespace) -> int:
     out_dir = Path(args.out)
     if out_dir.is_dir() and any(out_dir.iterdir()) and not args.overwrite:  # before loading torch and the model
         raise FileExistsError(f"{out_dir} exists and is not empty (pass --overwrite to replace its files)")
-    from agents.export import export_agent
+    from agents.export import UntrustedFileError, export_agent
 
     try:
         out = export_agent(args.run_dir, args.out, which=args.which, trust=args.trust, overwrite=args.overwrite)
     except zipfile.BadZipFile as exc:  # other errors are reported by uvdms_cli.main.main as one line
         raise ValueError(
             f"{args.run_dir}: a model file is not a valid zip archive, corrupt or truncated ({exc})"
+        ) from None
+    except UntrustedFileError as exc:  # this command is the way to a weights-only export: advise its flag only
+        raise UntrustedFileError(
+            f"{exc.path} contains pickled objects, which can run arbitrary code when loaded: pass --trust if you "
+            "trust its origin, and this command writes a weights-only export that loads without trust"
         ) from None
     print(out)
     return 0

@@ -274,6 +274,12 @@ def evaluate(
     kwargs = dict(env_kwargs or {})
     check = None
     if controller_spec in CONTROLLERS:
+        if safety_filter and TRACK_OF[controller_spec] != "velocity":
+            raise ValueError(
+                f"--safety-filter filters velocity commands, but {controller_spec} is a {TRACK_OF[controller_spec]}-"
+                "track controller (it commands forces and torques); evaluate it without the filter, or filter a "
+                f"velocity controller ({', '.join(n for n, track in TRACK_OF.items() if track == 'velocity')})"
+            )
         kwargs.setdefault("action_mode", TRACK_OF[controller_spec])
 
         def factory(env: Any) -> Any:
@@ -288,6 +294,11 @@ def evaluate(
 
         agent = load_agent(path, trust)
         kwargs.setdefault("action_mode", (agent.env_kwargs or {}).get("action_mode", "velocity"))
+        if safety_filter and kwargs["action_mode"] != "velocity":
+            raise ValueError(
+                f"--safety-filter filters velocity commands, but {controller_spec} acts in action_mode="
+                f"{kwargs['action_mode']!r}; evaluate it without the filter"
+            )
 
         def factory(env: Any) -> Any:
             return compose_agent(agent, env, safety_filter=safety_filter)

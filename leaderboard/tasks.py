@@ -8,6 +8,8 @@ from typing import Any
 
 from gymnasium.envs.registration import parse_env_id
 
+from uvdms_gym.utils.kwargs import env_family  # re-exported: the one home of the versionless id
+
 SEED_BASE = 2_000_000_000
 """Evaluation seed of episode ``i`` is ``SEED_BASE + i`` (see :mod:`leaderboard`)."""
 TRACKS: tuple[str, ...] = ("velocity", "torque")
@@ -56,16 +58,6 @@ class Task:
             "env_kwargs": {**dict(self.env_kwargs), "action_mode": track},
             "max_episode_steps": self.max_episode_steps,
         }
-
-
-def env_family(env_id: str) -> str:
-    """The environment id without its version (``uvdms/CircleTrack-v1`` -> ``uvdms/CircleTrack``).
-
-    The versions of a uvdms task share dynamics, task, observations and costs and differ only in the reward
-    (``uvdms_gym/envs/v1.py``), so every leaderboard metric but ``return`` is the same on each of them.
-    """
-    namespace, name, _version = parse_env_id(env_id.split(":")[-1])
-    return f"{namespace}/{name}" if namespace else name
 
 
 def env_version(env_id: str) -> str:

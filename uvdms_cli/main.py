@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING
 
 import yaml
 
+from uvdms_gym.utils.cli import OneLineArgumentParser
+
 if TYPE_CHECKING:
     from agents.common.envs import ActionComponents
 
@@ -81,7 +83,7 @@ def _package_version() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``uvdms`` (subcommands register themselves here)."""
-    parser = argparse.ArgumentParser(prog="uvdms", description=__doc__.split("\n\n")[0])
+    parser = OneLineArgumentParser(prog="uvdms", description=__doc__.split("\n\n")[0])
     parser.add_argument("--version", action="version", version=f"%(prog)s {_package_version()}")
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     parser.add_argument(
@@ -161,6 +163,7 @@ def error_message(exc: BaseException) -> str:
         msg = f"a model file is not a valid zip archive (corrupt or truncated): {msg}"
     if type(exc).__name__ == "UntrustedFileError":  # the library speaks Python (trust=True), the CLI has a flag
         msg = msg.replace("pass trust=True", "pass --trust")
+        msg = msg.replace("(export_agent / load_weights_only)", "(uvdms export-agent PATH OUT --trust, once)")
     return " ".join(msg.split()) or type(exc).__name__
 
 

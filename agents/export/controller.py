@@ -10,6 +10,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -20,6 +21,7 @@ from stable_baselines3.common.policies import BasePolicy
 from agents.common.wrappers import is_unit_scale
 from uvdms_gym.evaluation import check_action_mode
 from uvdms_gym.residual import ActionComposition, residual_observation_space
+from uvdms_gym.utils.kwargs import env_family
 
 SHIPPED_MODEL = "model.zip"
 """Model file of a shipped agent folder (``trained_agents/<name>/``, written by :mod:`scripts.ship_agent`)."""
@@ -30,7 +32,16 @@ Which = Literal["final", "best"]
 
 
 class UntrustedFileError(ValueError):
-    """Refused to unpickle a file that is neither trusted by the caller nor inside ``trained_agents/``."""
+    """Refused to unpickle a file that is neither trusted by the caller nor inside ``trained_agents/``.
+
+    Args:
+        message: The error message.
+        path: The refused file (``None``: not given).
+    """
+
+    def __init__(self, message: str, path: str | Path | None = None) -> None:
+        super().__init__(message)
+        self.path = path
 
 
 class ExportFormatError(ValueError):
@@ -139,12 +150,17 @@ class AgentController:
         """
         if env_id is None or self.env_id is None or env_id == self.env_id:
             return True
-        warnings.warn(
-            f"agent {self.source or self.algo} was trained on {self.env_id} but runs on {env_id}: its observations "
-            "there mean something else, so its actions are not those of a trained policy",
-            EnvMismatchWarning,
-            stacklevel=2,
-        )
+        if env_family(env_id) == env_family(self.env_id):  # v0 <-> v1 of the same task
+            message = (
+                f"agent {self.source or self.algo} was trained on {self.env_id} but runs on {env_id}: the "
+                "observations and actions are the same, only the reward differs (its return is not comparable)"
+            )
+        else:
+            message = (
+                f"agent {self.source or self.algo} was trained on {self.env_id} but runs on {env_id}: its "
+                "observations there mean something else, so its actions are not those of a trained policy"
+            )
+        warnings.warn(message, EnvMismatchWarning, stacklevel=2)
         return False
 
     def reset(self, seed: int | None = None) -> None:
@@ -217,5 +233,4 @@ def recorded_composition(record: Mapping[str, Any], where: str) -> ActionComposi
         return ActionComposition.from_record(record)
     except ValueError as exc:
         raise ExportFormatError(f"{where}: {exc}") from None
-
 

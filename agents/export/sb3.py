@@ -25,6 +25,7 @@ from agents.export.controller import (
     SHIPPED_MODEL,
     SHIPPED_STATS,
     AgentController,
+    ExportFormatError,
     ObsNormalizer,
     UntrustedFileError,
     Which,
@@ -45,7 +46,8 @@ def _require_trust(path: Path, trust: bool) -> None:
         raise UntrustedFileError(
             f"{path} contains pickled objects, which can run arbitrary code when loaded; pass trust=True if "
             f"you trust its origin, put it under {TRUSTED_DIR}, or use a weights-only export "
-            "(export_agent / load_weights_only)"
+            "(export_agent / load_weights_only)",
+            path=path,
         )
 
 
@@ -64,13 +66,21 @@ def load_sb3_zip(path: str | Path, trust: bool, algo: str | None = None, device:
     Raises:
         UntrustedFileError: If not trusted.
         FileNotFoundError: If the file does not exist.
+        ExportFormatError: If the file is not a readable SB3 zip (corrupt or truncated).
     """
     path = Path(path)
     _require_trust(path, trust)
     if not path.is_file():
         raise FileNotFoundError(path)
     algo = algo if algo is not None else zip_algo(path)
-    return ALGOS[algo].load(str(path), device=device, print_system_info=False)
+    try:
+        return ALGOS[algo].load(str(path), device=device, print_system_info=False)
+    except (zipfile.BadZipFile, EOFError) as exc:
+        raise ExportFormatError(f"{path}: not a readable SB3 zip, corrupt or truncated ({exc})") from exc
+    except ValueError as exc:  # SB3 turns a BadZipFile into ValueError("Error: the file ... wasn't a zip-file")
+        if isinstance(exc.__cause__, zipfile.BadZipFile):
+            raise ExportFormatError(f"{path}: not a readable SB3 zip, corrupt or truncated ({exc.__cause__})") from exc
+        raise
 
 
 def zip_algo(path: str | Path) -> str:

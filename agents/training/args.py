@@ -15,6 +15,7 @@ from agents.common.names import (
     RESIDUAL_SPACE_NAMES,
     VEC_ENV_TYPES,
 )
+from uvdms_gym.utils.cli import OneLineArgumentParser
 
 __all__ = [
     "ALGO_NAMES",
@@ -28,7 +29,8 @@ __all__ = [
 
 def build_parser() -> argparse.ArgumentParser:
     """Argument parser of ``python -m agents.train``."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineArgumentParser(
+        command="uvdms",
         prog="python -m agents.train",
         description="Train a Stable-Baselines3 agent from train_configs/<algo>.yml.",
         epilog="Run directory layout and seed scheme: see the docstring of agents/train.py.",

@@ -59,6 +59,7 @@ def _build(algo: str, n_envs: int, vec_env: str, total_steps: int, seed: int = 0
 
     ``total_steps`` caps the replay buffer (:func:`agents.training.models.replay_buffer_size`).
     """
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import VecNormalize
 
     from agents.algos import ALGOS, is_off_policy
@@ -83,7 +84,10 @@ def _build(algo: str, n_envs: int, vec_env: str, total_steps: int, seed: int = 0
     kwargs = cfg.sb3_hyperparams()
     if is_off_policy(algo):
         kwargs["buffer_size"] = replay_buffer_size(configured_buffer_size(cfg), n_envs, total_steps)
-    return ALGOS[algo](cfg.policy, venv, policy_kwargs=cfg.sb3_policy_kwargs(), seed=seed, verbose=0, **kwargs)
+    model = ALGOS[algo](cfg.policy, venv, policy_kwargs=cfg.sb3_policy_kwargs(), seed=seed, verbose=0, **kwargs)
+    # a logger that writes nothing: without one, SB3 makes an empty SB3-<date> folder in the temp directory per learn
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
 
 
 def _block(model: Any, steps: int, update_threads: int = 1) -> tuple[int, float]:

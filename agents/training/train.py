@@ -103,6 +103,7 @@ from agents.training.rundir import (
 )
 from agents.training.segment import TrainingSegment
 from agents.training.spec import RunSpec, command_prefix, resolve_config
+from uvdms_gym.utils.kwargs import check_make_kwargs
 from uvdms_gym.utils.kwargs import parse_kv as _parse_key_values
 from uvdms_gym.utils.provenance import git_info, package_versions
 
@@ -277,6 +278,11 @@ def train_run(
     torch.set_num_threads(1)
     check_env_id(spec.env_id, spec.gym_packages)
     cfg = spec.resolve()
+    for kwargs in (cfg.env_kwargs, {**cfg.env_kwargs, **cfg.eval_env_kwargs}):
+        try:
+            check_make_kwargs(spec.env_id, kwargs)  # a key the env does not take, or radius=abc: one clear line
+        except ValueError as exc:
+            raise ConfigError(f"--env-kwargs / env_kwargs: {exc}") from None
     check_vec_env(cfg, spec.vec_env)
     factories = composition_factories(cfg, components)  # before the run directory exists
     run_dir = create_run_dir(

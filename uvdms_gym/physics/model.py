@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import tempfile
+import threading
 from functools import lru_cache
 from pathlib import Path
 
@@ -252,17 +254,23 @@ def build_object_urdf(params: UVDMSParams) -> str:
     )
 
 
+_URDF_DIRS: dict[int, tempfile.TemporaryDirectory] = {}
+"""This process's folder of URDF files (by process id: a forked worker makes its own), removed at exit."""
+
+
 def _cache_dir() -> Path:
-    d = Path(tempfile.gettempdir()) / "uvdms_gym_urdf"
-    d.mkdir(parents=True, exist_ok=True)
-    return d
+    """This process's URDF folder: PyBullet loads from a path, and the process leaves nothing behind."""
+    folder = _URDF_DIRS.get(os.getpid())
+    if folder is None or not Path(folder.name).is_dir():
+        folder = _URDF_DIRS[os.getpid()] = tempfile.TemporaryDirectory(prefix="uvdms_gym_urdf-")
+    return Path(folder.name)
 
 
 def write_urdf(text: str) -> Path:
-    """Write URDF text to a content-addressed temporary file (PyBullet loads from a path)."""
+    """Write URDF text to a content-addressed file of this process's URDF folder (PyBullet loads from a path)."""
     path = _cache_dir() / f"{hashlib.sha1(text.encode()).hexdigest()[:16]}.urdf"
     if not path.exists():
-        tmp = path.with_suffix(f".tmp{np.random.default_rng().integers(1 << 30)}")
+        tmp = path.with_suffix(f".tmp{threading.get_ident()}")
         tmp.write_text(text)
         tmp.replace(path)
     return path

@@ -86,9 +86,14 @@ def check_make_kwargs(env_id: str, kwargs: Mapping[str, Any]) -> None:
         [k.__init__ for k in creator.__mro__ if "__init__" in vars(k)] if isinstance(creator, type) else [creator]
     )
     open_ended = True
+    annotations: dict[str, str] = {}
     for fn in functions:
         params = inspect.signature(fn).parameters.values()
-        accepted |= {p.name for p in params if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD) and p.name != "self"}
+        named = [p for p in params if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD) and p.name != "self"]
+        accepted |= {p.name for p in named}
+        for p in named:
+            if p.annotation is not p.empty:
+                annotations.setdefault(p.name, p.annotation if isinstance(p.annotation, str) else str(p.annotation))
         if not any(p.kind is p.VAR_KEYWORD for p in params):
             open_ended = False
             break
@@ -98,3 +103,27 @@ def check_make_kwargs(env_id: str, kwargs: Mapping[str, Any]) -> None:
             f"{env_id} takes no keyword argument {', '.join(map(repr, unknown))}; "
             f"it takes {', '.join(sorted(accepted))}"
         )
+    for key, value in kwargs.items():
+        _check_text_value(env_id, key, value, annotations.get(key))
+
+
+def _check_text_value(env_id: str, key: str, value: Any, annotation: str | None) -> None:
+    """A text value for a keyword that takes no text (``radius=abc``): an error naming the key and the type."""
+    if not isinstance(value, str) or annotation is None:
+        return
+    types = {t.strip() for t in annotation.replace("Optional[", "").replace("]", "").split("|")}
+    if types & {"str", "Any", "object"} or "Literal" in annotation or not types & {"float", "int", "bool"}:
+        return
+    raise ValueError(f"{env_id}: {key}={value!r} is not a valid value; {key} takes {annotation}")
+
+
+def env_family(env_id: str) -> str:
+    """The environment id without its version (``uvdms/CircleTrack-v1`` -> ``uvdms/CircleTrack``).
+
+    The versions of a uvdms task share dynamics, task, observations and costs and differ only in the reward
+    (``uvdms_gym/envs/v1.py``). A ``module:`` prefix is ignored.
+    """
+    from gymnasium.envs.registration import parse_env_id
+
+    namespace, name, _version = parse_env_id(env_id.split(":")[-1])
+    return f"{namespace}/{name}" if namespace else name
