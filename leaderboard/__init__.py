@@ -122,6 +122,7 @@ Safety
 
 from __future__ import annotations
 
+from leaderboard.agent_files import agent_checksum, agent_env, training_seeds
 from leaderboard.cache import (
     CACHE_FORMAT,
     PACKAGE_VERSION,
@@ -140,9 +141,7 @@ from leaderboard.entries import (
     RECOMMENDED_TRAINING_SEEDS,
     SEED_FOLDER_PREFIX,
     Entry,
-    agent_checksum,
     agent_entry,
-    agent_env,
     check_seed_disjointness,
     find_agent_folders,
     is_multi_seed_folder,
@@ -150,7 +149,6 @@ from leaderboard.entries import (
     multi_seed_entry,
     resolve_entries,
     slugify,
-    training_seeds,
 )
 from leaderboard.jobs import DEFAULT_BACKEND, Backend, Job, compute_job, make_env, plan_jobs
 from leaderboard.plots import PLOT_METRICS, write_learning_curves, write_plots

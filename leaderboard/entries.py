@@ -25,16 +25,20 @@ import json
 import logging
 import re
 import zipfile
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from leaderboard.agent_files import (
+    agent_checksum,
+    agent_composition,
+    agent_env,
+    run_seed,
+    training_seeds,
+)
 from leaderboard.registry import TRACK_OF, resolve_controller
 from leaderboard.tasks import TRACKS, Task, env_family
-from uvdms_gym.residual import ActionComposition
 
 log = logging.getLogger("uvdms.leaderboard")
 
@@ -44,9 +48,6 @@ FILTER_SUFFIX = "+filter"
 """Entry-token suffix: the entry's actions go through the safety filter (:mod:`baselines.safety`)."""
 DEFAULT_ENTRIES: tuple[str, ...] = ("baselines", "agents")
 """``baselines`` stands for the four named baselines, ``agents`` for every agent folder in ``agents_dir``."""
-_AGENT_MODEL_SUFFIXES = (".zip", ".pkl", ".pt", ".npz")
-_AGENT_CONFIG_NAMES = ("agent.json", "config.yml", "config.yaml")
-_SEED_FILES = ("meta.json", "config.yml", "config.yaml", "agent.json")
 SEED_FOLDER_PREFIX = "seed_"
 """Sub-folders of a multi-seed entry: ``seed_<k>``, ``k`` the training seed (``--seed``) of the run inside."""
 _SEED_FOLDER = re.compile(rf"^{SEED_FOLDER_PREFIX}(\d+)$")
@@ -180,38 +181,47 @@ def resolve_entries(
     for raw_token in tokens or DEFAULT_ENTRIES:
         filtered = raw_token.endswith(FILTER_SUFFIX)
         token = raw_token.removesuffix(FILTER_SUFFIX) if filtered else raw_token
-        if token == "baselines":
-            candidates: list[str] = list(BASELINES)
-        elif token == "agents":
-            candidates = [str(p) for p in find_agent_folders(agents_dir)]
-        else:
-            candidates = [token]
-        for spec in candidates:
-            if spec in BASELINES:
-                key = spec
-                entry = Entry(name=spec, kind="baseline", spec=spec, track=BASELINES[spec])
-            else:
-                path = Path(resolve_controller(spec))  # a shipped name from any directory, a former name
-                if not path.exists():
-                    raise ValueError(
-                        f"entry {spec!r} is neither a baseline ({', '.join(BASELINES)}), 'baselines', 'agents', "
-                        "nor an existing agent folder or checkpoint"
-                    )
-                key = str(path.resolve())
-                entry = agent_entry(path, trust=trust)
-            if filtered and not entry.safety_filter:
-                if entry.track != "velocity":
-                    if token != spec:  # a keyword: its torque-track members are simply not filtered
-                        continue
-                    raise ValueError(f"{raw_token}: the safety filter projects velocity commands; {spec} is torque")
-                entry = entry.filtered()
-            if entry.safety_filter:  # (an agent trained with the filter is the same entry with or without +filter)
-                key += FILTER_SUFFIX
-            if key in seen_specs:
+        for spec in _token_specs(token, agents_dir):
+            keyed = _token_entry(spec, raw_token, token, filtered, trust)
+            if keyed is None or keyed[0] in seen_specs:
                 continue
-            seen_specs.add(key)
-            entries.append(entry)
+            seen_specs.add(keyed[0])
+            entries.append(keyed[1])
     return _unique_names(entries)
+
+
+def _token_specs(token: str, agents_dir: str | Path) -> list[str]:
+    """The controller specs a token stands for: the baselines, the agent folders, or the token itself."""
+    if token == "baselines":
+        return list(BASELINES)
+    if token == "agents":
+        return [str(p) for p in find_agent_folders(agents_dir)]
+    return [token]
+
+
+def _token_entry(spec: str, raw_token: str, token: str, filtered: bool, trust: bool) -> tuple[str, Entry] | None:
+    """``(dedup key, entry)`` of one spec of a token; ``None`` for a torque member of a filtered keyword."""
+    if spec in BASELINES:
+        key = spec
+        entry = Entry(name=spec, kind="baseline", spec=spec, track=BASELINES[spec])
+    else:
+        path = Path(resolve_controller(spec))  # a shipped name from any directory, a former name
+        if not path.exists():
+            raise ValueError(
+                f"entry {spec!r} is neither a baseline ({', '.join(BASELINES)}), 'baselines', 'agents', "
+                "nor an existing agent folder or checkpoint"
+            )
+        key = str(path.resolve())
+        entry = agent_entry(path, trust=trust)
+    if filtered and not entry.safety_filter:
+        if entry.track != "velocity":
+            if token != spec:  # a keyword: its torque-track members are simply not filtered
+                return None
+            raise ValueError(f"{raw_token}: the safety filter projects velocity commands; {spec} is torque")
+        entry = entry.filtered()
+    if entry.safety_filter:  # (an agent trained with the filter is the same entry with or without +filter)
+        key += FILTER_SUFFIX
+    return key, entry
 
 
 def _unique_names(entries: list[Entry]) -> list[Entry]:
@@ -323,6 +333,32 @@ def multi_seed_entry(path: str | Path, *, trust: bool = False) -> Entry:
             f"{path} holds both an agent (agent.json or a .zip) and seed_* folders: a multi-seed entry holds only "
             "its seed folders"
         )
+    seeds = _seed_folders(path)
+    members = _seed_members(path, seeds, trust)
+    first = members[0]
+    name = agent_composition(Path(first.spec)).describe(path.name) + (FILTER_SUFFIX if first.safety_filter else "")
+    members = [replace(m, name=f"{name}/{Path(m.spec).name}") for m in members]
+    _check_distinct_runs(path, members)
+    digest = hashlib.sha256()
+    for member in members:
+        digest.update(f"{Path(member.spec).name}\0{member.checksum}\0".encode())
+    return Entry(
+        name=name,
+        kind="agent",
+        spec=str(path),
+        track=first.track,
+        env_id=first.env_id,
+        checksum=digest.hexdigest(),
+        training_seeds=frozenset().union(*(m.training_seeds for m in members)),
+        weights_only=all(m.weights_only for m in members),
+        safety_filter=first.safety_filter,
+        residual_base=first.residual_base,
+        members=tuple(members),
+    )
+
+
+def _seed_folders(path: Path) -> dict[int, Path]:
+    """The ``seed_<k>`` folders of a multi-seed entry by training seed (checked: names, duplicates, how many)."""
     seeds: dict[int, Path] = {}
     for sub in sorted(p for p in path.iterdir() if p.is_dir() and p.name.startswith(SEED_FOLDER_PREFIX)):
         match = _SEED_FOLDER.match(sub.name)
@@ -343,13 +379,18 @@ def multi_seed_entry(path: str | Path, *, trust: bool = False) -> Entry:
             len(seeds),
             RECOMMENDED_TRAINING_SEEDS,
         )
+    return seeds
+
+
+def _seed_members(path: Path, seeds: dict[int, Path], trust: bool) -> list[Entry]:
+    """The member entry of each seed folder (each an agent, trained with its seed, all on one environment)."""
     members = []
     environments: dict[str, tuple[str | None, dict[str, Any], str, str | None, bool]] = {}
     for k, folder in sorted(seeds.items()):
         if is_multi_seed_folder(folder):
             raise ValueError(f"{folder}: a seed folder must be an agent, not another folder of seeds")
         member = agent_entry(folder, trust=trust)
-        recorded = _run_seed(folder)
+        recorded = run_seed(folder)
         if recorded is not None and recorded != k:
             raise ValueError(f"{folder}: the run inside was trained with seed {recorded}, not {k}")
         env_id, env_kwargs = agent_env(folder)
@@ -362,9 +403,11 @@ def multi_seed_entry(path: str | Path, *, trust: bool = False) -> Entry:
             for seed, env in environments.items()
         )
         raise ValueError(f"{path}: its seeds were trained on different environments ({listing})")
-    first = members[0]
-    name = agent_composition(Path(first.spec)).describe(path.name) + (FILTER_SUFFIX if first.safety_filter else "")
-    members = [replace(m, name=f"{name}/{Path(m.spec).name}") for m in members]
+    return members
+
+
+def _check_distinct_runs(path: Path, members: list[Entry]) -> None:
+    """Refuse two seeds with identical model files (the same run twice, not two training seeds)."""
     by_checksum: dict[str | None, str] = {}
     for member in members:
         if member.checksum in by_checksum:
@@ -373,149 +416,6 @@ def multi_seed_entry(path: str | Path, *, trust: bool = False) -> Entry:
                 "(the same run twice, not two training seeds)"
             )
         by_checksum[member.checksum] = member.name
-    digest = hashlib.sha256()
-    for member in members:
-        digest.update(f"{Path(member.spec).name}\0{member.checksum}\0".encode())
-    return Entry(
-        name=name,
-        kind="agent",
-        spec=str(path),
-        track=first.track,
-        env_id=first.env_id,
-        checksum=digest.hexdigest(),
-        training_seeds=frozenset().union(*(m.training_seeds for m in members)),
-        weights_only=all(m.weights_only for m in members),
-        safety_filter=first.safety_filter,
-        residual_base=first.residual_base,
-        members=tuple(members),
-    )
-
-
-def _run_seed(folder: Path) -> int | None:
-    """The base seed (``seed``) recorded at the top of a run's ``config.yml`` or ``meta.json`` (``None``: none)."""
-    for file_name in ("config.yml", "config.yaml", "meta.json"):
-        file = folder / file_name
-        if not file.is_file():
-            continue
-        try:
-            doc = _read_structured(file)
-        except (OSError, ValueError, yaml.YAMLError):
-            continue
-        seed = doc.get("seed") if isinstance(doc, dict) else None
-        if isinstance(seed, int) and not isinstance(seed, bool):
-            return seed
-    return None
-
-
-def _agent_folders(path: Path) -> list[Path]:
-    """Where an agent's plain-text run files may be: the folder (or a zip's folder) and its parent."""
-    folder = path if path.is_dir() else path.parent
-    return [folder, folder.parent]
-
-
-def _read_structured(path: Path) -> Any:
-    text = path.read_text(encoding="utf-8")
-    return json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-
-
-def _agent_config_docs(path: Path) -> Iterator[tuple[Path, dict[str, Any]]]:
-    """``(file, mapping)`` of every readable configuration file of an agent (``agent.json``, ``config.yml``), in order.
-
-    An unreadable file is logged and skipped; a file that does not hold a mapping is skipped.
-    """
-    for folder in _agent_folders(path):
-        for name in _AGENT_CONFIG_NAMES:
-            file = folder / name
-            if not file.is_file():
-                continue
-            try:
-                doc = _read_structured(file)
-            except (OSError, ValueError, yaml.YAMLError) as exc:
-                log.warning("cannot read %s: %s", file, exc)
-                continue
-            if isinstance(doc, dict):
-                yield file, doc
-
-
-def agent_env(path: str | Path) -> tuple[str | None, dict[str, Any]]:
-    """The training environment id and keyword arguments of an agent, from ``agent.json`` or ``config.yml``.
-
-    Returns:
-        ``(env_id, env_kwargs)``; ``(None, {})`` if no configuration file is found.
-    """
-    for _file, doc in _agent_config_docs(Path(path)):
-        config = doc.get("config") if isinstance(doc.get("config"), dict) else {}
-        env_kwargs = doc.get("env_kwargs") or config.get("env_kwargs") or {}
-        env_id = doc.get("env_id") or config.get("env_id")
-        if env_id is not None:
-            return str(env_id).split(":")[-1], dict(env_kwargs)
-    return None, {}
-
-
-def agent_composition(path: str | Path) -> ActionComposition:
-    """The residual base and safety filter an agent was trained with, from ``agent.json`` or ``config.yml``.
-
-    Read from the first configuration file found (as :func:`agent_env`); none found: a plain agent.
-
-    Raises:
-        ValueError: The recorded values are invalid (the message names the file).
-    """
-    for file, doc in _agent_config_docs(Path(path)):
-        record = doc["config"] if isinstance(doc.get("config"), dict) else doc
-        try:
-            return ActionComposition.from_record(record)
-        except ValueError as exc:
-            raise ValueError(f"{file}: {exc}") from None
-    return ActionComposition()
-
-
-def _collect_seeds(node: Any, under_seed_key: bool = False) -> set[int]:
-    found: set[int] = set()
-    if isinstance(node, Mapping):
-        for key, value in node.items():
-            found |= _collect_seeds(value, under_seed_key or "seed" in str(key).lower())
-    elif isinstance(node, list | tuple):
-        for value in node:
-            found |= _collect_seeds(value, under_seed_key)
-    elif under_seed_key and isinstance(node, int) and not isinstance(node, bool):
-        found.add(int(node))
-    return found
-
-
-def training_seeds(path: str | Path) -> set[int]:
-    """Every integer stored under a key containing ``seed`` in the agent's run files (see module docstring)."""
-    seeds: set[int] = set()
-    for folder in _agent_folders(Path(path)):
-        for name in _SEED_FILES:
-            file = folder / name
-            if file.is_file():
-                try:
-                    seeds |= _collect_seeds(_read_structured(file))
-                except (OSError, ValueError, yaml.YAMLError) as exc:
-                    log.warning("cannot read %s for training seeds: %s", file, exc)
-    return seeds
-
-
-def agent_checksum(path: str | Path) -> str:
-    """SHA-256 over the agent's model files.
-
-    Name and content of each ``.zip``/``.pkl``/``.pt``/``.npz`` and configuration file of the folder, or of a
-    checkpoint and its sibling ``.pkl`` statistics.
-    """
-    path = Path(path)
-    if path.is_dir():
-        files = [
-            p
-            for p in sorted(path.iterdir())
-            if p.is_file() and (p.suffix in _AGENT_MODEL_SUFFIXES or p.name in _AGENT_CONFIG_NAMES)
-        ]
-    else:
-        files = [path, *sorted(p for p in path.parent.glob("*.pkl") if p.is_file())]
-    digest = hashlib.sha256()
-    for file in files:
-        digest.update(file.name.encode() + b"\0")
-        digest.update(hashlib.sha256(file.read_bytes()).digest())
-    return digest.hexdigest()
 
 
 def check_seed_disjointness(eval_seeds: Iterable[int], entries: Iterable[Entry]) -> None:

@@ -7,9 +7,10 @@ says how environments, controllers and episodes are made, so that tests can subs
 
 from __future__ import annotations
 
+import functools
 import logging
 import sys
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
@@ -157,9 +158,65 @@ def run_leaderboard(
         FileNotFoundError: ``reuse_from`` is not a leaderboard output folder.
         ConnectionError: The Ray cluster at ``address`` cannot be reached.
     """
-    from tqdm.auto import tqdm
-
     backend = backend if backend is not None else DEFAULT_BACKEND
+    _check_options(entries, episodes, executor, address, num_cpus, max_retries, jobs, force, reuse_from)
+    out = Path(out_dir)
+    cache = _prepare_cache(Path(cache_dir) if cache_dir is not None else out / "cache")
+    seeds = evaluation_seeds(episodes)
+    check_seed_disjointness(seeds, entries)
+
+    all_jobs = plan_jobs(entries, tasks, seeds, cache)
+    results, corrupt, todo = _read_cache(all_jobs, force)
+    n_reused = 0
+    if reuse_from is not None and todo:
+        todo, n_reused = _reuse(todo, entries, reuse_from, results)
+    n_cached = len(all_jobs) - len(todo) - n_reused
+    # the model-based baselines' episodes first: they are the long ones (an MPC QP per step), and workers that
+    # finish the short agent episodes last leave less idle time at the end (the results do not depend on order)
+    todo.sort(key=lambda job: job.entry.kind != "baseline")
+    log.info(
+        "leaderboard: %d entries, %d tasks, %d episodes each: %d cached, %d reused, %d to compute",
+        len(entries),
+        len(tasks),
+        episodes,
+        n_cached,
+        n_reused,
+        len(todo),
+    )
+    with timing_record() as run_record:  # the run's machine and load (each episode has its own record)
+        execute = functools.partial(
+            _execute, backend=backend, trust=trust, jobs=jobs, executor=executor, address=address,
+            num_cpus=num_cpus, max_retries=max_retries,
+        )
+        _compute(todo, len(all_jobs), n_cached + n_reused, execute, results, progress)
+    result = LeaderboardResult(
+        rows=_ranked_rows(all_jobs, results, entries, tasks),
+        entries=list(entries),
+        tasks=tuple(tasks),
+        seeds=seeds,
+        computed=len(todo),
+        cached=n_cached,
+        reused=n_reused,
+        corrupt=corrupt,
+        out_dir=out,
+        timing=run_record,
+    )
+    write_outputs(result, command=command, plots=plots)
+    return result
+
+
+def _check_options(
+    entries: Sequence[Entry],
+    episodes: int,
+    executor: str,
+    address: str | None,
+    num_cpus: int | None,
+    max_retries: int | None,
+    jobs: int,
+    force: bool,
+    reuse_from: str | Path | None,
+) -> None:
+    """The argument checks of :func:`run_leaderboard` (its ``Raises``), before anything runs or is written."""
     if not entries:
         raise ValueError("no entries to evaluate")
     if episodes < 1:
@@ -174,15 +231,18 @@ def run_leaderboard(
         raise ValueError("force recomputes every episode: it cannot be combined with reuse_from")
     if reuse_from is not None:
         check_reuse_dir(reuse_from)
-    out = Path(out_dir)
-    cache = Path(cache_dir) if cache_dir is not None else out / "cache"
-    seeds = evaluation_seeds(episodes)
-    check_seed_disjointness(seeds, entries)
+
+
+def _prepare_cache(cache: Path) -> Path:
+    """The cache folder, created, with a ``.gitignore`` that keeps it out of git."""
     cache.mkdir(parents=True, exist_ok=True)
     if not (cache / ".gitignore").exists():
         (cache / ".gitignore").write_text("*\n", encoding="utf-8")
+    return cache
 
-    all_jobs = plan_jobs(entries, tasks, seeds, cache)
+
+def _read_cache(all_jobs: Sequence[Job], force: bool) -> tuple[dict[Path, dict[str, Any]], list[Path], list[Job]]:
+    """``(results by cache file, corrupt cache files, jobs to compute)``: every job is to compute with ``force``."""
     results: dict[Path, dict[str, Any]] = {}
     corrupt: list[Path] = []
     todo: list[Job] = []
@@ -198,71 +258,65 @@ def run_leaderboard(
             log.warning("corrupt cached result %s (%s): recomputing", job.path, exc)
             corrupt.append(job.path)
             todo.append(job)
-    n_reused = 0
-    if reuse_from is not None and todo:
-        reused = reusable_results(todo, entries, reuse_from)
-        for job in todo:
-            if job.path in reused:
-                results[job.path] = store_result(job, reused[job.path])
-        todo = [job for job in todo if job.path not in reused]
-        n_reused = len(reused)
-    n_cached = len(all_jobs) - len(todo) - n_reused
-    # the model-based baselines' episodes first: they are the long ones (an MPC QP per step), and workers that
-    # finish the short agent episodes last leave less idle time at the end (the results do not depend on order)
-    todo.sort(key=lambda job: job.entry.kind != "baseline")
-    log.info(
-        "leaderboard: %d entries, %d tasks, %d episodes each: %d cached, %d reused, %d to compute",
-        len(entries),
-        len(tasks),
-        episodes,
-        n_cached,
-        n_reused,
-        len(todo),
-    )
-    with timing_record() as run_record:  # the run's machine and load (each episode has its own record)
-        bar = tqdm(
-            total=len(all_jobs),
-            initial=n_cached + n_reused,
-            desc="leaderboard",
-            unit="ep",
-            disable=not progress,
-            mininterval=0.1 if sys.stderr.isatty() else 30.0,  # a log file gets a line every 30 s, not every episode
-        )
-        try:
-            finished = _execute(todo, backend, trust, jobs, executor, address, num_cpus, max_retries)
-            for job, result in finished:
-                results[job.path] = store_result(job, result)
-                bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
-                bar.update()
-        finally:
-            bar.close()
+    return results, corrupt, todo
 
+
+def _reuse(
+    todo: list[Job], entries: Sequence[Entry], reuse_from: str | Path, results: dict[Path, dict[str, Any]]
+) -> tuple[list[Job], int]:
+    """Store the episodes an earlier output recorded into the cache and ``results``; the jobs left, and how many."""
+    reused = reusable_results(todo, entries, reuse_from)
+    for job in todo:
+        if job.path in reused:
+            results[job.path] = store_result(job, reused[job.path])
+    return [job for job in todo if job.path not in reused], len(reused)
+
+
+def _compute(
+    todo: Sequence[Job],
+    total: int,
+    done: int,
+    execute: Callable[[Sequence[Job]], Iterator[tuple[Job, dict[str, Any]]]],
+    results: dict[Path, dict[str, Any]],
+    progress: bool,
+) -> None:
+    """Compute ``todo`` with ``execute`` and store each result as it finishes, behind a progress bar."""
+    from tqdm.auto import tqdm
+
+    bar = tqdm(
+        total=total,
+        initial=done,
+        desc="leaderboard",
+        unit="ep",
+        disable=not progress,
+        mininterval=0.1 if sys.stderr.isatty() else 30.0,  # a log file gets a line every 30 s, not every episode
+    )
+    try:
+        for job, result in execute(todo):
+            results[job.path] = store_result(job, result)
+            bar.set_postfix_str(f"{job.entry.name} / {job.task.name}", refresh=False)
+            bar.update()
+    finally:
+        bar.close()
+
+
+def _ranked_rows(
+    all_jobs: Sequence[Job], results: dict[Path, dict[str, Any]], entries: Sequence[Entry], tasks: Sequence[Task]
+) -> list[RankedRow]:
+    """The rows of every entry on every task it runs on, ranked per track and task."""
     by_run: dict[tuple[Entry, str], list[dict[str, Any]]] = {}
     for job in all_jobs:  # each episode with its cache key, so that a later run can reuse it from the documents
         by_run.setdefault((job.entry, job.task.name), []).append({**results[job.path], CACHE_KEY_FIELD: job.key})
-    rows = []
-    for entry in entries:
-        for task in tasks:
-            if not entry.runs_on(task):
-                continue
-            rows.append(row_for(entry, task, {run: by_run[run, task.name] for run in entry.runs()}))
+    rows = [
+        row_for(entry, task, {run: by_run[run, task.name] for run in entry.runs()})
+        for entry in entries
+        for task in tasks
+        if entry.runs_on(task)
+    ]
     ranked: list[RankedRow] = []
     for track in TRACKS:
         for task in tasks:
             group = [r for r in rows if r.entry.track == track and r.task is task]
             if group:
                 ranked.extend(rank_rows(group))
-    result = LeaderboardResult(
-        rows=ranked,
-        entries=list(entries),
-        tasks=tuple(tasks),
-        seeds=seeds,
-        computed=len(todo),
-        cached=n_cached,
-        reused=n_reused,
-        corrupt=corrupt,
-        out_dir=out,
-        timing=run_record,
-    )
-    write_outputs(result, command=command, plots=plots)
-    return result
+    return ranked
