@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from agents.common.envs import ActionComponents
@@ -61,42 +61,42 @@ def register(
     export.set_defaults(func=_cmd_export)
 
 
+_TRAIN_OPTIONS: tuple[tuple[str, str, Callable[[Any], list[str]] | None], ...] = (
+    # (namespace attribute, option, its values; None: a flag), in the order of the rebuilt command line
+    ("algo", "--algo", lambda v: [v]),
+    ("env_id", "--env", lambda v: [v]),
+    ("env_kwargs", "--env-kwargs", list),
+    ("config", "--config", lambda v: [str(v)]),
+    ("hyperparams", "--hyperparams", list),
+    ("seed", "--seed", lambda v: [str(v)]),
+    ("total_timesteps", "--total-timesteps", lambda v: [str(v)]),
+    ("n_envs", "--n-envs", lambda v: [str(v)]),
+    ("out", "--out", lambda v: [str(v)]),
+    ("resume", "--resume", lambda v: [str(v)]),
+    ("vec_env", "--vec-env", lambda v: [v]),
+    ("gym_packages", "--gym-packages", list),
+    ("residual", "--residual", lambda v: [v]),
+    ("residual_scale", "--residual-scale", lambda v: [repr(v)]),
+    ("residual_observation", "--residual-observation", lambda v: [v]),
+    ("residual_space", "--residual-space", lambda v: [v]),
+    ("safety_filter", "--safety-filter", None),
+    ("no_progress", "--no-progress", None),
+    ("verbose", "--verbose", lambda v: [str(v)]),
+)
+"""How ``uvdms train``'s namespace maps back to ``python -m agents.train``'s options (:func:`_train_argv`)."""
+_ALWAYS = ("seed", "out", "vec_env", "gym_packages", "verbose")
+"""Options written even at their defaults (the others only when given: ``None``, empty and ``False`` are not)."""
+
+
 def _train_argv(args: argparse.Namespace) -> list[str]:
     """Rebuild the ``agents.training.train`` argument list from the parsed namespace (so ``main`` does the work)."""
     argv: list[str] = []
-    if args.algo is not None:
-        argv += ["--algo", args.algo]
-    if args.env_id is not None:
-        argv += ["--env", args.env_id]
-    if args.env_kwargs:
-        argv += ["--env-kwargs", *args.env_kwargs]
-    if args.config is not None:
-        argv += ["--config", str(args.config)]
-    if args.hyperparams:
-        argv += ["--hyperparams", *args.hyperparams]
-    argv += ["--seed", str(args.seed)]
-    if args.total_timesteps is not None:
-        argv += ["--total-timesteps", str(args.total_timesteps)]
-    if args.n_envs is not None:
-        argv += ["--n-envs", str(args.n_envs)]
-    argv += ["--out", str(args.out)]
-    if args.resume is not None:
-        argv += ["--resume", str(args.resume)]
-    argv += ["--vec-env", args.vec_env]
-    argv += ["--gym-packages", *args.gym_packages]
-    if args.residual is not None:
-        argv += ["--residual", args.residual]
-    if args.residual_scale is not None:
-        argv += ["--residual-scale", repr(args.residual_scale)]
-    if args.residual_observation is not None:
-        argv += ["--residual-observation", args.residual_observation]
-    if args.residual_space is not None:
-        argv += ["--residual-space", args.residual_space]
-    if args.safety_filter:
-        argv.append("--safety-filter")
-    if args.no_progress:
-        argv.append("--no-progress")
-    argv += ["--verbose", str(args.verbose)]
+    for attribute, option, values in _TRAIN_OPTIONS:
+        value = getattr(args, attribute)
+        if values is None:
+            argv += [option] if value else []
+        elif attribute in _ALWAYS or (value is not None and value != []):
+            argv += [option, *values(value)]
     return argv
 
 

@@ -283,7 +283,6 @@ def _pose_figure(t, y, y_ref, title_pos, title_ang, path, dpi, ref_label="refere
 
 def fig_transport(res: dict, out: Path, dpi: int) -> list[Path]:
     """Paper Fig. 11-16 from the transport run."""
-    plt = _plt()
     ep = res["transport"]
     t = _arr(ep, "t")
     paths = [
@@ -306,6 +305,16 @@ def fig_transport(res: dict, out: Path, dpi: int) -> list[Path]:
             dpi,
         ),
     ]
+    paths.append(_fig_joint_angles(ep, t, out, dpi))
+    paths.append(_fig_velocities(ep, t, out, dpi))
+    paths.append(_fig_joint_velocities_torques(ep, t, out, dpi))
+    paths.append(_fig_vehicle_torques_nn(ep, t, out, dpi))
+    return paths
+
+
+def _fig_joint_angles(ep: dict, t: np.ndarray, out: Path, dpi: int) -> Path:
+    """Paper Fig. 13: the joint angles of both arms."""
+    plt = _plt()
     q = np.degrees(_arr(ep, "q"))
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.2), sharey=True)
     for side, ax in enumerate(axes):
@@ -315,8 +324,13 @@ def fig_transport(res: dict, out: Path, dpi: int) -> list[Path]:
         ax.set_xlabel("t (s)")
     axes[0].set_ylabel("deg")
     axes[1].legend(fontsize=7, ncol=2)
-    paths.append(_save(fig, out / "fig13_joint_angles.png", dpi))
+    return _save(fig, out / "fig13_joint_angles.png", dpi)
 
+
+
+def _fig_velocities(ep: dict, t: np.ndarray, out: Path, dpi: int) -> Path:
+    """Paper Fig. 14: the object's NED rates and the vehicle's body velocity."""
+    plt = _plt()
     y = _arr(ep, "y")
     y_u = np.concatenate([y[:, :3], np.unwrap(y[:, 3:], axis=0)], axis=1)
     v_obj = np.gradient(y_u, t, axis=0)
@@ -335,8 +349,13 @@ def fig_transport(res: dict, out: Path, dpi: int) -> list[Path]:
     for ax in axes:
         ax.set_xlabel("t (s)")
         ax.legend(fontsize=6, ncol=2)
-    paths.append(_save(fig, out / "fig14_velocities.png", dpi))
+    return _save(fig, out / "fig14_velocities.png", dpi)
 
+
+
+def _fig_joint_velocities_torques(ep: dict, t: np.ndarray, out: Path, dpi: int) -> Path:
+    """Paper Fig. 15: joint velocities and torques (solid left, dashed right)."""
+    plt = _plt()
     qd = _arr(ep, "qdot")
     tau = _arr(ep, "tau")
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.2))
@@ -352,8 +371,14 @@ def fig_transport(res: dict, out: Path, dpi: int) -> list[Path]:
     for ax in axes:
         ax.set_xlabel("t (s)")
         ax.legend(fontsize=6, ncol=3)
-    paths.append(_save(fig, out / "fig15_joint_velocities_torques.png", dpi))
+    return _save(fig, out / "fig15_joint_velocities_torques.png", dpi)
 
+
+
+def _fig_vehicle_torques_nn(ep: dict, t: np.ndarray, out: Path, dpi: int) -> Path:
+    """Paper Fig. 16: the vehicle's generalized force and the RBF network's compensation."""
+    plt = _plt()
+    tau = _arr(ep, "tau")
     nn = ep["trajectory"]["nn_output"]
     nn_arr = np.array([np.zeros(18) if v is None else v for v in nn], dtype=float) if nn is not None else None
     fig, axes = plt.subplots(1, 3, figsize=(12.0, 3.2))
@@ -373,8 +398,7 @@ def fig_transport(res: dict, out: Path, dpi: int) -> list[Path]:
         ax.set_xlabel("t (s)")
     axes[0].legend(fontsize=6, ncol=2)
     axes[1].legend(fontsize=6, ncol=2)
-    paths.append(_save(fig, out / "fig16_vehicle_torques_nn.png", dpi))
-    return paths
+    return _save(fig, out / "fig16_vehicle_torques_nn.png", dpi)
 
 
 def fig_ablation(res: dict, path: Path, dpi: int) -> Path:

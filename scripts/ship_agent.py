@@ -145,6 +145,26 @@ def package_run(run_dir: str | Path, out_dir: str | Path, *, which: str = "best"
         ValueError: The model is larger than 5 MB.
     """
     run_dir, out_dir = Path(run_dir), Path(out_dir)
+    which, model, stats = _chosen_model(run_dir, out_dir, which, overwrite)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    shutil.copy2(model, out_dir / SHIPPED_MODEL)
+    if stats.is_file():
+        shutil.copy2(stats, out_dir / SHIPPED_STATS)
+    elif (out_dir / SHIPPED_STATS).exists():
+        (out_dir / SHIPPED_STATS).unlink()
+    shutil.copy2(run_dir / "config.yml", out_dir / "config.yml")
+    copy_learning_curve(run_dir, out_dir)
+
+    _copy_training_logs(run_dir, out_dir)
+    meta, resolved = _meta_with_shipped_record(run_dir, model, which)
+    (out_dir / "meta.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+    plot_training_curve(run_dir, out_dir / "training_curve.png", title=f"{out_dir.name}: {resolved['env_id']}")
+    write_readme(out_dir)
+    return out_dir
+
+
+def _chosen_model(run_dir: Path, out_dir: Path, which: str, overwrite: bool) -> tuple[str, Path, Path]:
+    """``(which, model zip, VecNormalize file)`` to ship (``best`` falls back to ``final``), checked."""
     if which not in ("best", "final"):
         raise ValueError(f"which must be 'best' or 'final', got {which!r}")
     if out_dir.exists() and any(out_dir.iterdir()) and not overwrite:
@@ -157,15 +177,11 @@ def package_run(run_dir: str | Path, out_dir: str | Path, *, which: str = "best"
         raise FileNotFoundError(model)
     if model.stat().st_size > MAX_MODEL_BYTES:
         raise ValueError(f"{model} is {model.stat().st_size / 2**20:.1f} MB (> 5 MB)")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    shutil.copy2(model, out_dir / SHIPPED_MODEL)
-    if stats.is_file():
-        shutil.copy2(stats, out_dir / SHIPPED_STATS)
-    elif (out_dir / SHIPPED_STATS).exists():
-        (out_dir / SHIPPED_STATS).unlink()
-    shutil.copy2(run_dir / "config.yml", out_dir / "config.yml")
-    copy_learning_curve(run_dir, out_dir)
+    return which, model, stats
 
+
+def _copy_training_logs(run_dir: Path, out_dir: Path) -> None:
+    """The run's monitor files, ``progress.csv`` and ``evaluations.npz`` into ``<out_dir>/training_logs``."""
     logs = out_dir / "training_logs"
     if logs.exists():
         shutil.rmtree(logs)
@@ -176,6 +192,9 @@ def package_run(run_dir: str | Path, out_dir: str | Path, *, which: str = "best"
         if path.name in ("progress.csv", "evaluations.npz"):
             shutil.copy2(path, logs / f"{path.parent.name}_{path.name}")
 
+
+def _meta_with_shipped_record(run_dir: Path, model: Path, which: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The run's ``meta.json`` with a ``shipped`` record (model, budget, seeds, env, versions); and its config."""
     meta = json.loads((run_dir / "meta.json").read_text(encoding="utf-8"))
     resolved = yaml.safe_load((run_dir / "config.yml").read_text(encoding="utf-8"))
     segments = meta.get("segments", [])
@@ -198,10 +217,7 @@ def package_run(run_dir: str | Path, out_dir: str | Path, *, which: str = "best"
     if which == "best" and (run_dir / "best_model.json").is_file():
         shipped["best_model"] = json.loads((run_dir / "best_model.json").read_text(encoding="utf-8"))
     meta["shipped"] = shipped
-    (out_dir / "meta.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
-    plot_training_curve(run_dir, out_dir / "training_curve.png", title=f"{out_dir.name}: {resolved['env_id']}")
-    write_readme(out_dir)
-    return out_dir
+    return meta, resolved
 
 
 TASK_KEYS = ("case", "goal", "action_mode")

@@ -56,11 +56,16 @@ def test_build_has_no_setuptools_warnings(wheel):
         assert marker not in log, marker
 
 
-def test_wheel_holds_code_configs_and_shipped_agents(wheel):
+def _wheel_names(wheel) -> tuple[set[str], str]:
     path, _ = wheel
     with zipfile.ZipFile(path) as archive:
         names = set(archive.namelist())
         metadata = next(archive.read(n).decode() for n in names if n.endswith(".dist-info/METADATA"))
+    return names, metadata
+
+
+def test_wheel_holds_the_code_and_the_configs(wheel):
+    names, metadata = _wheel_names(wheel)
     for package in SOURCE_PACKAGES:
         for source in (REPO / package).rglob("*.py"):
             assert source.relative_to(REPO).as_posix() in names, f"{source} missing: list its package in pyproject"
@@ -70,6 +75,13 @@ def test_wheel_holds_code_configs_and_shipped_agents(wheel):
     assert spaces
     for space in spaces:  # uvdms tune's search spaces
         assert f"agents/train_configs/search_spaces/{space.name}" in names
+    assert not [n for n in names if n.startswith("scripts/")]  # maintainer tools stay in the checkout
+    assert "License-Expression: MIT" in metadata
+    assert any(line.startswith("Requires-Dist: rich") for line in metadata.splitlines())
+
+
+def test_wheel_holds_the_shipped_agents(wheel):
+    names, _ = _wheel_names(wheel)
     folders = shipped_folders()
     assert folders
     for folder in folders:
@@ -85,8 +97,6 @@ def test_wheel_holds_code_configs_and_shipped_agents(wheel):
                 assert f"agents/trained_agents/{entry}/{seed_folder.name}/{name}" in names, f"{seed_folder}/{name}"
         assert sum(f.stat().st_size for f in seed_folder.iterdir() if f.is_file()) < MAX_MODEL_BYTES
     assert not [n for n in names if "training_logs" in n or n.endswith(".png")]  # logs and plots stay in git
-    assert "License-Expression: MIT" in metadata
-    assert any(line.startswith("Requires-Dist: rich") for line in metadata.splitlines())
 
 
 def test_unpacked_wheel_finds_configs_and_agents_from_any_directory(wheel, tmp_path):

@@ -241,6 +241,14 @@ def _validate_normalize(kwargs: dict[str, Any], where: str) -> dict[str, Any]:
 
 
 def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
+    """The ranges of the numeric keys, the off-policy-only keys and the composition (in this order)."""
+    _check_counts(values, where)
+    _check_scales(values, where)
+    _check_off_policy_keys(values, algo, where)
+    _check_composition(values, where)
+
+
+def _check_counts(values: dict[str, Any], where: str) -> None:
     minimum = {
         "n_timesteps": 1,
         "n_envs": 1,
@@ -254,11 +262,17 @@ def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
             raise ConfigError(f"{where}: key {key!r} must be >= {low}, got {values[key]}")
     if values.get("max_episode_steps") is not None and values["max_episode_steps"] < 1:
         raise ConfigError(f"{where}: key 'max_episode_steps' must be >= 1 or null, got {values['max_episode_steps']}")
+
+
+def _check_scales(values: dict[str, Any], where: str) -> None:
     scale = values.get("action_init_scale")
     if scale is not None and not is_unit_scale(scale):
         raise ConfigError(f"{where}: key 'action_init_scale' must be in (0, 1] or null, got {scale}")
     if not is_unit_scale(values.get("action_scale", 1.0)):
         raise ConfigError(f"{where}: key 'action_scale' must be in (0, 1], got {values['action_scale']}")
+
+
+def _check_off_policy_keys(values: dict[str, Any], algo: str, where: str) -> None:
     warmup = values.get("actor_warmup_steps", 0)
     if warmup < 0:
         raise ConfigError(f"{where}: key 'actor_warmup_steps' must be >= 0, got {warmup}")
@@ -273,6 +287,10 @@ def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
         raise ConfigError(f"{where}: key 'n_envs' must be <= 1000 (seed scheme), got {values['n_envs']}")
     if values.get("noise_std", 0.0) < 0:
         raise ConfigError(f"{where}: key 'noise_std' must be >= 0")
+    _check_noise(values, algo, where)
+
+
+def _check_noise(values: dict[str, Any], algo: str, where: str) -> None:
     noise_type = values.get("noise_type")
     if noise_type is not None:
         if noise_type not in NOISE_TYPES:
@@ -281,7 +299,6 @@ def _check_ranges(values: dict[str, Any], algo: str, where: str) -> None:
             raise ConfigError(f"{where}: key 'noise_type' is only for off-policy algorithms, not {algo}")
     if values.get("save_replay_buffer") and not is_off_policy(algo):
         raise ConfigError(f"{where}: key 'save_replay_buffer' is only for off-policy algorithms")
-    _check_composition(values, where)
 
 
 def _check_composition(values: dict[str, Any], where: str) -> None:

@@ -20,7 +20,7 @@ import math
 import re
 import types
 import typing
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any, Literal, Union
 
 _NUMBER_RE = re.compile(r"^[-+]?(\d[\d_]*(\.\d*)?|\.\d+)([eE][-+]?\d+)?$")
@@ -107,76 +107,77 @@ class TypeChecker:
             raise _Mismatch("null")
         origin = typing.get_origin(ann)
         if origin in (Union, types.UnionType):
-            members = typing.get_args(ann)
+            return self._check_union(value, typing.get_args(ann), coerce)
+        if ann in _SCALAR_CHECKS:
+            return _SCALAR_CHECKS[ann](value, coerce)
+        checker = self._structured_check(ann, origin)
+        if checker is None:
+            raise _Mismatch(self.describe(ann))
+        return checker(value, ann, coerce)
+
+    def _check_union(self, value: Any, members: tuple[Any, ...], coerce: bool) -> Any:
+        """The first member that accepts ``value`` as it is, else (``coerce``) the first that accepts it converted."""
+        for coerce_now in (False, True) if coerce else (False,):
             for member in members:
                 try:
-                    return self._check(value, member, coerce=False)
+                    return self._check(value, member, coerce=coerce_now)
                 except _Mismatch:
                     pass
-            if coerce:
-                for member in members:
-                    try:
-                        return self._check(value, member, coerce=True)
-                    except _Mismatch:
-                        pass
-            raise _Mismatch(" or ".join(d for d in (self.describe(m) for m in members) if d))
-        if ann is bool:
-            if isinstance(value, bool):
-                return value
-            raise _Mismatch("bool")
-        if ann is int:
-            if isinstance(value, int) and not isinstance(value, bool):
-                return value
-            if coerce:
-                number = as_number(value)
-                if number is not None and math.isfinite(number) and float(number).is_integer():
-                    return int(number)
-            raise _Mismatch("int")
-        if ann is float:
-            if isinstance(value, int | float) and not isinstance(value, bool):
-                return float(value)
-            if coerce:
-                number = as_number(value)
-                if number is not None:
-                    return float(number)
-            raise _Mismatch("float")
-        if ann is str:
-            if isinstance(value, str):
-                return value
-            raise _Mismatch("str")
+        raise _Mismatch(" or ".join(d for d in (self.describe(m) for m in members) if d))
+
+    def _structured_check(self, ann: Any, origin: Any) -> Callable[[Any, Any, bool], Any] | None:
+        """The check of a literal, list, tuple, mapping, schedule or class annotation (``None``: none applies)."""
         if origin is Literal:
-            if value in typing.get_args(ann):
-                return value
-            raise _Mismatch(self.describe(ann))
+            return self._check_literal
         if origin in (list, collections.abc.Sequence):
-            (item,) = typing.get_args(ann) or (Any,)
-            if isinstance(value, list):
-                return [self._check(v, item, coerce) for v in value]
-            raise _Mismatch(self.describe(ann))
+            return self._check_list
         if origin is tuple:
-            args = typing.get_args(ann)
-            if isinstance(value, list | tuple):
-                if len(args) == 2 and args[1] is Ellipsis:
-                    return [self._check(v, args[0], coerce) for v in value]
-                if len(value) == len(args):
-                    return [self._check(v, a, coerce) for v, a in zip(value, args)]
-            raise _Mismatch(self.describe(ann))
+            return self._check_tuple
         if origin in (dict, collections.abc.Mapping):
-            key_t, val_t = typing.get_args(ann) or (str, Any)
-            if isinstance(value, dict):
-                return {self._check(k, key_t, False): self._check(v, val_t, coerce) for k, v in value.items()}
-            raise _Mismatch(self.describe(ann))
+            return self._check_mapping
         if ann is collections.abc.Callable or origin is collections.abc.Callable:
-            if isinstance(value, str) and self.callable_pattern is not None:
-                match = self.callable_pattern.match(value)
-                if match and (not match.groups() or as_number(match.group(1)) is not None):
-                    return value
-            raise _Mismatch(self.describe(ann))
+            return self._check_callable
         if origin is type:
-            table = self.class_table(ann)
-            if table is not None and value in table:
+            return self._check_class
+        return None
+
+    def _check_literal(self, value: Any, ann: Any, coerce: bool) -> Any:
+        if value in typing.get_args(ann):
+            return value
+        raise _Mismatch(self.describe(ann))
+
+    def _check_list(self, value: Any, ann: Any, coerce: bool) -> Any:
+        (item,) = typing.get_args(ann) or (Any,)
+        if isinstance(value, list):
+            return [self._check(v, item, coerce) for v in value]
+        raise _Mismatch(self.describe(ann))
+
+    def _check_tuple(self, value: Any, ann: Any, coerce: bool) -> Any:
+        args = typing.get_args(ann)
+        if isinstance(value, list | tuple):
+            if len(args) == 2 and args[1] is Ellipsis:
+                return [self._check(v, args[0], coerce) for v in value]
+            if len(value) == len(args):
+                return [self._check(v, a, coerce) for v, a in zip(value, args)]
+        raise _Mismatch(self.describe(ann))
+
+    def _check_mapping(self, value: Any, ann: Any, coerce: bool) -> Any:
+        key_t, val_t = typing.get_args(ann) or (str, Any)
+        if isinstance(value, dict):
+            return {self._check(k, key_t, False): self._check(v, val_t, coerce) for k, v in value.items()}
+        raise _Mismatch(self.describe(ann))
+
+    def _check_callable(self, value: Any, ann: Any, coerce: bool) -> Any:
+        if isinstance(value, str) and self.callable_pattern is not None:
+            match = self.callable_pattern.match(value)
+            if match and (not match.groups() or as_number(match.group(1)) is not None):
                 return value
-            raise _Mismatch(self.describe(ann))
+        raise _Mismatch(self.describe(ann))
+
+    def _check_class(self, value: Any, ann: Any, coerce: bool) -> Any:
+        table = self.class_table(ann)
+        if table is not None and value in table:
+            return value
         raise _Mismatch(self.describe(ann))
 
     def describe(self, ann: Any) -> str:
@@ -190,6 +191,11 @@ class TypeChecker:
             return ann.__name__
         if origin is Literal:
             return "one of " + ", ".join(repr(a) for a in typing.get_args(ann))
+        if ann is Any:
+            return "plain data"
+        return self._describe_structured(ann, origin)
+
+    def _describe_structured(self, ann: Any, origin: Any) -> str:
         if origin in (list, collections.abc.Sequence):
             (item,) = typing.get_args(ann) or (Any,)
             return f"a list of {self.describe(item)}"
@@ -204,9 +210,48 @@ class TypeChecker:
             if table is not None:
                 return "one of " + ", ".join(repr(k) for k in table)
             return ""  # a class that cannot be written in YAML
-        if ann is Any:
-            return "plain data"
         return ""  # objects (action noise, torch.device, ...) cannot be written in YAML
+
+
+def _check_bool(value: Any, coerce: bool) -> bool:
+    if isinstance(value, bool):
+        return value
+    raise _Mismatch("bool")
+
+
+def _check_int(value: Any, coerce: bool) -> int:
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value
+    if coerce:
+        number = as_number(value)
+        if number is not None and math.isfinite(number) and float(number).is_integer():
+            return int(number)
+    raise _Mismatch("int")
+
+
+def _check_float(value: Any, coerce: bool) -> float:
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return float(value)
+    if coerce:
+        number = as_number(value)
+        if number is not None:
+            return float(number)
+    raise _Mismatch("float")
+
+
+def _check_str(value: Any, coerce: bool) -> str:
+    if isinstance(value, str):
+        return value
+    raise _Mismatch("str")
+
+
+_SCALAR_CHECKS: dict[Any, Callable[[Any, bool], Any]] = {
+    bool: _check_bool,
+    int: _check_int,
+    float: _check_float,
+    str: _check_str,
+}
+"""The checks of the scalar annotations (``coerce``: numeric strings of YAML 1.1 such as ``3e-4`` count as numbers)."""
 
 
 def accepts_tuple(ann: Any) -> bool:

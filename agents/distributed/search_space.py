@@ -113,35 +113,45 @@ def _check_param(p: ParamSpace, where: str) -> None:
     if p.transform not in TRANSFORMS:
         raise ConfigError(f"{where}: transform must be one of {TRANSFORMS}, got {p.transform!r}")
     if p.type == "categorical":
-        if not p.choices:
-            raise ConfigError(f"{where}: a categorical parameter needs a non-empty 'choices' list")
-        if any(c is not None and not isinstance(c, bool | int | float | str) for c in p.choices):
-            raise ConfigError(f"{where}: choices must be null, booleans, numbers or strings (name others in 'values')")
-        if len(set(map(repr, p.choices))) != len(p.choices):
-            raise ConfigError(f"{where}: a choice is listed twice")
-        if p.low is not None or p.high is not None or p.log:
-            raise ConfigError(f"{where}: 'low', 'high' and 'log' are for float and int parameters")
-        if p.transform != "identity":
-            raise ConfigError(f"{where}: transform {p.transform!r} is for numeric parameters")
-        if p.values is not None and set(p.values) != {str(c) for c in p.choices}:
-            raise ConfigError(f"{where}: 'values' must name exactly the choices {p.choices}")
+        _check_categorical(p, where)
     else:
-        if p.low is None or p.high is None or not p.low < p.high:
-            raise ConfigError(f"{where}: needs numbers low < high, got low={p.low!r} high={p.high!r}")
-        if p.type == "int" and (p.low != int(p.low) or p.high != int(p.high)):
-            raise ConfigError(f"{where}: an int parameter needs integer bounds")
-        if p.log and p.low <= 0:
-            raise ConfigError(f"{where}: log scale needs low > 0")
-        if p.choices is not None or p.values is not None:
-            raise ConfigError(f"{where}: 'choices' and 'values' are for categorical parameters")
-        if p.transform == "pow2" and p.type != "int":
-            raise ConfigError(f"{where}: transform pow2 needs an int parameter")
-        if p.transform == "one_minus" and p.type != "float":
-            raise ConfigError(f"{where}: transform one_minus needs a float parameter")
+        _check_numeric(p, where)
     for key in p.keys:
         name = key.removeprefix(POLICY_KWARGS_PREFIX)
         if not name.isidentifier() or key in ("policy_kwargs", "n_timesteps"):
             raise ConfigError(f"{where}: {key!r} is not a config key this can set (a key or policy_kwargs.<key>)")
+
+
+def _check_categorical(p: ParamSpace, where: str) -> None:
+    """A categorical parameter: distinct plain choices, no bounds, no transform, ``values`` naming the choices."""
+    if not p.choices:
+        raise ConfigError(f"{where}: a categorical parameter needs a non-empty 'choices' list")
+    if any(c is not None and not isinstance(c, bool | int | float | str) for c in p.choices):
+        raise ConfigError(f"{where}: choices must be null, booleans, numbers or strings (name others in 'values')")
+    if len(set(map(repr, p.choices))) != len(p.choices):
+        raise ConfigError(f"{where}: a choice is listed twice")
+    if p.low is not None or p.high is not None or p.log:
+        raise ConfigError(f"{where}: 'low', 'high' and 'log' are for float and int parameters")
+    if p.transform != "identity":
+        raise ConfigError(f"{where}: transform {p.transform!r} is for numeric parameters")
+    if p.values is not None and set(p.values) != {str(c) for c in p.choices}:
+        raise ConfigError(f"{where}: 'values' must name exactly the choices {p.choices}")
+
+
+def _check_numeric(p: ParamSpace, where: str) -> None:
+    """A float or int parameter: bounds low < high (integers for int, > 0 on a log scale), a fitting transform."""
+    if p.low is None or p.high is None or not p.low < p.high:
+        raise ConfigError(f"{where}: needs numbers low < high, got low={p.low!r} high={p.high!r}")
+    if p.type == "int" and (p.low != int(p.low) or p.high != int(p.high)):
+        raise ConfigError(f"{where}: an int parameter needs integer bounds")
+    if p.log and p.low <= 0:
+        raise ConfigError(f"{where}: log scale needs low > 0")
+    if p.choices is not None or p.values is not None:
+        raise ConfigError(f"{where}: 'choices' and 'values' are for categorical parameters")
+    if p.transform == "pow2" and p.type != "int":
+        raise ConfigError(f"{where}: transform pow2 needs an int parameter")
+    if p.transform == "one_minus" and p.type != "float":
+        raise ConfigError(f"{where}: transform one_minus needs a float parameter")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -211,27 +221,30 @@ def load_search_space(path: str | Path) -> SearchSpace:
         raise ConfigError(f"{path}: invalid YAML: {' '.join(str(exc).split())}") from exc
     if not isinstance(data, dict) or not data:
         raise ConfigError(f"{path}: a search space is a non-empty mapping of parameter name -> spec, got {tname(data)}")
-    hints = typing.get_type_hints(ParamSpace)
-    fields = [f.name for f in dataclasses.fields(ParamSpace) if f.name != "name"]
-    params = []
-    for name, spec in data.items():
-        where = f"{path}: parameter {name!r}"
-        if not isinstance(name, str) or not name.isidentifier():
-            raise ConfigError(f"{path}: parameter name {name!r} must be an identifier")
-        if not isinstance(spec, dict):
-            raise ConfigError(f"{where}: expected a mapping, got {tname(spec)}")
-        check_known_keys(spec, fields, where, "parameter keys")
-        if "type" not in spec:
-            raise ConfigError(f"{where}: missing 'type' (one of {PARAM_TYPES})")
-        values = {key: _CHECKER.validate(value, hints[key], where, key) for key, value in spec.items()}
-        for bound in ("low", "high"):
-            if values.get(bound) is not None:
-                values[bound] = float(values[bound]) if isinstance(values[bound], str) else values[bound]
-        param = ParamSpace(name=name, **values)
-        _check_param(param, str(path))
-        params.append(param)
+    params = [_read_param(path, name, spec) for name, spec in data.items()]
     keys = [key for p in params for key in p.keys]
     for key in keys:
         if keys.count(key) > 1:
             raise ConfigError(f"{path}: config key {key!r} is set by two parameters")
     return SearchSpace(tuple(params), source=str(path))
+
+
+def _read_param(path: Path, name: Any, spec: Any) -> ParamSpace:
+    """One parameter of a search-space file, checked (keys, types, consistency)."""
+    where = f"{path}: parameter {name!r}"
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ConfigError(f"{path}: parameter name {name!r} must be an identifier")
+    if not isinstance(spec, dict):
+        raise ConfigError(f"{where}: expected a mapping, got {tname(spec)}")
+    fields = [f.name for f in dataclasses.fields(ParamSpace) if f.name != "name"]
+    check_known_keys(spec, fields, where, "parameter keys")
+    if "type" not in spec:
+        raise ConfigError(f"{where}: missing 'type' (one of {PARAM_TYPES})")
+    hints = typing.get_type_hints(ParamSpace)
+    values = {key: _CHECKER.validate(value, hints[key], where, key) for key, value in spec.items()}
+    for bound in ("low", "high"):
+        if values.get(bound) is not None:
+            values[bound] = float(values[bound]) if isinstance(values[bound], str) else values[bound]
+    param = ParamSpace(name=name, **values)
+    _check_param(param, str(path))
+    return param

@@ -159,6 +159,36 @@ def run_trial(config: dict[str, Any], setup: TrialSetup) -> None:
         shutil.rmtree(root, ignore_errors=True)
 
 
+def _check_search_options(
+    algo: str, vec_env: str, n_trials: int, n_startup_trials: int, reduction_factor: float, max_concurrent: int | None
+) -> None:
+    """The search's own arguments (before any configuration is read)."""
+    if algo not in ALGOS:
+        raise ConfigError(f"unknown algorithm {algo!r}; choose one of {sorted(ALGOS)}")
+    if vec_env not in VEC_ENV_TYPES:
+        raise ConfigError(f"vec_env must be one of {VEC_ENV_TYPES}, got {vec_env!r}")
+    for name, value, low in (("--n-trials", n_trials, 1), ("--n-startup-trials", n_startup_trials, 0)):
+        if value < low:
+            raise ConfigError(f"{name} must be >= {low}, got {value}")
+    if not reduction_factor > 1:
+        raise ConfigError(f"--reduction-factor must be > 1, got {reduction_factor}")
+    if max_concurrent is not None and max_concurrent < 1:
+        raise ConfigError(f"--max-concurrent must be >= 1, got {max_concurrent}")
+
+
+def _trial_budget(cfg: Any, grace_period: int | None) -> tuple[int, int]:
+    """``(steps per trial, ASHA's grace period)``: trials evaluate within their budget, and ASHA waits a while."""
+    budget = cfg.n_timesteps
+    if not 0 < cfg.eval_freq <= budget:
+        raise ConfigError(
+            f"eval_freq ({cfg.eval_freq}) must be in 1 .. --total-timesteps ({budget}): trials report evaluations"
+        )
+    grace = cfg.eval_freq if grace_period is None else grace_period
+    if not 0 < grace <= budget:
+        raise ConfigError(f"--grace-period must be in 1 .. --total-timesteps ({budget}), got {grace}")
+    return budget, grace
+
+
 def _searcher(space: SearchSpace, seed: int, n_startup_trials: int) -> Any:
     """``OptunaSearch`` with a seeded TPE sampler; a trial stopped by the scheduler is told to Optuna as pruned."""
     import optuna
@@ -242,17 +272,7 @@ def tune(
     """
     from agents.training.composition import composition_factories
 
-    if algo not in ALGOS:
-        raise ConfigError(f"unknown algorithm {algo!r}; choose one of {sorted(ALGOS)}")
-    if vec_env not in VEC_ENV_TYPES:
-        raise ConfigError(f"vec_env must be one of {VEC_ENV_TYPES}, got {vec_env!r}")
-    for name, value, low in (("--n-trials", n_trials, 1), ("--n-startup-trials", n_startup_trials, 0)):
-        if value < low:
-            raise ConfigError(f"{name} must be >= {low}, got {value}")
-    if not reduction_factor > 1:
-        raise ConfigError(f"--reduction-factor must be > 1, got {reduction_factor}")
-    if max_concurrent is not None and max_concurrent < 1:
-        raise ConfigError(f"--max-concurrent must be >= 1, got {max_concurrent}")
+    _check_search_options(algo, vec_env, n_trials, n_startup_trials, reduction_factor, max_concurrent)
     gym_packages = tuple(gym_packages)
     check_env_id(env_id, gym_packages)
     env_kwargs = dict(env_kwargs or {})
@@ -273,14 +293,7 @@ def tune(
     )
     cfg = spec.resolve()
     composition_factories(cfg, components)  # a residual or the filter needs the components
-    budget = cfg.n_timesteps
-    if not 0 < cfg.eval_freq <= budget:
-        raise ConfigError(
-            f"eval_freq ({cfg.eval_freq}) must be in 1 .. --total-timesteps ({budget}): trials report evaluations"
-        )
-    grace = cfg.eval_freq if grace_period is None else grace_period
-    if not 0 < grace <= budget:
-        raise ConfigError(f"--grace-period must be in 1 .. --total-timesteps ({budget}), got {grace}")
+    budget, grace = _trial_budget(cfg, grace_period)
     space_path = Path(search_space_path) if search_space_path is not None else default_search_space_path(algo)
     space = load_search_space(space_path).without(fixed)
     if not space.params:

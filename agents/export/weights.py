@@ -126,6 +126,26 @@ def load_weights_only(path: str | Path, device: str = "cpu") -> AgentController:
     """
     path = Path(path)
     folder = path.parent if path.name == AGENT_JSON else path
+    doc = _read_document(folder)
+    algo = doc.get("algo")
+    if algo not in ALGOS:
+        raise ExportFormatError(f"{folder}: unknown algo {algo!r}")
+    policy = _rebuild_policy(folder, doc, algo, device)
+    return AgentController(
+        policy,
+        algo=algo,
+        env_id=doc.get("env_id"),
+        env_kwargs=doc.get("env_kwargs") or {},
+        normalizer=_normalizer(folder, doc),
+        num_timesteps=doc.get("num_timesteps"),
+        source=str(folder),
+        action_scale=_action_scale(doc, folder),
+        composition=recorded_composition(doc, str(folder)),
+    )
+
+
+def _read_document(folder: Path) -> dict[str, Any]:
+    """``agent.json``, checked: the format and its version, and the SHA-256 of every file it lists."""
     try:
         doc = json.loads((folder / AGENT_JSON).read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError) as exc:
@@ -142,10 +162,11 @@ def load_weights_only(path: str | Path, device: str = "cpu") -> AgentController:
             raise ExportFormatError(f"{folder / name}: SHA-256 does not match {AGENT_JSON}")
     if WEIGHTS_FILE not in files:
         raise ExportFormatError(f"{folder}: {AGENT_JSON} lists no {WEIGHTS_FILE}")
+    return doc
 
-    algo = doc.get("algo")
-    if algo not in ALGOS:
-        raise ExportFormatError(f"{folder}: unknown algo {algo!r}")
+
+def _rebuild_policy(folder: Path, doc: Mapping[str, Any], algo: str, device: str) -> Any:
+    """The algorithm's policy class built from the recorded spaces and keywords, with the weights loaded."""
     policy_cls = ALGOS[algo].policy_aliases.get(doc.get("policy"))
     if policy_cls is None:
         raise ExportFormatError(f"{folder}: unknown {algo} policy {doc.get('policy')!r}")
@@ -171,30 +192,23 @@ def load_weights_only(path: str | Path, device: str = "cpu") -> AgentController:
     ):
         raise ExportFormatError(f"{folder / WEIGHTS_FILE}: not a mapping of parameter names to tensors")
     policy.load_state_dict(state, strict=True)
+    return policy
 
-    normalizer = None
+
+def _normalizer(folder: Path, doc: Mapping[str, Any]) -> ObsNormalizer | None:
+    """The observation normaliser of an export that normalises observations (``None`` otherwise)."""
     normalization = doc.get("normalization", {})
-    if normalization.get("norm_obs"):
-        if NORMALIZATION_FILE not in files:
-            raise ExportFormatError(f"{folder}: norm_obs is set but {NORMALIZATION_FILE} is not listed")
-        with np.load(folder / NORMALIZATION_FILE, allow_pickle=False) as stats:
-            normalizer = ObsNormalizer(
-                mean=np.asarray(stats["obs_mean"], dtype=np.float64),
-                var=np.asarray(stats["obs_var"], dtype=np.float64),
-                clip_obs=float(normalization["clip_obs"]),
-                epsilon=float(normalization["epsilon"]),
-            )
-    return AgentController(
-        policy,
-        algo=algo,
-        env_id=doc.get("env_id"),
-        env_kwargs=doc.get("env_kwargs") or {},
-        normalizer=normalizer,
-        num_timesteps=doc.get("num_timesteps"),
-        source=str(folder),
-        action_scale=_action_scale(doc, folder),
-        composition=recorded_composition(doc, str(folder)),
-    )
+    if not normalization.get("norm_obs"):
+        return None
+    if NORMALIZATION_FILE not in doc.get("files", {}):
+        raise ExportFormatError(f"{folder}: norm_obs is set but {NORMALIZATION_FILE} is not listed")
+    with np.load(folder / NORMALIZATION_FILE, allow_pickle=False) as stats:
+        return ObsNormalizer(
+            mean=np.asarray(stats["obs_mean"], dtype=np.float64),
+            var=np.asarray(stats["obs_var"], dtype=np.float64),
+            clip_obs=float(normalization["clip_obs"]),
+            epsilon=float(normalization["epsilon"]),
+        )
 
 
 def _action_scale(doc: Mapping[str, Any], folder: Path) -> float:

@@ -43,18 +43,7 @@ def composition_factories(
         )
     imitation = cfg.algo == "dagger"
     if imitation:
-        problems = []
-        if not composition.is_residual:
-            problems.append("no residual_base (--residual mpc)")
-        if composition.residual_space != "full":
-            problems.append(f"residual_space={composition.residual_space!r} (its labels live on the full space)")
-        if cfg.action_scale != 1.0:
-            problems.append(f"action_scale={cfg.action_scale} (its labels are in the residual's own units: use 1.0)")
-        if problems:
-            raise ConfigError(
-                f"dagger imitates a teacher's correction of a residual base, but this configuration has "
-                f"{'; '.join(problems)}"
-            )
+        _check_imitation(cfg)
     if composition.is_plain:
         return None, None, None
     if components is None:
@@ -66,18 +55,44 @@ def composition_factories(
         raise ConfigError(
             f"this configuration trains {' with '.join(parts)}, whose controllers live in the baselines package, "
             "which agents does not import: train it with `uvdms train` (python -m agents.train cannot), or pass "
-            "components= to agents.training.train.train"
+            "components= to agents.train.train"
         )
     base_factory = teacher_factory = None
     if composition.is_residual:
-        try:
-            base_factory = components.base_factory(str(composition.residual_base))
-            if imitation:
-                margin = teacher_margin(cfg.hyperparams)
-                teacher_factory = components.base_factory(teacher_name(cfg.hyperparams), collision_margin=margin)
-        except ValueError as exc:
-            raise ConfigError(f"{exc}" if not imitation else f"dagger's teacher or base: {exc}") from None
+        base_factory, teacher_factory = _base_and_teacher(cfg, components, imitation)
     return base_factory, components.filter_factory if composition.safety_filter else None, teacher_factory
+
+
+def _check_imitation(cfg: TrainConfig) -> None:
+    """DAgger labels residuals of a base on the full action space in the residual's own units."""
+    composition = cfg.composition
+    problems = []
+    if not composition.is_residual:
+        problems.append("no residual_base (--residual mpc)")
+    if composition.residual_space != "full":
+        problems.append(f"residual_space={composition.residual_space!r} (its labels live on the full space)")
+    if cfg.action_scale != 1.0:
+        problems.append(f"action_scale={cfg.action_scale} (its labels are in the residual's own units: use 1.0)")
+    if problems:
+        raise ConfigError(
+            f"dagger imitates a teacher's correction of a residual base, but this configuration has "
+            f"{'; '.join(problems)}"
+        )
+
+
+def _base_and_teacher(
+    cfg: TrainConfig, components: ActionComponents, imitation: bool
+) -> tuple[ControllerFactory, ControllerFactory | None]:
+    """The residual base's factory and, for an imitation learner, its teacher's (a base with a collision margin)."""
+    try:
+        base_factory = components.base_factory(str(cfg.composition.residual_base))
+        teacher_factory = None
+        if imitation:
+            margin = teacher_margin(cfg.hyperparams)
+            teacher_factory = components.base_factory(teacher_name(cfg.hyperparams), collision_margin=margin)
+    except ValueError as exc:
+        raise ConfigError(f"{exc}" if not imitation else f"dagger's teacher or base: {exc}") from None
+    return base_factory, teacher_factory
 
 
 def check_vec_env(cfg: TrainConfig, vec_env: str) -> None:

@@ -83,7 +83,7 @@ from agents.common.envs import (
     train_env_seed,
 )
 from agents.common.wrappers import AliveBonus, ScaledAction
-from agents.config import ConfigError, parse_entry
+from agents.config import ConfigError, TrainConfig, parse_entry
 from agents.training.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
 from agents.training.composition import check_vec_env, composition_factories
 from agents.training.models import (
@@ -351,25 +351,8 @@ def resume_run(
         ConfigError: The request disagrees with the run, or there are no steps left to train.
         RunDirError: ``run_dir`` is not a resumable run directory.
     """
-    config_file = run_dir / "config.yml"
-    if not config_file.is_file() or not (run_dir / "meta.json").is_file():
-        raise RunDirError(f"{run_dir} is not a run directory (config.yml / meta.json missing)")
-    resolved = yaml.safe_load(config_file.read_text(encoding="utf-8"))
-    for name, value in (("algo", request.algo), ("env_id", request.env_id)):
-        if value is not None and value != resolved[name]:
-            raise ConfigError(f"--resume {run_dir}: {name} {value!r} differs from the run's {resolved[name]!r}")
-    algo, env_id, seed = resolved["algo"], resolved["env_id"], int(resolved["seed"])
-    cfg = parse_entry(resolved["config"], algo, source=str(config_file), entry_name=env_id)
-    if request.n_envs is not None and request.n_envs != cfg.n_envs:
-        raise ConfigError(
-            f"--resume: n_envs cannot change ({cfg.n_envs} in {config_file}, got {request.n_envs})"
-        )
-    for name, value in request.given.items():
-        if value is not None and value != getattr(cfg, name):
-            raise ConfigError(
-                f"--resume: {name} cannot change ({getattr(cfg, name)!r} in {config_file}, got {value!r}); "
-                "the run keeps its composition"
-            )
+    resolved, cfg = _resumed_config(run_dir, request)
+    env_id, seed = resolved["env_id"], int(resolved["seed"])
     check_vec_env(cfg, request.vec_env)
     factories = composition_factories(cfg, components)
     gym_packages = tuple(resolved.get("gym_packages", DEFAULT_GYM_PACKAGES))
@@ -380,16 +363,7 @@ def resume_run(
         raise RunDirError(f"{run_dir}: no final_model.zip or checkpoints/{CHECKPOINT_PREFIX}_<N>_steps.zip")
     if cfg.normalize is not False and checkpoint.vecnormalize is None:
         raise RunDirError(f"{run_dir}: normalize is on but no VecNormalize statistics for {checkpoint.model}")
-    total_timesteps = request.total_timesteps
-    if total_timesteps is None:
-        total_timesteps = cfg.n_timesteps - checkpoint.num_timesteps
-        if total_timesteps <= 0:
-            raise ConfigError(
-                f"{run_dir} already has {checkpoint.num_timesteps} of {cfg.n_timesteps} steps; "
-                "pass --total-timesteps N to train N more steps"
-            )
-    if total_timesteps <= 0:
-        raise ConfigError(f"total_timesteps must be positive, got {total_timesteps}")
+    total_timesteps = _resume_steps(run_dir, cfg, checkpoint, request.total_timesteps)
     command = [
         *command_prefix(cfg),
         "--resume",
@@ -414,6 +388,45 @@ def resume_run(
     )
     segment.run(progress, callbacks, after_eval)
     return run_dir
+
+
+def _resumed_config(run_dir: Path, request: ResumeRequest) -> tuple[dict[str, Any], TrainConfig]:
+    """The run's recorded ``config.yml`` and its configuration; what the request states must agree with it."""
+    config_file = run_dir / "config.yml"
+    if not config_file.is_file() or not (run_dir / "meta.json").is_file():
+        raise RunDirError(f"{run_dir} is not a run directory (config.yml / meta.json missing)")
+    resolved = yaml.safe_load(config_file.read_text(encoding="utf-8"))
+    for name, value in (("algo", request.algo), ("env_id", request.env_id)):
+        if value is not None and value != resolved[name]:
+            raise ConfigError(f"--resume {run_dir}: {name} {value!r} differs from the run's {resolved[name]!r}")
+    algo, env_id = resolved["algo"], resolved["env_id"]
+    cfg = parse_entry(resolved["config"], algo, source=str(config_file), entry_name=env_id)
+    if request.n_envs is not None and request.n_envs != cfg.n_envs:
+        raise ConfigError(
+            f"--resume: n_envs cannot change ({cfg.n_envs} in {config_file}, got {request.n_envs})"
+        )
+    for name, value in request.given.items():
+        if value is not None and value != getattr(cfg, name):
+            raise ConfigError(
+                f"--resume: {name} cannot change ({getattr(cfg, name)!r} in {config_file}, got {value!r}); "
+                "the run keeps its composition"
+            )
+    return resolved, cfg
+
+
+def _resume_steps(run_dir: Path, cfg: TrainConfig, checkpoint: Checkpoint, requested: int | None) -> int:
+    """The steps a resume trains: those requested, or those missing to the configured ``n_timesteps``."""
+    total_timesteps = requested
+    if total_timesteps is None:
+        total_timesteps = cfg.n_timesteps - checkpoint.num_timesteps
+        if total_timesteps <= 0:
+            raise ConfigError(
+                f"{run_dir} already has {checkpoint.num_timesteps} of {cfg.n_timesteps} steps; "
+                "pass --total-timesteps N to train N more steps"
+            )
+    if total_timesteps <= 0:
+        raise ConfigError(f"total_timesteps must be positive, got {total_timesteps}")
+    return total_timesteps
 
 
 # ------------------------------------------------------------------------------------------------------

@@ -44,7 +44,7 @@ def plate_table(plates) -> np.ndarray:
 
 
 @jit
-def exact_rows(seg, rot, pos, plates, d, p, e, idx):  # pragma: no cover - compiled; see compute_distances
+def exact_rows(seg, rot, pos, plates, d, p, e, idx):  # noqa: C901  # pragma: no cover - compiled kernel (below)
     """Fill the 18 exact rows ``d (18,)``, ``p (18, 3)``, ``e (18, 3)``, ``idx (18,)`` (int64) in place.
 
     Args:

@@ -112,7 +112,7 @@ def _pi_update(cmd, zeta, integral, dt, neg_limit, limit, kp, ki, ff, out):  # p
 
 
 @jit
-def _inverse_diagonal(m, out):  # pragma: no cover - compiled
+def _inverse_diagonal(m, out):  # noqa: C901  # pragma: no cover - compiled kernel (module docstring)
     """``diag(m^-1)`` of a symmetric positive definite ``m`` into ``out``; False if the Cholesky factor fails.
 
     ``m = L L^T``, ``(m^-1)_ii = sum_k ((L^-1)_ki)^2``: a few thousand flops for the 18x18 mass matrix, against

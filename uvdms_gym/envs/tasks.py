@@ -116,26 +116,7 @@ def make_circle_task(
         ValueError: unknown case, non-positive or too large radius or period, a centre that is not a finite
             3-vector, circles out of reach of the arms or too close to each other.
     """
-    if case == "mix":
-        if rng is None:
-            raise ValueError("case='mix' needs the environment's seeded generator")
-        case = MIXED_CASES[int(rng.integers(len(MIXED_CASES)))]
-    if case in CIRCLE_CASES:
-        spec = CIRCLE_CASES[int(case)]
-        lc, rc, rad = np.array(spec["left_center"]), np.array(spec["right_center"]), float(spec["radius"])
-    elif case == "random":
-        if rng is None:
-            raise ValueError("case='random' needs the environment's seeded generator")
-        env = RANDOM_CIRCLE_ENVELOPE
-        v = np.array(CIRCLE_VEHICLE_START[:3])
-        x = v[0] + rng.uniform(*env["x_ahead"])
-        half = rng.uniform(*env["half_gap"])
-        z = v[2] + rng.uniform(*env["z_below"])
-        lc, rc = np.array([x, v[1] - half, z]), np.array([x, v[1] + half, z])
-        rad = float(rng.uniform(*env["radius"]))
-        rad = min(rad, 0.5 * (2.0 * half - CIRCLE_MIN_GAP) - 1e-3)
-    else:
-        raise ValueError(f"unknown circle case {case!r}: expected 1, 2, 'random' or 'mix'")
+    lc, rc, rad = _case_circles(case, rng)
     if left_center is not None:
         lc = _vec3(left_center, "left_center")
     if right_center is not None:
@@ -149,6 +130,30 @@ def make_circle_task(
     task = CircleTask(lc, rc, rad, float(period))
     _check_circle_feasible(task, arm_bases_body)
     return task
+
+
+def _case_circles(case: int | str, rng: np.random.Generator | None) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(left centre, right centre, radius)`` of a paper case, a random draw, or a ``"mix"`` draw of either."""
+    if case == "mix":
+        if rng is None:
+            raise ValueError("case='mix' needs the environment's seeded generator")
+        case = MIXED_CASES[int(rng.integers(len(MIXED_CASES)))]
+    if case in CIRCLE_CASES:
+        spec = CIRCLE_CASES[int(case)]
+        return np.array(spec["left_center"]), np.array(spec["right_center"]), float(spec["radius"])
+    elif case == "random":
+        if rng is None:
+            raise ValueError("case='random' needs the environment's seeded generator")
+        env = RANDOM_CIRCLE_ENVELOPE
+        v = np.array(CIRCLE_VEHICLE_START[:3])
+        x = v[0] + rng.uniform(*env["x_ahead"])
+        half = rng.uniform(*env["half_gap"])
+        z = v[2] + rng.uniform(*env["z_below"])
+        lc, rc = np.array([x, v[1] - half, z]), np.array([x, v[1] + half, z])
+        rad = float(rng.uniform(*env["radius"]))
+        return lc, rc, min(rad, 0.5 * (2.0 * half - CIRCLE_MIN_GAP) - 1e-3)
+    else:
+        raise ValueError(f"unknown circle case {case!r}: expected 1, 2, 'random' or 'mix'")
 
 
 def _vec3(v, name: str) -> np.ndarray:
@@ -214,7 +219,7 @@ class TransportTask:
 
 
 @jit
-def _ppoly_eval_clipped(x, c, t, t_max, out):  # pragma: no cover - compiled
+def _ppoly_eval_clipped(x, c, t, t_max, out):  # noqa: C901  # pragma: no cover - compiled kernel (module docstring)
     """``PPoly(c, x)(clip(t, 0, t_max))`` in scipy's operation order (``scipy.interpolate._ppoly.evaluate``).
 
     The interval is the last breakpoint ``x[i] <= t`` (the last interval at and beyond ``x[-1]``, the first
