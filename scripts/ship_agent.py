@@ -232,7 +232,7 @@ def plain_sb3_snippet(folder: str | Path, repo_relative: str | None = None) -> s
 
     It applies what ``<ALGO>.load`` alone does not: the ``action_scale`` of the configuration (one
     ``gymnasium.wrappers.TransformAction``) and, when the run normalised observations, the statistics of
-    ``vecnormalize.pkl`` (``VecNormalize.normalize_obs``). ``tests/test_shipped_readmes.py`` runs this code
+    ``vecnormalize.pkl`` (``VecNormalize.normalize_obs``). ``tests/docs/test_shipped_readmes.py`` runs this code
     from every README and checks that its actions equal :class:`agents.export.AgentController`'s.
 
     Args:

@@ -10,7 +10,8 @@ from ray_support import ray_processes  # noqa: F401  (the fixture is registered 
 def sb3_logs_under_pytest_tmp(tmp_path_factory):
     """SB3 models learning without a configured logger make an empty ``SB3-<date>`` folder: under pytest's tmp.
 
-    Tests write only under their ``tmp_path`` (tests/test_temp_hygiene.py checks the library's own paths leave
+    Tests write only under their ``tmp_path`` (tests/integration/test_temp_hygiene.py checks the library's own paths
+    leave
     the system temp directory alone).
     """
     previous = os.environ.get("SB3_LOGDIR")

@@ -25,7 +25,7 @@ TEST_ENVS: list[tuple[str, dict]] = [
 ALGO_NAMES = sorted(ALGOS)
 UVDMS_IDS = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0")
 COST_ALGOS = ("ppo_lagrangian",)  # need info["cost"]: trained on the uvdms ids only
-TEACHER_ALGOS = ("dagger",)  # need a residual base and a teacher (uvdms train): tests/test_dagger.py
+TEACHER_ALGOS = ("dagger",)  # need a residual base and a teacher (uvdms train): tests/agents/test_dagger.py
 RUNS = [
     (a, e)
     for a in ALGO_NAMES
@@ -122,7 +122,7 @@ def sample_observations(env_id: str, env_kwargs: dict, n: int = 12) -> list[np.n
     return obs_list
 
 
-class _Runs:
+class Runs:
     """One short training run per (algo, env) pair of :data:`RUNS`, trained when a test first asks for it."""
 
     def __init__(self, out: Path, config_dir: Path) -> None:

@@ -43,7 +43,7 @@ from agents.config import ConfigError, load_config, validate_config_file
 from agents.export import export_agent, load_agent, load_weights_only
 from agents.training.train import latest_checkpoint, run_dir_for, train
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 UVDMS = Path(sys.executable).with_name("uvdms")
 
 HORIZON = 10

@@ -37,7 +37,7 @@ from agents.distributed.sweep import (
 from agents.distributed.worker import pack_run_dir, unpack_run_dir
 from uvdms_cli.main import main
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 ENV = "uvdms/CircleTrack-v0"
 TINY_PPO = {
     "n_timesteps": 400,

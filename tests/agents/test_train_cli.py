@@ -33,7 +33,7 @@ from agents.training.train import (
     zip_num_timesteps,
 )
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 UVDMS = Path(sys.executable).with_name("uvdms")
 STEPS = 300
 RESUME_STEPS = 200

@@ -1,6 +1,6 @@
 """``uvdms tune``: the search spaces against RL Zoo's samplers, their checks, a 4-trial search on Ray, bad input.
 
-The search uses the tiny PPO configuration of ``tests/test_sweep.py``; the ``ray_processes`` fixture
+The search uses the tiny PPO configuration of ``tests/agents/test_sweep.py``; the ``ray_processes`` fixture
 (``tests/ray_support.py``) fails the test if a process the search started outlives it.
 """
 

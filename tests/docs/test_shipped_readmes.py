@@ -20,7 +20,7 @@ import pytest
 from agents.export import load_agent
 from scripts.ship_agent import README_SNIPPET_HEADING, plain_sb3_snippet
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 FOLDERS = sorted(p for p in (REPO / "trained_agents").iterdir() if (p / "model.zip").is_file())
 FULL_EPISODE = "sac-circle-case1-v0"
 SHORT_EPISODE_STEPS = 40

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from scripts.compare_leaderboards import main, quality_columns
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 COMMITTED = REPO / "docs" / "leaderboard" / "leaderboard.csv"
 
 

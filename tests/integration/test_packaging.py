@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SOURCE_PACKAGES = ("uvdms_gym", "baselines", "agents", "leaderboard", "uvdms_cli")
 MAX_MODEL_BYTES = 5 * 2**20
 SHIPPED_FILES = ("model.zip", "vecnormalize.pkl", "config.yml", "meta.json", "evaluation.json", "README.md")

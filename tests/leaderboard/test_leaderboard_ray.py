@@ -24,7 +24,7 @@ from leaderboard.distributed import agent_files, materialise
 from leaderboard.jobs import plan_jobs
 from uvdms_cli.main import main
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SHIPPED_SAC = REPO / "trained_agents" / "sac-circle-case1-v0"
 TIMING_PREFIXES = ("timing_", "controller_ms_")
 """``leaderboard.csv`` columns that measure time (everything else is a quality column)."""

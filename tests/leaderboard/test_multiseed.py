@@ -22,7 +22,7 @@ from scipy import stats as sps
 import leaderboard as lb
 from leaderboard.result import LeaderboardResult
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 CIRCLE = "uvdms/CircleTrack-v0"
 TRANSPORT = "uvdms/Transport-v0"
 TINY_TASKS = (

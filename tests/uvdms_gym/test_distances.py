@@ -10,44 +10,23 @@ path ("exact", numba kernels) is also checked against the numpy reference implem
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-import zipfile
-from pathlib import Path
-
 import numpy as np
 import pinocchio as pin
-import pybullet as pb
 import pytest
-from pybullet_utils import bullet_client
+from distance_helpers import (
+    PARAMS,
+    SegmentsOnly,
+    check_against_reference,
+    random_state,
+    ref_point_rect,
+    ref_point_segment,
+)
 from scipy.optimize import minimize_scalar
 
-import uvdms_gym
 from uvdms_gym import distances as D
-from uvdms_gym.distances import pybullet_queries as DP
-from uvdms_gym.physics import frames, model
-from uvdms_gym.physics.kinematics import KinematicModel
-from uvdms_gym.physics.params import JOINT_NAMES, UVDMSParams
-
-PARAMS = UVDMSParams()
 
 
 # ----------------------------------------------------------------------------------------------- helpers
-def _ref_point_segment(p, a, b):
-    """Plain scalar projection (independent of the vectorized code)."""
-    ab = b - a
-    den = float(ab @ ab)
-    t = 0.0 if den == 0.0 else min(max(float((p - a) @ ab) / den, 0.0), 1.0)
-    return float(np.linalg.norm(p - (a + t * ab)))
-
-
-def _ref_point_rect(p, c, u, v, h):
-    s = min(max(float((p - c) @ u), -h[0]), h[0])
-    t = min(max(float((p - c) @ v), -h[1]), h[1])
-    return float(np.linalg.norm(p - (c + s * u + t * v)))
-
-
 def _convex_min_1d(f, n_grid=401):
     """Minimum of a convex function on [0, 1]: dense grid, then bounded Brent refinement in the bracket."""
     lam = np.linspace(0.0, 1.0, n_grid)
@@ -59,11 +38,11 @@ def _convex_min_1d(f, n_grid=401):
 
 
 def _ref_segment_segment(a0, a1, b0, b1):
-    return _convex_min_1d(lambda s: _ref_point_segment(a0 + s * (a1 - a0), b0, b1))
+    return _convex_min_1d(lambda s: ref_point_segment(a0 + s * (a1 - a0), b0, b1))
 
 
 def _ref_segment_rect(a0, a1, c, u, v, h):
-    return _convex_min_1d(lambda s: _ref_point_rect(a0 + s * (a1 - a0), c, u, v, h))
+    return _convex_min_1d(lambda s: ref_point_rect(a0 + s * (a1 - a0), c, u, v, h))
 
 
 def _random_frame(rng):
@@ -107,8 +86,8 @@ def test_segment_segment_matches_independent_minimisation():
     assert np.all(d >= ref - 1e-8), np.max(ref - d)
     # closest points lie on their segments and realise the distance
     np.testing.assert_allclose(np.linalg.norm(pa - pb_, axis=1), d, atol=1e-12)
-    on_a = [_ref_point_segment(p, x, y) for p, x, y in zip(pa, a0, a1)]
-    on_b = [_ref_point_segment(p, x, y) for p, x, y in zip(pb_, b0, b1)]
+    on_a = [ref_point_segment(p, x, y) for p, x, y in zip(pa, a0, a1)]
+    on_b = [ref_point_segment(p, x, y) for p, x, y in zip(pb_, b0, b1)]
     assert max(on_a) < 1e-12 and max(on_b) < 1e-12
     # intersecting pairs (kind 3) have zero distance
     assert np.all(d[3::6] < 1e-12)
@@ -188,8 +167,8 @@ def test_segment_rectangle_matches_independent_minimisation():
     assert np.all(d <= ref + 1e-13), np.max(d - ref)
     assert np.all(d >= ref - 1e-8), np.max(ref - d)
     np.testing.assert_allclose(np.linalg.norm(p - e, axis=1), d, atol=1e-12)
-    assert max(_ref_point_rect(x, *r) for x, *r in zip(e, c, u, v, h)) < 1e-12
-    assert max(_ref_point_segment(x, y, z) for x, y, z in zip(p, a0, a1)) < 1e-12
+    assert max(ref_point_rect(x, *r) for x, *r in zip(e, c, u, v, h)) < 1e-12
+    assert max(ref_point_segment(x, y, z) for x, y, z in zip(p, a0, a1)) < 1e-12
     assert np.all(d[3::5] < 1e-12)  # crossing cases
 
 
@@ -247,21 +226,11 @@ def test_algorithm1_min_over_several_obstacles():
 
 
 # ------------------------------------------------------------------------------- the 18 UVDMS distances
-def _random_state(rng):
-    eta = np.r_[rng.uniform(-3, 3, 3), rng.uniform(-0.8, 0.8, 2), rng.uniform(-np.pi, np.pi)]
-    q = rng.uniform(PARAMS.q_min, PARAMS.q_max)
-    return eta, q
-
-
-@pytest.fixture(scope="module")
-def kin():
-    return KinematicModel(PARAMS)
-
 
 def test_exact_rows_match_generic_geometry(kin):
     rng = np.random.default_rng(8)
     for it in range(100):
-        eta, q = _random_state(rng)
+        eta, q = random_state(rng)
         if it % 2:  # joint angles in {-90, 0, 90} deg: many parallel and collinear link pairs (q = 0 first)
             q = 0.5 * np.pi * rng.integers(-1, 2, 12) * (it > 1)
         kin.set_state(eta, q)
@@ -284,27 +253,9 @@ def test_exact_rows_match_generic_geometry(kin):
             assert res.link_frame[6 + i] == f"{D.SIDES[side]}_link{k}"
             assert res.obstacle_frame[6 + i] == "vehicle"
             c, u, v, h = plates[res.obstacle_index[6 + i]]
-            assert _ref_point_rect(res.e[6 + i], c, u, v, h) < 1e-12  # E on the plate of kin.plates()
-            assert _ref_point_segment(res.p[6 + i], a0, a1) < 1e-12
+            assert ref_point_rect(res.e[6 + i], c, u, v, h) < 1e-12  # E on the plate of kin.plates()
+            assert ref_point_segment(res.p[6 + i], a0, a1) < 1e-12
         np.testing.assert_allclose(np.linalg.norm(res.e - res.p, axis=1), res.d, atol=1e-12)
-
-
-class _SegmentsOnly:
-    """A stand-in for KinematicModel with arbitrary link segments (vehicle at the origin)."""
-
-    def __init__(self, seg):
-        self.seg = seg
-        self.params = PARAMS
-
-    def link_segments(self):
-        return self.seg
-
-    def frame_placement(self, name):
-        assert name == "vehicle"
-        return np.zeros(3), np.eye(3)
-
-    def plates(self):
-        return [(np.array(p.center), np.array(p.u), np.array(p.v), p.half_extents) for p in PARAMS.plates]
 
 
 def test_exact_link_link_rows_nearly_parallel():
@@ -319,8 +270,8 @@ def test_exact_link_link_rows_nearly_parallel():
                 a0 = rng.uniform(-0.3, 0.3, 3)
                 tilt = 10.0 ** rng.uniform(-8, -4) * rng.normal(size=3)
                 seg[side, k] = a0, a0 + rng.uniform(0.05, 0.3) * (base_dir + tilt)
-        res = D.compute_distances(_SegmentsOnly(seg))
-        _check_against_reference(res, D.compute_distances_reference(_SegmentsOnly(seg)), seg, unique_points=False)
+        res = D.compute_distances(SegmentsOnly(seg))
+        check_against_reference(res, D.compute_distances_reference(SegmentsOnly(seg)), seg, unique_points=False)
         for i in range(6):
             a0, a1 = seg[1, i + 1]
             ref = min(_ref_segment_segment(a0, a1, *seg[0, j]) for j in range(7))
@@ -330,7 +281,7 @@ def test_exact_link_link_rows_nearly_parallel():
 def test_exact_link_plate_rows_degenerate_placements():
     """Links near the plates: parallel to a plate, parallel to an edge, beside edges/corners, crossing."""
     rng = np.random.default_rng(14)
-    plates = _SegmentsOnly(None).plates()
+    plates = SegmentsOnly(None).plates()
     for _ in range(12):
         seg = np.empty((2, 7, 2, 3))
         for side in range(2):
@@ -350,8 +301,8 @@ def test_exact_link_plate_rows_degenerate_placements():
                     da = rng.normal(size=3)
                     da *= length / np.linalg.norm(da)
                 seg[side, k] = a0, a0 + da
-        res = D.compute_distances(_SegmentsOnly(seg))
-        _check_against_reference(res, D.compute_distances_reference(_SegmentsOnly(seg)), seg, unique_points=False)
+        res = D.compute_distances(SegmentsOnly(seg))
+        check_against_reference(res, D.compute_distances_reference(SegmentsOnly(seg)), seg, unique_points=False)
         for i in range(12):
             a0, a1 = seg[1, i + 1] if i < 6 else seg[0, i - 5]
             ref = min(_ref_segment_rect(a0, a1, c, u, v, np.array(h)) for c, u, v, h in plates)
@@ -363,215 +314,12 @@ def test_sampled_rows_are_conservative(kin):
     seg_len = np.r_[PARAMS.arm.link_length[1:], PARAMS.arm.link_length[1:], PARAMS.arm.link_length[1:]]
     r = seg_len / N_SAMPLES
     for _ in range(50):
-        kin.set_state(*_random_state(rng))
+        kin.set_state(*random_state(rng))
         ex = D.compute_distances(kin, "exact")
         sa = D.compute_distances(kin, "sampled", n=N_SAMPLES)
         err = ex.d - sa.d
         assert np.all(err > 0.0) and np.all(err <= r + 1e-12) and np.all(err <= 0.01 + 1e-12)
         np.testing.assert_allclose(np.linalg.norm(sa.e - sa.p, axis=1), sa.d + r, atol=1e-12)
-
-
-# ------------------------------------------------------------------ compiled kernels vs the numpy reference
-def _check_against_reference(res, ref, seg, plates=None, unique_points=True):
-    """The kernel's result ``res`` against the numpy reference ``ref`` at the same state.
-
-    Distances agree to 1e-12 in every row. The closest points always lie on their segment / plate and
-    realise ``d``. With ``unique_points``, rows with ``d > 1e-9`` must also have the reference's points and
-    obstacle (1e-12), except at ties: the minimum is attained on two left links meeting at a joint (the
-    choice is rounding noise in both implementations), then ``E`` is that joint point in both (1e-11).
-    ``unique_points=False`` is for degenerate placements (parallel pairs: the closest points are not unique).
-    """
-    plates = _SegmentsOnly(None).plates() if plates is None else plates
-    np.testing.assert_allclose(res.d, ref.d, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(np.linalg.norm(res.e - res.p, axis=1), res.d, rtol=0, atol=1e-12)
-    assert res.obstacle_frame[6:] == ref.obstacle_frame[6:] and res.link_frame == ref.link_frame
-    assert res.method == "exact" and res.obstacle_index.dtype.kind == "i"
-    n_ties = 0
-    for i in range(18):
-        side, k = (1, i + 1) if i < 6 else ((1, i - 5) if i < 12 else (0, i - 11))
-        assert _ref_point_segment(res.p[i], *seg[side, k]) < 1e-12
-        j = res.obstacle_index[i]
-        if i < 6:
-            assert res.obstacle_frame[i] == f"left_link{j}"
-            assert _ref_point_segment(res.e[i], *seg[0, j]) < 1e-12
-        else:
-            c, u, v, h = plates[j]
-            assert _ref_point_rect(res.e[i], c, u, v, h) < 1e-12
-        if not unique_points or res.d[i] <= 1e-9:
-            continue
-        if j == ref.obstacle_index[i]:
-            np.testing.assert_allclose(res.p[i], ref.p[i], rtol=0, atol=1e-12)
-            np.testing.assert_allclose(res.e[i], ref.e[i], rtol=0, atol=1e-12)
-        else:  # a tie between neighbouring left links at their common joint point
-            assert i < 6 and abs(j - ref.obstacle_index[i]) == 1, (i, j, ref.obstacle_index[i])
-            np.testing.assert_allclose(res.e[i], ref.e[i], rtol=0, atol=1e-11)
-            n_ties += 1
-    return n_ties
-
-
-def test_exact_kernel_matches_numpy_reference_on_random_configurations(kin):
-    """Generic random states (many in contact or near it): same rows, points, obstacles and J_dis."""
-    rng = np.random.default_rng(15)
-    near = ties = 0
-    for _ in range(300):
-        kin.set_state(*_random_state(rng))
-        res = D.compute_distances(kin)
-        ref = D.compute_distances_reference(kin)
-        ties += _check_against_reference(res, ref, kin.link_segments(), kin.plates())
-        near += int(np.sum(res.d < D.contact_thresholds(PARAMS, res.obstacle_index) + 0.02))
-        jd = D.distance_jacobian(kin, res)
-        # the J_dis kernel against the numpy formula on the same result (every row, incl. d = 0 ones) ...
-        np.testing.assert_allclose(jd, D.distance_jacobian_reference(kin, res), rtol=0, atol=1e-12)
-        # ... and the whole fast path against the whole reference path where n is defined (d > 0)
-        ok = res.d > 1e-9
-        np.testing.assert_allclose(jd[ok], D.distance_jacobian_reference(kin, ref)[ok], rtol=0, atol=1e-12)
-    assert near > 200  # rows in contact or within 2 cm of it are well represented (measured: 414)
-    assert ties > 10  # and so are ties at the left arm's joints (measured: 37)
-
-
-def test_exact_kernel_matches_numpy_reference_on_degenerate_configurations(kin):
-    """Joint angles in {-90, 0, 90} deg: many exactly parallel, collinear or touching link pairs."""
-    rng = np.random.default_rng(16)
-    for it in range(150):
-        eta, _ = _random_state(rng)
-        q = 0.5 * np.pi * rng.integers(-1, 2, 12) * (it > 0)
-        kin.set_state(eta, q)
-        res = D.compute_distances(kin)
-        _check_against_reference(res, D.compute_distances_reference(kin), kin.link_segments(), kin.plates(), False)
-        np.testing.assert_allclose(
-            D.distance_jacobian(kin, res), D.distance_jacobian_reference(kin, res), rtol=0, atol=1e-12
-        )
-
-
-def test_distance_jacobian_kernel_keeps_nan_and_zero_rows(kin):
-    """Rows with E = P are zero and NaN rows (PyBullet found nothing within range) stay NaN, as the reference."""
-    kin.set_state(np.zeros(6), np.full(12, 0.3))
-    res = D.compute_distances(kin)
-    p = res.p.copy()
-    e = res.e.copy()
-    e[3] = p[3]
-    p[7] = e[7] = np.nan
-    odd = D.DistanceResult(res.d, p, e, res.obstacle_frame, res.link_frame, res.obstacle_index, "pybullet")
-    jd = D.distance_jacobian(kin, odd)
-    ref = D.distance_jacobian_reference(kin, odd)
-    assert np.all(jd[3] == 0.0) and np.all(np.isnan(jd[7]))
-    np.testing.assert_array_equal(np.isnan(jd), np.isnan(ref))
-    np.testing.assert_allclose(jd[~np.isnan(ref)], ref[~np.isnan(ref)], rtol=0, atol=1e-12)
-
-
-def test_exact_kernel_rejects_wrong_shapes(kin):
-    seg = np.zeros((2, 6, 2, 3))
-    with pytest.raises(ValueError, match="link_segments"):
-        D.compute_distances(_SegmentsOnly(seg))
-    kin.set_state(np.zeros(6), np.zeros(12))
-    res = D.compute_distances(kin)
-    short = D.DistanceResult(res.d, res.p[:17], res.e, res.obstacle_frame, res.link_frame, res.obstacle_index)
-    with pytest.raises(ValueError, match=r"res\.p and res\.e"):
-        D.distance_jacobian(kin, short)
-
-
-def test_kernels_work_without_a_writable_numba_cache(tmp_path):
-    """Package imported from a zip file, no writable cache location: numba compiles instead of failing."""
-    root = Path(uvdms_gym.__file__).resolve().parent
-    archive = tmp_path / "pkg.zip"
-    with zipfile.ZipFile(archive, "w") as zf:
-        for f in root.rglob("*.py"):
-            zf.write(f, Path("uvdms_gym") / f.relative_to(root))
-    code = (
-        "import numpy as np, uvdms_gym.distances as D\n"
-        "from uvdms_gym.physics.kinematics import KinematicModel\n"
-        f"assert D.__file__.startswith({str(archive)!r})\n"
-        "kin = KinematicModel(); kin.set_state(np.r_[1.0, 2.0, 3.0, 0.1, 0.2, 0.3], np.full(12, 0.4))\n"
-        "a, b = D.compute_distances(kin), D.compute_distances_reference(kin)\n"
-        "assert np.abs(a.d - b.d).max() < 1e-12\n"
-        "assert np.abs(D.distance_jacobian(kin, a) - D.distance_jacobian_reference(kin, a)).max() < 1e-12\n"
-        "print('ok')\n"
-    )
-    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
-    # /proc/... cannot be created (even by root): no user-wide cache directory either
-    env.update(PYTHONPATH=str(archive), HOME="/proc/no-home", XDG_CACHE_HOME="/proc/no-cache")
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, cwd=tmp_path)
-    assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.strip().endswith("ok")
-    assert "numba disk cache unavailable" in out.stderr
-
-
-# ------------------------------------------------------------------------------------ PyBullet cross-check
-@pytest.fixture(scope="module")
-def bullet():
-    client = bullet_client.BulletClient(connection_mode=pb.DIRECT)
-    body = client.loadURDF(str(model.write_urdf(model.build_urdf(PARAMS))), flags=pb.URDF_USE_INERTIA_FROM_FILE)
-    links = DP.pybullet_link_indices(client, body)
-    joint_of = {client.getJointInfo(body, i)[1].decode(): i for i in range(client.getNumJoints(body))}
-    yield client, body, links, [joint_of[n] for n in JOINT_NAMES]
-    client.disconnect()
-
-
-def _set_bullet_state(client, body, joints, eta, q):
-    rot = frames.euler_to_rot(eta[3:])
-    com = eta[:3] + rot @ np.array(PARAMS.vehicle.r_g)  # PyBullet's base frame is the base's inertial frame
-    client.resetBasePositionAndOrientation(
-        body, frames.ned_to_world(com), frames.rot_to_quat_xyzw(frames.body_rot_ned_to_world(rot))
-    )
-    for j, qj in zip(joints, q):
-        client.resetJointState(body, j, qj)
-
-
-def test_exact_matches_pybullet_on_random_collision_free_configurations(kin, bullet):
-    client, body, links, joints = bullet
-    rng = np.random.default_rng(10)
-    errs, errs_ref, n_ok = [], [], 0
-    while n_ok < 200:
-        eta, q = _random_state(rng)
-        kin.set_state(eta, q)
-        ex = D.compute_distances(kin)
-        if np.any(ex.d < D.contact_thresholds(PARAMS, ex.obstacle_index)):
-            continue  # some monitored pair in contact
-        n_ok += 1
-        _set_bullet_state(client, body, joints, eta, q)
-        res = DP.pybullet_distances(client, body, links, PARAMS, max_distance=10.0)
-        errs.append(res.d - ex.d)
-        errs_ref.append(res.d - D.compute_distances_reference(kin).d)
-        np.testing.assert_allclose(np.linalg.norm(res.e - res.p, axis=1), res.d, atol=1e-6)
-    errs = np.abs(np.array(errs))
-    np.testing.assert_allclose(errs, np.abs(np.array(errs_ref)), rtol=0, atol=1e-12)  # kernel and reference
-    assert errs.max() < 1.5e-3, errs.max(axis=0)
-    # measured: <= 2e-6 m (1e-11 for most rows; Bullet's GJK on the compound plate shape); a regression guard
-    assert errs.max() < 2e-5
-    assert np.median(errs) < 1e-9
-
-
-def test_pybullet_capsule_length_is_cylinder_part_and_bare_box_edges_differ():
-    """URDF capsule ``length`` is the distance between the cap centres; a bare box has sharp edges.
-
-    The project's plates are box + edge capsules (``model._plate_edges``): the rectangle swept by a ball of
-    radius t/2, which is what the axis/core convention ``d = d_surface + r + t/2`` assumes. With a bare box a
-    capsule beside an edge touches at d = r instead (t/2 = 2 mm early): checked here.
-    """
-    client = bullet_client.BulletClient(connection_mode=pb.DIRECT)
-    try:
-
-        def load(geoms, pos):
-            txt = (
-                '<?xml version="1.0"?><robot name="x"><link name="l"><inertial><mass value="1"/>'
-                '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>'
-                + "".join(f"<collision><geometry>{g}</geometry></collision>" for g in geoms)
-                + "</link></robot>"
-            )
-            return client.loadURDF(str(model.write_urdf(txt)), basePosition=pos, useFixedBase=True)
-
-        cap = load(['<capsule radius="0.025" length="0.2"/>'], [0, 0, 0])
-        ball = load(['<sphere radius="0.01"/>'], [0, 0, 0.3])
-        d = min(c[8] for c in client.getClosestPoints(cap, ball, 1.0))
-        assert d == pytest.approx(0.3 - 0.01 - (0.1 + 0.025), abs=1e-6)  # tip at length/2 + radius
-        t = 0.004
-        box = load([f'<box size="0.6 0.08 {t}"/>'], [5, 0, 0])
-        client.resetBasePositionAndOrientation(ball, [5, 0.04 + 0.03, 0], [0, 0, 0, 1])  # beside an edge
-        d_box = min(c[8] for c in client.getClosestPoints(box, ball, 1.0))
-        core = 0.03  # distance of the ball centre to the mid-surface rectangle
-        assert d_box + 0.01 + t / 2 == pytest.approx(core + t / 2, abs=1e-5)  # bare box: off by t/2
-    finally:
-        client.disconnect()
 
 
 # ---------------------------------------------------------------------------------------------- J_dis
@@ -604,7 +352,7 @@ def test_distance_jacobian_matches_point_jacobians_and_finite_differences(kin):
     eps = 1e-6
     n_checked = 0
     for _ in range(40):
-        eta, q = _random_state(rng)
+        eta, q = random_state(rng)
         kin.set_state(eta, q)
         res = D.compute_distances(kin)
         jd = D.distance_jacobian(kin, res)
@@ -640,7 +388,7 @@ def test_distance_jacobian_matches_point_jacobians_and_finite_differences(kin):
 
 def test_distance_jacobian_base_motion_does_not_change_distances(kin):
     rng = np.random.default_rng(12)
-    kin.set_state(*_random_state(rng))
+    kin.set_state(*random_state(rng))
     d0 = D.compute_distances(kin).d
     config = kin.config.copy()
     zeta = np.zeros(18)

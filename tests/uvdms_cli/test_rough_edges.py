@@ -13,7 +13,7 @@ from agents.export import EnvMismatchWarning
 from agents.policy import load_agent
 from uvdms_cli.main import main
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SHIPPED_ZIP = REPO / "trained_agents" / "ppo-circle-case1-v0" / "model.zip"
 
 

@@ -24,7 +24,7 @@ import uvdms_gym  # noqa: F401  (registers the ids)
 from uvdms_cli.main import main as uvdms_main
 from uvdms_gym.utils import display, provenance
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 UVDMS = Path(sys.executable).parent / "uvdms"
 CIRCLE, TRANSPORT = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"
 SHIPPED = REPO / "trained_agents" / "ppo-circle-case1-v0"
