@@ -2,70 +2,14 @@
 
 The implementation lives in :mod:`agents.training.train` (the loop and ``--resume``), :mod:`agents.training.spec`
 (the run specification) and :mod:`agents.training.segment` (one training segment); this module re-exports the
-names users and RL Zoo configurations import from ``agents.train`` and runs the command line.
+names users and older code import from ``agents.train`` (``agents.training.train.__all__``) and runs the command
+line.
 """
 
 import sys
 
-from agents.training.train import (
-    CHECKPOINT_PREFIX,
-    EVAL_SEED_OFFSET,
-    SEGMENT_SEED_STRIDE,
-    ActionComponents,
-    AliveBonus,
-    Checkpoint,
-    EnvFactory,
-    EnvironmentNotFoundError,
-    RunDirError,
-    ScaledAction,
-    check_env_id,
-    composition_factories,
-    eval_env_seed,
-    git_info,
-    grow_replay_buffer,
-    import_gym_packages,
-    latest_checkpoint,
-    main,
-    package_versions,
-    parse_key_values,
-    replay_buffer_size,
-    resolve_config,
-    run_dir_for,
-    scale_action_layer,
-    train,
-    train_env_seed,
-    zip_num_timesteps,
-)
-
-__all__ = [
-    "CHECKPOINT_PREFIX",
-    "EVAL_SEED_OFFSET",
-    "SEGMENT_SEED_STRIDE",
-    "ActionComponents",
-    "AliveBonus",
-    "Checkpoint",
-    "EnvFactory",
-    "EnvironmentNotFoundError",
-    "RunDirError",
-    "ScaledAction",
-    "check_env_id",
-    "composition_factories",
-    "eval_env_seed",
-    "git_info",
-    "grow_replay_buffer",
-    "import_gym_packages",
-    "latest_checkpoint",
-    "main",
-    "package_versions",
-    "parse_key_values",
-    "replay_buffer_size",
-    "resolve_config",
-    "run_dir_for",
-    "scale_action_layer",
-    "train",
-    "train_env_seed",
-    "zip_num_timesteps",
-]
+from agents.training.train import *  # noqa: F403
+from agents.training.train import __all__, main  # noqa: F401
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -39,24 +39,21 @@ def evaluate_entry(
     seed: int = 0,
     *,
     out: str | None = None,
-    save_trajectory: bool = False,
-    progress: bool = True,
-    trust: bool = False,
-    safety_filter: bool = False,
+    **options: Any,
 ) -> dict[str, Any]:
     """Evaluate a baseline, an agent or a multi-seed entry folder over seeded episodes (module docstring).
 
-    The arguments are those of :func:`leaderboard.registry.evaluate`.
+    The arguments are those of :func:`leaderboard.registry.evaluate` (``options``: ``save_trajectory``,
+    ``progress``, ``trust``, ``safety_filter``).
 
     Raises:
         ValueError: As :func:`leaderboard.registry.evaluate`; for a multi-seed folder, as
             :func:`leaderboard.entries.multi_seed_entry` (a malformed folder of seeds).
     """
     spec = resolve_controller(controller_spec)
-    options = {"save_trajectory": save_trajectory, "progress": progress, "trust": trust, "safety_filter": safety_filter}
     if spec in CONTROLLERS or not is_multi_seed_folder(spec):
         return evaluate(spec, env_id, env_kwargs, episodes, seed, out=out, **options)
-    entry = multi_seed_entry(spec, trust=trust)
+    entry = multi_seed_entry(spec, trust=bool(options.get("trust", False)))
     per_seed = {
         Path(member.spec).name: (member, evaluate(member.spec, env_id, env_kwargs, episodes, seed, **options))
         for member in entry.members
