@@ -1,25 +1,20 @@
 """Reinforcement-learning agents for the uvdms-gym environments (Stable-Baselines3).
 
-Modules (imported on demand, so ``import agents`` stays light):
+Subpackages (imported on demand, so ``import agents`` stays light; ``docs/ARCHITECTURE.md`` has the module tables):
 
-* :mod:`agents.algos`: the algorithm table ``ALGOS`` (PPO, PPO-Lagrangian, SAC, TD3, TQC).
-* :mod:`agents.algos.ppo_lagrangian`: PPO-Lagrangian (a cost critic and a Lagrange multiplier on ``info["cost"]``).
-* :mod:`agents.config.typecheck`: generic checking of YAML data against type annotations (strict keys, no eval).
-* :mod:`agents.config.schema`: ``train_configs/<algo>.yml`` loading and validation (the ``TrainConfig`` schema).
-* :mod:`agents.config.zoo`: RL Baselines3 Zoo's config keys (``env_wrapper``, ``callback``, ``train_options``).
-* :mod:`agents.common.wrappers`: the training-side wrappers ``AliveBonus`` and ``ScaledAction``.
-* :mod:`agents.common.envs`: env-id lookup, the picklable ``EnvFactory``, vector envs, the env seed scheme.
-* :mod:`agents.training.callbacks`: checkpoint, seeded evaluation, best-model and initial-action-scale callbacks.
-* :mod:`agents.training.models`: replay-buffer capacity, planned steps, action-layer scaling of a model.
-* :mod:`agents.training.rundir`: run directories, checkpoints found for ``--resume``, meta records.
-* :mod:`agents.training.train`: ``train(...)`` and the ``python -m agents.train`` command line.
-* :mod:`agents.export`: ``load_agent`` / ``AgentController`` / ``check_agent`` for evaluation and the
-  trust-gated ``load_sb3_zip``.
-* :mod:`agents.export.weights`: the weights-only ``export_agent`` / ``load_weights_only`` (also importable from
-  :mod:`agents.export`).
-* :mod:`agents.distributed.sweep` / :mod:`agents.distributed.worker` / :mod:`agents.distributed.report`: ``uvdms
-  sweep`` (seeds x grid,
-  locally or as Ray tasks; its summary).
-* :mod:`agents.distributed.tune` / :mod:`agents.distributed.search_space`: ``uvdms tune`` (Ray Tune + Optuna TPE over
-  RL-Zoo-style spaces).
+* :mod:`agents.common`: the env factory and vector envs, ``RolloutPPO``'s parallel rollouts, the training-side
+  wrappers, the learning-curve record, threads, shared names, where the configs and shipped agents live.
+* :mod:`agents.algos`: the algorithm table ``ALGOS``; PPO-Lagrangian, TD3-prior, DAgger.
+* :mod:`agents.config`: ``train_configs/<algo>.yml`` read into the ``TrainConfig`` schema (strict keys, no eval;
+  RL Zoo's vocabulary).
+* :mod:`agents.training`: ``train(...)`` and ``--resume``, the ``RunSpec`` of a run, one training segment in
+  named steps, callbacks, run directories, ``uvdms bench train``.
+* :mod:`agents.export`: ``load_agent`` (any folder format), ``AgentController``, the weights-only
+  ``export_agent`` / ``load_weights_only``, the trust-gated SB3 zips.
+* :mod:`agents.distributed`: ``uvdms sweep`` (seeds x grid, locally or as Ray tasks) and ``uvdms tune`` (Ray Tune +
+  Optuna TPE over RL-Zoo-style spaces).
+
+Documented paths kept as re-exports: :mod:`agents.train` (``python -m agents.train``), :mod:`agents.policy`
+(``load_agent``), :mod:`agents.wrappers` and :mod:`agents.callbacks` (RL Zoo's dotted names in the configs);
+:mod:`agents.cli` registers ``uvdms train`` and ``uvdms export-agent``.
 """

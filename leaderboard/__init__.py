@@ -8,8 +8,8 @@ transport, plus held-out randomised variants with ``hydro_randomization=0.3``) a
 The ``uvdms leaderboard`` command (:mod:`leaderboard.cli`) wraps it. Modules: :mod:`~leaderboard.tasks` (task
 suite, tracks, seeds), :mod:`~leaderboard.entries`, :mod:`~leaderboard.registry` (name or path -> controller),
 :mod:`~leaderboard.stats` (bootstrap CIs, multi-seed IQMs, ranking), :mod:`~leaderboard.cache`,
-:mod:`~leaderboard.runner`, :mod:`~leaderboard.report` and :mod:`~leaderboard.plots`; this package re-exports
-their public names.
+:mod:`~leaderboard.jobs`, :mod:`~leaderboard.runner`, :mod:`~leaderboard.report` and :mod:`~leaderboard.plots`;
+this package re-exports their public names.
 
 Tracks
     Entries are ranked separately in two tracks, by the action mode they command: ``velocity`` (``mpc``,
