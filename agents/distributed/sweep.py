@@ -43,14 +43,14 @@ from typing import Any
 
 import yaml
 
-from agents.algos import ALGOS
 from agents.common.envs import ActionComponents, check_env_id
 from agents.common.threads import run_cpus
-from agents.config import ConfigError, default_config_path
+from agents.config import ConfigError
 from agents.distributed.report import evaluation_summary, write_summary
 from agents.distributed.worker import CheckpointStore, RunJob, StoreClient, relocate_records, run_job, unpack_run_dir
-from agents.training.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
+from agents.training.args import DEFAULT_GYM_PACKAGES
 from agents.training.rundir import RunDirError, latest_checkpoint, run_dir_for, utc_now
+from agents.training.spec import RunSpec
 from uvdms_gym.utils.cluster import ray_session
 from uvdms_gym.utils.kwargs import check_make_kwargs, parse_kv
 
@@ -137,67 +137,40 @@ def check_seeds(seeds: Sequence[int]) -> list[int]:
 
 
 def plan_sweep(
-    algo: str,
-    env_id: str,
+    base: RunSpec,
     seeds: Sequence[int],
     *,
-    env_kwargs: Mapping[str, Any] | None = None,
-    config_path: str | Path | None = None,
-    hyperparams: Mapping[str, Any] | None = None,
     grid: Mapping[str, Sequence[Any]] | None = None,
-    total_timesteps: int | None = None,
-    n_envs: int | None = None,
-    vec_env: str = "dummy",
-    gym_packages: Sequence[str] = DEFAULT_GYM_PACKAGES,
     components: ActionComponents | None = None,
 ) -> list[RunJob]:
     """Check the arguments and every run's configuration, and return the runs (seeds vary fastest).
 
-    ``components`` are the base and filter factories a residual or filtered configuration needs (``uvdms sweep``
-    passes the composition layer's); without them such a configuration is refused here, before any run starts.
+    Every run is ``base`` with one of ``seeds`` and one grid point merged into its ``hyperparams``. ``components``
+    are the base and filter factories a residual or filtered configuration needs (``uvdms sweep`` passes the
+    composition layer's); without them such a configuration is refused here, before any run starts.
 
     Raises:
-        ConfigError: Unknown algorithm, bad configuration, key in both ``hyperparams`` and ``grid``, ...
+        ConfigError: Bad budget or configuration, a key in both ``hyperparams`` and ``grid``, ...
         EnvironmentNotFoundError: The env id is not registered.
         ValueError: Bad seeds or ``env_kwargs`` keys the environment does not take.
     """
     from agents.training.composition import composition_factories
-    from agents.training.spec import RunSpec
 
-    if algo not in ALGOS:
-        raise ConfigError(f"unknown algorithm {algo!r}; choose one of {sorted(ALGOS)}")
-    if vec_env not in VEC_ENV_TYPES:
-        raise ConfigError(f"vec_env must be one of {VEC_ENV_TYPES}, got {vec_env!r}")
     seeds = check_seeds(seeds)
-    if total_timesteps is not None and total_timesteps < 1:
-        raise ConfigError(f"--total-timesteps must be >= 1, got {total_timesteps}")
-    gym_packages = tuple(gym_packages)
-    check_env_id(env_id, gym_packages)
-    env_kwargs = dict(env_kwargs or {})
-    check_make_kwargs(env_id, env_kwargs)
-    hyperparams = dict(hyperparams or {})
+    if base.total_timesteps is not None and base.total_timesteps < 1:
+        raise ConfigError(f"--total-timesteps must be >= 1, got {base.total_timesteps}")
+    check_env_id(base.env_id, base.gym_packages)
+    check_make_kwargs(base.env_id, base.env_kwargs)
     axes = dict(grid or {})
-    both = sorted(set(axes) & set(hyperparams))
+    both = sorted(set(axes) & set(base.hyperparams))
     if both:
         raise ConfigError(f"--grid and --hyperparams both set {', '.join(map(repr, both))}")
-    config_path = Path(config_path) if config_path is not None else default_config_path(algo)
+    config_path = base.config_file
     config_text = config_path.read_text(encoding="utf-8") if config_path.is_file() else None
-    points = grid_points(axes)
     jobs = []
-    for index, point in enumerate(points):
-        overrides = {**hyperparams, **point}
+    for index, point in enumerate(grid_points(axes)):
         where = f"grid point {index} ({_point_label(point)})" if axes else "the configuration"
-        spec = RunSpec(
-            algo=algo,
-            env_id=env_id,
-            env_kwargs=env_kwargs,
-            config_path=config_path,
-            total_timesteps=total_timesteps,
-            n_envs=n_envs,
-            hyperparams=overrides,
-            vec_env=vec_env,
-            gym_packages=gym_packages,
-        )
+        spec = base.replace(config_path=config_path, hyperparams={**base.hyperparams, **point})
         try:
             cfg = spec.resolve()
             composition_factories(cfg, components)  # a residual or the filter needs the components
@@ -206,7 +179,7 @@ def plan_sweep(
         assert config_text is not None  # resolve_config read the file
         out_subdir = f"grid_{index}" if axes else ""
         for seed in seeds:
-            key = run_dir_for(out_subdir or ".", env_id, algo, seed).as_posix().removeprefix("./")
+            key = run_dir_for(out_subdir or ".", spec.env_id, spec.algo, seed).as_posix().removeprefix("./")
             jobs.append(
                 RunJob(
                     key=key,
@@ -214,7 +187,7 @@ def plan_sweep(
                     spec=spec.replace(seed=seed),
                     config_name=config_path.name,
                     config_text=config_text,
-                    num_cpus=run_cpus(cfg.n_envs, vec_env),
+                    num_cpus=run_cpus(cfg.n_envs, spec.vec_env),
                     grid_index=index if axes else None,
                     grid_point=point,
                     components=None if cfg.composition.is_plain else components,
@@ -285,20 +258,18 @@ def sweep(
         raise ConfigError(f"--max-retries must be >= 0, got {max_retries}")
     if backend == "local" and (address is not None or num_cpus is not None):
         raise ConfigError("--address and --num-cpus are options of --backend ray")
-    jobs = plan_sweep(
-        algo,
-        env_id,
-        seeds,
-        env_kwargs=env_kwargs,
-        config_path=config_path,
-        hyperparams=hyperparams,
-        grid=grid,
+    base = RunSpec(
+        algo=algo,
+        env_id=env_id,
+        env_kwargs=env_kwargs or {},
+        config_path=Path(config_path) if config_path is not None else None,
         total_timesteps=total_timesteps,
         n_envs=n_envs,
+        hyperparams=hyperparams or {},
         vec_env=vec_env,
-        gym_packages=gym_packages,
-        components=components,
+        gym_packages=tuple(gym_packages),
     )
+    jobs = plan_sweep(base, seeds, grid=grid, components=components)
     out_dir = Path(out_dir)
     if (out_dir / "sweep.json").exists():
         raise RunDirError(f"{out_dir} already holds a sweep (sweep.json); choose another --out")

@@ -74,10 +74,10 @@ class RunSpec:
         object.__setattr__(self, "gym_packages", tuple(self.gym_packages))
         if self.config_path is not None:
             object.__setattr__(self, "config_path", Path(self.config_path))
-        if self.vec_env not in VEC_ENV_TYPES:
-            raise ConfigError(f"vec_env must be one of {VEC_ENV_TYPES}, got {self.vec_env!r}")
         if self.algo not in ALGOS:
             raise ConfigError(f"unknown algorithm {self.algo!r}; choose one of {sorted(ALGOS)}")
+        if self.vec_env not in VEC_ENV_TYPES:
+            raise ConfigError(f"vec_env must be one of {VEC_ENV_TYPES}, got {self.vec_env!r}")
 
     @property
     def config_file(self) -> Path:
