@@ -167,7 +167,7 @@ class TrainingSegment:
 
     def env_factories(self) -> tuple[list[EnvFactory], list[EnvFactory]]:
         """The training envs' and the evaluation envs' factories (monitor files per segment and env)."""
-        cfg, monitor, segment = self.cfg, self.run_dir / "monitor", self.index
+        cfg = self.cfg
         base_factory, filter_factory, teacher_factory = self.factories
         composed = {
             "base_factory": base_factory,
@@ -177,33 +177,28 @@ class TrainingSegment:
             "residual_space": cfg.residual_space if base_factory is not None else "full",
             "filter_factory": filter_factory,
         }
-        common = (cfg.max_episode_steps, cfg.alive_bonus, cfg.action_scale)
-        train = [
-            EnvFactory(
-                self.env_id,
-                cfg.env_kwargs,
-                self.gym_packages,
-                str(monitor / f"seg{segment}_train_{i}"),
-                *common,
-                scalar_info=True,
-                **composed,
-                teacher_factory=teacher_factory,  # training envs only: the evaluation callback needs no labels
-            )
-            for i in range(cfg.n_envs)
-        ]
-        evaluation = [
-            EnvFactory(
-                self.env_id,
-                self.eval_kwargs,
-                self.gym_packages,
-                str(monitor / f"seg{segment}_eval_{i}"),
-                *common,
-                **composed,
-                episode_metrics=True,
-            )
-            for i in range(cfg.n_eval_envs)
-        ]
+        # the teacher labels training states only: the evaluation callback needs no labels
+        train = self._factories("train", cfg.env_kwargs, cfg.n_envs, scalar_info=True, **composed,
+                                teacher_factory=teacher_factory)
+        evaluation = self._factories("eval", self.eval_kwargs, cfg.n_eval_envs, **composed, episode_metrics=True)
         return train, evaluation
+
+    def _factories(self, kind: str, env_kwargs: dict[str, Any], n: int, **options: Any) -> list[EnvFactory]:
+        """``n`` env factories of one kind (``train`` or ``eval``), each with its own monitor file."""
+        cfg, monitor = self.cfg, self.run_dir / "monitor"
+        return [
+            EnvFactory(
+                self.env_id,
+                env_kwargs,
+                self.gym_packages,
+                str(monitor / f"seg{self.index}_{kind}_{i}"),
+                cfg.max_episode_steps,
+                cfg.alive_bonus,
+                cfg.action_scale,
+                **options,
+            )
+            for i in range(n)
+        ]
 
     @property
     def eval_kwargs(self) -> dict[str, Any]:
