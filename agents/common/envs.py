@@ -197,9 +197,8 @@ def make_vec_env(factories: list[Callable[[], gym.Env]], vec_env: str) -> VecEnv
     ``"dummy"``: every env in this process (``DummyVecEnv``); ``"subproc"``: every env in a worker process
     (``SubprocVecEnv``); ``"hybrid"``: env 0 in this process, the others in workers, stepped at the same time
     (:class:`agents.common.vecenv.HybridVecEnv`; with a single factory, ``DummyVecEnv``); ``"rollout"``: as
-    ``"hybrid"``,
-    and PPO collects each env's part of a rollout in that env's process (:class:`agents.common.rollouts.RolloutVecEnv`;
-    with a single factory, ``DummyVecEnv``).
+    ``"hybrid"``, and PPO collects each env's part of a rollout in that env's process
+    (:class:`agents.common.rollouts.RolloutVecEnv`; with a single factory, ``DummyVecEnv``).
     """
     if vec_env not in VEC_ENV_TYPES:
         raise ValueError(f"unknown vec_env {vec_env!r}: expected one of {', '.join(VEC_ENV_TYPES)}")

@@ -53,9 +53,9 @@ SHIPPED_ALIASES: dict[str, str] = {
     "transport_paper_ppo": "ppo-transport-paper-v0",
     "transport_paper_sac": "sac-transport-paper-v0",
 }
-"""Former names of shipped agent folders -> their names under the one scheme ``<family>-<task>[-<variant>]-<env
-version>``
-(``sac-circle-v1``, ``residual-mpc-sac-transport-v1``, ``ppo-circle-case1-v0``); the documented old paths still load."""
+"""Former names of shipped agent folders -> their names under the one scheme
+``<family>-<task>[-<variant>]-<env version>`` (``sac-circle-v1``, ``residual-mpc-sac-transport-v1``,
+``ppo-circle-case1-v0``); the documented old paths still load."""
 
 
 def resolve_shipped(path: str | Path) -> Path:

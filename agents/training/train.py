@@ -1,10 +1,10 @@
 """Train a Stable-Baselines3 agent on a Gymnasium environment from a YAML configuration.
 
 Library entry point: :func:`train`; command line: ``python -m agents.train`` (:func:`main`). The parts live in
+:mod:`agents.training.spec` (the run specification), :mod:`agents.training.segment` (one training segment),
 :mod:`agents.common.envs` (env construction, seeds), :mod:`agents.training.callbacks`, :mod:`agents.training.models`
-(replay buffer,
-action-layer scaling) and :mod:`agents.training.rundir` (run directories, checkpoints); their public names are
-re-exported here. The same ``train_configs/<algo>.yml`` also train with ``python -m rl_zoo3.train``
+(replay buffer, action-layer scaling) and :mod:`agents.training.rundir` (run directories, checkpoints); their public
+names are re-exported here. The same ``train_configs/<algo>.yml`` also train with ``python -m rl_zoo3.train``
 (:mod:`agents.config.zoo`).
 
 Run directory ``<out>/<env id, '/' and ':' replaced by '_'>/<algo>_<seed>/``::
@@ -136,6 +136,7 @@ __all__ = [  # the names other modules and the tests import from here (the imple
     "train_env_seed",
     "zip_num_timesteps",
 ]
+
 
 def train(
     algo: str | None = None,
