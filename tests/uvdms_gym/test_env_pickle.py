@@ -1,12 +1,14 @@
 """Environments pickle and deep-copy the Gymnasium way, and reset after close (uvdms_gym/envs/base.py).
 
 A copy is a new environment built from the same constructor arguments (``gymnasium.utils.EzPickle``), with its own
-PyBullet client: stepping or closing it leaves the original alone. State is not copied, as in Gymnasium.
+PyBullet client: stepping or closing it leaves the original alone. State is not copied, as in Gymnasium. The
+simulator itself (``UVDMSSim``) refuses to be pickled or copied, since a copy would share its client.
 """
 
 from __future__ import annotations
 
 import copy
+import gc
 import pickle
 import warnings
 
@@ -70,14 +72,37 @@ def test_a_copy_is_an_independent_environment(env_id, how):
         fresh.close()
 
 
-def test_reset_after_close_connects_a_new_client():
-    env = gym.make("uvdms/CircleTrack-v1")
-    first = env.reset(seed=SEED)[0]
+@pytest.mark.parametrize("env_id", uvdms_gym.ENV_IDS)
+def test_reset_after_close_connects_a_new_client(env_id):
+    env = gym.make(env_id, **KWARGS[env_id])
+    actions = _actions(env)
+    before = _trajectory(env, actions)
+    old_sim = env.unwrapped._sim
     env.close()
     env.close()  # idempotent
-    np.testing.assert_array_equal(env.reset(seed=SEED)[0], first)
-    env.step(env.action_space.sample())
-    env.close()
+    try:
+        after = _trajectory(env, actions)  # the same constructor arguments: the same physics, bit for bit
+        assert env.unwrapped._sim is not old_sim and old_sim.closed
+        for got, want in zip(after, before):
+            np.testing.assert_array_equal(got, want)
+    finally:
+        env.close()
+
+
+def test_the_simulator_refuses_to_be_copied():
+    """A copy of a ``UVDMSSim`` would share its PyBullet client (collecting the copy disconnected the original)."""
+    env = gym.make("uvdms/CircleTrack-v1")
+    try:
+        env.reset(seed=SEED)
+        sim = env.unwrapped._sim
+        for how, make_copy in {**COPIES, "copy": copy.copy}.items():
+            with pytest.raises(TypeError, match="cannot be pickled or copied"):
+                make_copy(sim)
+            assert not sim.closed, how
+        gc.collect()
+        env.step(env.action_space.sample())  # the original's client is still connected
+    finally:
+        env.close()
 
 
 @pytest.mark.parametrize("env_id", ["uvdms/CircleTrack-v0", "uvdms/Transport-v1"])

@@ -366,6 +366,18 @@ class UVDMSSim:
         except pb.error:
             pass
 
+    def __getstate__(self) -> dict:
+        """Refuse pickling and copying (``pickle``, ``cloudpickle``, ``copy.copy``, ``copy.deepcopy``).
+
+        A copy would hold the same PyBullet client id: stepping it would move the original, and closing or
+        garbage-collecting it would disconnect the original's client. Build a new simulator from the same
+        arguments instead; an environment pickles by its constructor's arguments (``gymnasium.utils.EzPickle``).
+        """
+        raise TypeError(
+            "a UVDMSSim cannot be pickled or copied: it owns a PyBullet client, which a copy would share; build a new "
+            "UVDMSSim from the same arguments (environments pickle by their constructor's arguments)"
+        )
+
     def __enter__(self) -> UVDMSSim:
         return self
 
