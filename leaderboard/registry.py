@@ -185,19 +185,15 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
 def resolve_controller(spec: str) -> str:
     """``spec`` as given if it is a baseline name or an existing path; else the shipped agent it names.
 
-    ``trained_agents/NAME[/seed_k]`` (or ``NAME[/seed_k]``) that does not exist from the working directory resolves
-    in the shipped agents' folder (the checkout's or the installed copy,
-    :func:`agents.common.paths.trained_agents_dir`),
-    with a former name of a renamed shipped folder mapped to its new name (:data:`agents.common.paths.SHIPPED_ALIASES`).
+    Shipped names resolve from any working directory, former names of renamed shipped folders included
+    (:func:`agents.common.paths.resolve_shipped`).
     """
-    from agents.common.paths import SHIPPED_ALIASES, TRAINED_AGENTS, trained_agents_dir
-
-    path = Path(spec)
-    if spec in CONTROLLERS or path.exists() or path.is_absolute() or not path.parts:
+    if spec in CONTROLLERS:
         return spec
-    parts = path.parts[1:] if path.parts[0] == TRAINED_AGENTS and len(path.parts) > 1 else path.parts
-    candidate = trained_agents_dir().joinpath(SHIPPED_ALIASES.get(parts[0], parts[0]), *parts[1:])
-    return str(candidate) if candidate.exists() else spec
+    from agents.common.paths import resolve_shipped
+
+    resolved = resolve_shipped(spec)
+    return spec if resolved == Path(spec) else str(resolved)
 
 
 def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) -> Any:

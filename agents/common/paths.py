@@ -59,18 +59,26 @@ SHIPPED_ALIASES: dict[str, str] = {
 
 
 def resolve_shipped(path: str | Path) -> Path:
-    """``path``, or, for a shipped agent's former name that no longer exists, the folder it was renamed to.
+    """``path``, or, where it does not exist, the shipped agent (or seed folder) it names.
 
-    ``trained_agents/circle_case1_ppo`` (or just ``circle_case1_ppo``) resolves to
-    ``trained_agents/ppo-circle-case1-v0``
-    in the same ``trained_agents`` folder if it is there, else in :func:`trained_agents_dir`. Every other path is
-    returned unchanged (as a :class:`~pathlib.Path`).
+    A relative ``trained_agents/NAME[/seed_k]`` (or ``NAME[/seed_k]``) resolves in the working directory's
+    ``trained_agents/`` if it is there, else in :func:`trained_agents_dir` (the checkout's or the installed copy),
+    with a former name of a renamed shipped folder mapped to its new one (:data:`SHIPPED_ALIASES`):
+    ``trained_agents/circle_case1_ppo`` loads ``trained_agents/ppo-circle-case1-v0``. An absolute path is only
+    mapped by the former name of its last part inside a ``trained_agents`` folder. Every other path is returned
+    unchanged (as a :class:`~pathlib.Path`).
     """
     path = Path(path)
-    new = SHIPPED_ALIASES.get(path.name)
-    if new is None or path.exists() or path.parent.name not in ("", TRAINED_AGENTS):
+    if path.exists() or not path.parts:
         return path
-    for candidate in (path.parent / new, trained_agents_dir() / new):
-        if candidate.is_dir():
+    if path.is_absolute():
+        new = SHIPPED_ALIASES.get(path.name)
+        renamed = path.parent / new if new is not None and path.parent.name == TRAINED_AGENTS else None
+        return renamed if renamed is not None and renamed.is_dir() else path
+    local = path.parts[0] == TRAINED_AGENTS and len(path.parts) > 1
+    parts = path.parts[1:] if local else path.parts
+    relative = Path(SHIPPED_ALIASES.get(parts[0], parts[0]), *parts[1:])
+    for candidate in ((Path(TRAINED_AGENTS) / relative) if local else None, trained_agents_dir() / relative):
+        if candidate is not None and candidate.exists():
             return candidate
     return path
