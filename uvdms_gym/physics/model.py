@@ -155,7 +155,14 @@ def _plate_edges(plate) -> str:
     return "".join(out)
 
 
-def build_urdf(params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: bool = True, arms: bool = True) -> str:
+def build_urdf(
+    params: UVDMSParams,
+    *,
+    virtual_added_mass: bool = True,
+    shapes: bool = True,
+    arms: bool = True,
+    hull_collision: bool = False,
+) -> str:
     """URDF text of the vehicle, frame plates and both arms.
 
     Args:
@@ -166,8 +173,12 @@ def build_urdf(params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: 
             kinematic model is built without them; distances are computed analytically).
         arms: include both arms (``False``: the bare vehicle with its frame plates, used by the
             simulator's hydrostatics and 1-DOF hydrodynamics tests).
+        hull_collision: give the hull a collision box of its visual size (outer obstacles collide with it; the
+            robot's own links never do, self-collision being off).
     """
     v = params.vehicle
+    hull_box = f'<geometry><box size="{_fmt(v.size)}"/></geometry>'
+    hull_col = f'<collision><origin xyz="0 0 0" rpy="0 0 0"/>{hull_box}</collision>' if hull_collision else ""
     parts = [
         '<?xml version="1.0"?>',
         '<robot name="uvdms">',
@@ -177,8 +188,8 @@ def build_urdf(params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: 
     ]
     parts.append(
         f'<link name="vehicle">{_inertial(v.mass, v.r_g, v.inertia)}'
-        f'<visual><origin xyz="0 0 0" rpy="0 0 0"/><geometry><box size="{_fmt(v.size)}"/></geometry>'
-        '<material name="hull"/></visual></link>'
+        f'<visual><origin xyz="0 0 0" rpy="0 0 0"/>{hull_box}'
+        f'<material name="hull"/></visual>{hull_col}</link>'
     )
     if virtual_added_mass:
         ma = v.rigid_added_mass
@@ -241,16 +252,31 @@ def build_urdf(params: UVDMSParams, *, virtual_added_mass: bool = True, shapes: 
     return "\n".join(parts)
 
 
-def build_object_urdf(params: UVDMSParams) -> str:
-    """URDF of the gripped cylinder: axis along the object's ``y``, frame at its centre (no collision shape)."""
+def build_object_urdf(params: UVDMSParams, *, collision: bool = False) -> str:
+    """URDF of the gripped cylinder: axis along the object's ``y``, frame at its centre.
+
+    Args:
+        params: the physical parameters.
+        collision: add a collision capsule of the object's radius whose total length is the cylinder's (core
+            segment ``length - 2 radius``), the shape outer obstacles collide with; without it the object has
+            no collision shape.
+    """
     o = params.obj
     inertia = _cylinder_inertia(o.mass, o.radius, o.length, np.array([0.0, 1.0, 0.0]))
+    col = ""
+    if collision:
+        core = o.length - 2.0 * o.radius
+        col = (
+            f'<collision><origin xyz="0 0 0" rpy="{math.pi / 2:.12g} 0 0"/>'
+            f'<geometry><capsule radius="{o.radius:.12g}" length="{core:.12g}"/></geometry></collision>'
+        )
     return (
         '<?xml version="1.0"?><robot name="object">'
         f'<link name="object">{_inertial(o.mass, (0, 0, 0), inertia)}'
         f'<visual><origin xyz="0 0 0" rpy="{math.pi / 2:.12g} 0 0"/>'
         f'<geometry><cylinder radius="{o.radius:.12g}" length="{o.length:.12g}"/></geometry>'
-        '<material name="obj"><color rgba="0.1 0.5 0.9 1"/></material></visual></link></robot>'
+        '<material name="obj"><color rgba="0.1 0.5 0.9 1"/></material></visual>'
+        f"{col}</link></robot>"
     )
 
 

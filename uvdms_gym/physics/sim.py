@@ -73,6 +73,8 @@ from uvdms_gym.physics.hydro import (
     link_forces_world,
     link_table,
 )
+from uvdms_gym.physics.obstacle_bodies import OBJECT_GROUP, OBSTACLE_GROUP, ObstacleBodies
+from uvdms_gym.physics.obstacles import Obstacle
 from uvdms_gym.physics.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
 from uvdms_gym.utils.display import require_display
 from uvdms_gym.utils.io import quiet_c_stream
@@ -202,6 +204,9 @@ class UVDMSSim:
         self_collision: simulate contact forces between non-adjacent robot links (arm-arm, arm-plate). Off by
             default: the links pass through each other and contacts are *reported* by closest-point queries
             (:meth:`count_contacts`); simulating them costs 10-30 µs per physics step (``docs/DECISIONS.md``).
+        outer_collisions: give the hull a collision box and the gripped object a collision capsule, so that outer
+            obstacles (:meth:`set_obstacles`) collide with the links, the object and the vehicle. Off by default
+            (nothing outside the robot exists, and the hull and object need no collision shape).
 
     Use as a context manager or call :meth:`close` (idempotent).
     """
@@ -215,12 +220,14 @@ class UVDMSSim:
         arms: bool = True,
         hydro_scale: HydroScale | None = None,
         self_collision: bool = False,
+        outer_collisions: bool = False,
     ) -> None:
         if not (math.isfinite(physics_dt) and physics_dt > 0.0):
             raise ValueError(f"physics_dt must be finite and > 0, got {physics_dt!r}")
         self._params = params or UVDMSParams()
         self._arms = bool(arms)
         self._self_collision = bool(self_collision)
+        self._outer = bool(outer_collisions)
         self._dt = float(physics_dt)
         self._inv_dt = 1.0 / self._dt
         self._closed = True
@@ -249,7 +256,7 @@ class UVDMSSim:
                 globalCFM=CONSTRAINT_CFM,
                 erp=CONSTRAINT_ERP,
             )
-        path = model.write_urdf(model.build_urdf(self._params, arms=self._arms))
+        path = model.write_urdf(model.build_urdf(self._params, arms=self._arms, hull_collision=self._outer))
         # With self_collision, contacts between non-adjacent links are simulated (physical contact forces) and
         # count_contacts() reads them from the contact manifold PyBullet builds during each step.
         flags = pb.URDF_USE_INERTIA_FROM_FILE
@@ -278,6 +285,8 @@ class UVDMSSim:
         self._state_links = [self._am_link, *self._joints]
         self._r_g = np.array(self._params.vehicle.r_g, dtype=float)
         self._obj: int | None = None
+        self._obstacle_bodies = ObstacleBodies(c)
+        self._has_obstacles = False
         self._grasp_constraints: list[int] = []
         self._contact_pairs: set[tuple[int, int]] = set()
         self._needs_collision_pass = True
@@ -483,6 +492,8 @@ class UVDMSSim:
         self._nu_prev = (float(nu[0]), float(nu[1]), float(nu[2]))
         if with_object:
             self._create_object()
+        if self._has_obstacles:
+            self._obstacle_bodies.place(0.0)
         self._needs_collision_pass = True
         return self.state()
 
@@ -512,9 +523,12 @@ class UVDMSSim:
                 f"(tolerance {GRASP_TOLERANCE[0] * 1e3:.1f} mm, {math.degrees(GRASP_TOLERANCE[1]):.1f} deg); "
                 "give joint angles at which both grippers hold the object (e.g. q_left == q_right)"
             )
-        path = model.write_urdf(model.build_object_urdf(self._params))
+        path = model.write_urdf(model.build_object_urdf(self._params, collision=self._outer))
         self._obj = c.loadURDF(str(path), basePosition=pr, baseOrientation=orr, flags=pb.URDF_USE_INERTIA_FROM_FILE)
-        c.setCollisionFilterGroupMask(self._obj, -1, 0, 0)
+        if self._outer:  # the object collides with outer obstacles only, never with the arms holding it
+            c.setCollisionFilterGroupMask(self._obj, -1, OBJECT_GROUP, OBSTACLE_GROUP)
+        else:
+            c.setCollisionFilterGroupMask(self._obj, -1, 0, 0)
         self._set_object_dynamics()
         c.resetBaseVelocity(self._obj, grasp["right"][6], grasp["right"][7])
         for side in ARM_SIDES:
@@ -729,12 +743,53 @@ class UVDMSSim:
         rgba = np.reshape(np.asarray(img[2], dtype=np.uint8), (int(height), int(width), 4))
         return np.ascontiguousarray(rgba[:, :, :3])
 
+    # ------------------------------------------------------------------ outer obstacles
+    def set_obstacles(self, obstacles: Sequence[Obstacle]) -> None:
+        """Replace the outer obstacles (kinematic bodies, placed at their script's pose at the current time).
+
+        Needs ``outer_collisions=True``. An empty sequence removes them.
+        """
+        self._check_open()
+        if obstacles and not self._outer:
+            raise ValueError("obstacles need a simulator built with outer_collisions=True")
+        self._obstacle_bodies.set(tuple(obstacles), self._t)
+        self._has_obstacles = bool(obstacles)
+
+    @property
+    def obstacles(self) -> tuple[Obstacle, ...]:
+        """The outer obstacles (empty without)."""
+        return self._obstacle_bodies.obstacles
+
+    @property
+    def obstacle_ids(self) -> tuple[int, ...]:
+        """PyBullet body ids of the obstacles, in the order of :attr:`obstacles`."""
+        return self._obstacle_bodies.body_ids
+
+    def obstacle_positions(self) -> np.ndarray:
+        """Obstacle centres as PyBullet holds them, NED ``(K, 3)``."""
+        self._check_open()
+        return self._obstacle_bodies.positions()
+
+    def count_obstacle_contacts(self, pairs: Sequence[tuple[str, int]]) -> int:
+        """Number of touching (robot part, obstacle) pairs (one zero-distance ``getClosestPoints`` each).
+
+        A part is a link name (``"vehicle"``: the hull) or ``"object"``; an obstacle is its index in :attr:`obstacles`.
+        """
+        self._check_open()
+        ids, cid, n = self._obstacle_bodies.body_ids, self._cid, 0
+        for part, k in pairs:
+            body, link = (self._require_object(), -1) if part == "object" else (self._body, self._link_index[part])
+            n += bool(_closest_points(body, ids[k], 0.0, link, -1, physicsClientId=cid))
+        return n
+
     # ------------------------------------------------------------------ stepping
     def bare_step(self) -> None:
         """One ``stepSimulation`` with no hydrodynamics and no inputs (for benchmarks; advances ``t``)."""
         _step_simulation(self._cid)
         self._raw = self._raw_obj = None
         self._t += self._dt
+        if self._has_obstacles:
+            self._obstacle_bodies.place(self._t)
 
     def step(
         self,
@@ -896,6 +951,8 @@ class UVDMSSim:
         _step_simulation(cid)
         self._raw = self._raw_obj = None
         self._t += self._dt
+        if self._has_obstacles:
+            self._obstacle_bodies.place(self._t)
 
     def _object_hydro(self) -> None:
         """Apply the object's hydrodynamic wrench (:func:`uvdms_gym.physics.hydro.object_wrench`, inlined)."""

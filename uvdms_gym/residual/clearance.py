@@ -23,7 +23,6 @@ FEATURE_CLIP = 10.0
 """The clearance features are clipped to ``[-FEATURE_CLIP, FEATURE_CLIP]`` (the environments' observation clip)."""
 
 
-
 _Helper = TypeVar("_Helper", bound="KinematicHelper")
 
 

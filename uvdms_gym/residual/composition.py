@@ -39,6 +39,8 @@ RESIDUAL_OBSERVATIONS: tuple[str, ...] = ("base", "clearance")
 RESIDUAL_SPACES: tuple[str, ...] = ("full", "nullspace")
 """Where a residual acts: ``"full"``, on the whole command; ``"nullspace"``, projected onto the null space of the
 end-effector positions first (:class:`NullspaceProjection`)."""
+
+
 def is_residual_scale(value: Any) -> bool:
     """Whether ``value`` is a real number in (0, 1] (a valid ``residual_scale``)."""
     return (
