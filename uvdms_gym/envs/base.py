@@ -198,6 +198,9 @@ class UVDMSEnv(gym.Env, EzPickle):
         """Task success at the current step (default: none)."""
         return False
 
+    def _after_sim_reset(self) -> None:
+        """Hook after the simulator's reset and before the first observation (default: nothing)."""
+
     # ----------------------------------------------------------------- public helpers
     def reference(self, t: np.ndarray | float) -> np.ndarray:
         """The task's reference ``y_ref`` on any time grid (s from episode start): (6,) or (N, 6)."""
@@ -227,6 +230,7 @@ class UVDMSEnv(gym.Env, EzPickle):
         self._apply_hydro_randomization()
         eta, q = self._initial_state()
         self._sim.reset(eta, np.zeros(6), q, np.zeros(12), with_object=self.with_object)
+        self._after_sim_reset()
         self._loop.reset()
         self.t = 0.0
         self._last_action = np.zeros(ACTION_DIM)

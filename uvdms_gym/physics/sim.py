@@ -73,7 +73,7 @@ from uvdms_gym.physics.hydro import (
     link_forces_world,
     link_table,
 )
-from uvdms_gym.physics.obstacle_bodies import OBJECT_GROUP, OBSTACLE_GROUP, ObstacleBodies
+from uvdms_gym.physics.obstacle_bodies import OBJECT_GROUP, OBSTACLE_GROUP, ROBOT_GROUP, ObstacleBodies
 from uvdms_gym.physics.obstacles import Obstacle
 from uvdms_gym.physics.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
 from uvdms_gym.utils.display import require_display
@@ -284,6 +284,9 @@ class UVDMSSim:
         # moving links in the order of q (their link index equals their joint index)
         self._state_links = [self._am_link, *self._joints]
         self._r_g = np.array(self._params.vehicle.r_g, dtype=float)
+        if self._outer:  # the robot's collision group, explicitly (obstacle_bodies.py)
+            for link in names.values():
+                c.setCollisionFilterGroupMask(self._body, link, ROBOT_GROUP, ROBOT_GROUP | OBSTACLE_GROUP)
         self._obj: int | None = None
         self._obstacle_bodies = ObstacleBodies(c)
         self._has_obstacles = False
@@ -476,6 +479,9 @@ class UVDMSSim:
         qdot = np.zeros(nj) if qdot is None else _vector(qdot, nj, "qdot")
         if with_object and not self._arms:
             raise ValueError("with_object=True needs the arms (arms=False was given)")
+        if self._has_obstacles:  # removed before the object, re-added after it: the same body order every episode
+            self._obstacle_bodies.clear()
+            self._has_obstacles = False
         self._remove_object()
         c = self._client
         r_wb = frames.body_rot_ned_to_world(frames.euler_to_rot(eta[3:]))
@@ -492,8 +498,6 @@ class UVDMSSim:
         self._nu_prev = (float(nu[0]), float(nu[1]), float(nu[2]))
         if with_object:
             self._create_object()
-        if self._has_obstacles:
-            self._obstacle_bodies.place(0.0)
         self._needs_collision_pass = True
         return self.state()
 

@@ -1,0 +1,196 @@
+"""``uvdms/TransportObstacles-v1``: the v1 transport among moving outer obstacles.
+
+The paper's stated future work ("outer obstacles, especially the non-static ones"): debris (spheres) and drifting
+pipes (capsules) cross the object's path while the UVDMS carries it. See :class:`TransportObstaclesV1Env`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from uvdms_gym.distances.outer import compute_outer_distances, part_names
+from uvdms_gym.envs.base import CLEARANCE_CLIP, CONTACT_MARGIN, OBS_CLIP, OBS_DIM
+from uvdms_gym.envs.obstacle_scenarios import random_obstacles
+from uvdms_gym.envs.transport import vehicle_pose_for_object
+from uvdms_gym.envs.v1 import TransportV1Env
+from uvdms_gym.physics.frames import euler_to_rot
+from uvdms_gym.physics.obstacles import AXIS, HALF_LENGTH, POS, RADIUS, VEL, Obstacle, obstacle_states, parse_obstacles
+from uvdms_gym.physics.params import D1, D2
+from uvdms_gym.physics.sim import UVDMSSim
+
+OBSTACLE_SLOT = 13
+"""Observation values per observed obstacle (see :class:`TransportObstaclesV1Env`)."""
+OBSTACLE_POS_SCALE = 2.0
+"""Obstacle positions in the observation are divided by this, m."""
+OBSTACLE_VEL_SCALE = 0.5
+"""Obstacle velocities in the observation are divided by this, m/s."""
+OBSTACLE_SIZE_SCALE = 0.5
+"""Obstacle radii and half lengths in the observation are divided by this, m."""
+
+
+class TransportObstaclesV1Env(TransportV1Env):
+    """The v1 transport task with moving kinematic obstacles in the workspace.
+
+    ## Description
+    As ``uvdms/Transport-v1`` (:class:`~uvdms_gym.envs.v1.TransportV1Env`), while 1-3 obstacles move through the
+    workspace. Obstacles are kinematic spheres and capsules (:mod:`uvdms_gym.physics.obstacles`): they follow their
+    script exactly, push the robot on contact and are never pushed; they collide with the arm links, the object
+    and the vehicle's hull. ``obstacles="random"`` (default) draws a scenario per seed whose obstacles cross the
+    object's or an arm's path during the move (:mod:`uvdms_gym.envs.obstacle_scenarios`); a list of obstacle
+    specifications (dicts with ``shape``, ``radius``, ``position``, ``velocity`` or ``waypoints``, and for a
+    capsule ``length`` and ``axis``) gives a scripted scenario.
+
+    ## Observation Space
+    ``Box(-10, 10, (80 + 13 K,), float32)`` with ``K = n_observed_obstacles`` (default 3): the 80 values of
+    ``uvdms/Transport-v1``, then one slot of 13 per obstacle, nearest first (smallest gap to any robot part):
+    centre relative to the body origin in the body frame / 2 m (3), velocity relative to the body origin's in the
+    body frame / 0.5 m/s (3), core axis in the body frame (3), radius / 0.5 m, half length / 0.5 m, the gap
+    scaled as the clearances (``(clip(d, 0, 0.3) - d1) / (d2 - d1)``), and a mask (1 for an obstacle, 0 for
+    padding; padded slots are all zero).
+
+    ## Rewards
+    Those of ``uvdms/Transport-v1``; a contact with an obstacle is a contact (``reward_contact``).
+
+    ## Costs
+    ``info["cost_contact"]`` counts obstacle contacts with the robot's own (and the episode ends on either).
+
+    ## Info
+    Beyond Transport-v1's: ``obstacles`` (``(K, 11)``: centre, velocity, radius, half length, axis; NED),
+    ``obstacle_distances`` (``(K, 14)`` surface gaps; parts: left links 1-6, right links 1-6, object, hull),
+    ``min_obstacle_distance`` and ``obstacle_contacts``.
+
+    ## Arguments
+    ``obstacles`` (``"random"`` or a list), ``n_observed_obstacles`` (observation slots, default 3), and every
+    argument of ``uvdms/Transport-v1`` (``current`` included).
+
+    ## Version History
+    * v1: initial release (with the v1 reward).
+    """
+
+    def __init__(
+        self,
+        *,
+        obstacles: str | Sequence[Obstacle | Mapping[str, Any]] = "random",
+        n_observed_obstacles: int = 3,
+        **kwargs: Any,
+    ) -> None:
+        if isinstance(obstacles, str):
+            if obstacles != "random":
+                raise ValueError(f"obstacles must be 'random' or a list of obstacle specifications, got {obstacles!r}")
+            self._scripted: tuple[Obstacle, ...] | None = None
+        else:
+            self._scripted = parse_obstacles(obstacles)
+        if (
+            isinstance(n_observed_obstacles, bool)
+            or not isinstance(n_observed_obstacles, int)
+            or n_observed_obstacles < 0
+        ):
+            raise ValueError(f"n_observed_obstacles must be an integer >= 0, got {n_observed_obstacles!r}")
+        self.obstacle_spec = obstacles
+        self.n_observed_obstacles = n_observed_obstacles
+        super().__init__(**kwargs)
+        self.obstacles: tuple[Obstacle, ...] = ()
+        self._parts = part_names(True)
+        dim = OBS_DIM + OBSTACLE_SLOT * n_observed_obstacles
+        self.observation_space = type(self.observation_space)(-OBS_CLIP, OBS_CLIP, (dim,), np.float32)
+        if self._scripted is not None:
+            try:
+                self._check_start(self._scripted, self._initial_state())
+            except ValueError:
+                self.close()
+                raise
+
+    def _make_sim(self) -> UVDMSSim:
+        return UVDMSSim(self.params, physics_dt=self.physics_dt, gui=self.render_mode == "human", outer_collisions=True)
+
+    # ----------------------------------------------------------------- scenario
+    def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.task is None:  # called by the constructor's start check
+            from uvdms_gym.envs.tasks import make_transport_task
+
+            task = make_transport_task(self.goal, np.random.default_rng(0), **self._task_kwargs)
+            return vehicle_pose_for_object(self._kin, task.start), np.zeros(12)
+        return super()._initial_state()
+
+    def _gaps_at(self, eta: np.ndarray, q: np.ndarray, states: np.ndarray) -> np.ndarray:
+        self._kin.set_state(eta, q)
+        return compute_outer_distances(self._kin, states, True).per_obstacle()
+
+    def _check_start(self, obstacles: Sequence[Obstacle], state: tuple[np.ndarray, np.ndarray]) -> None:
+        """Refuse a scripted obstacle that starts in contact with (or inside) the robot."""
+        gaps = self._gaps_at(*state, obstacle_states(obstacles, 0.0))
+        for k, row in enumerate(gaps):
+            i = int(np.argmin(row))
+            if row[i] <= 0.0:
+                raise ValueError(
+                    f"obstacles[{k}] starts in contact with the robot's {self._parts[i]} "
+                    f"(gap {row[i]:.3f} m at t = 0); move its start position"
+                )
+
+    def _nominal_links(self, pose: np.ndarray) -> np.ndarray:
+        self._kin.set_state(vehicle_pose_for_object(self._kin, pose), np.zeros(12))
+        return self._kin.link_segments().copy()
+
+    def _after_sim_reset(self) -> None:
+        if self._scripted is not None:
+            obstacles = self._scripted
+            self._check_start(obstacles, self._initial_state())
+        else:
+            start = self._initial_state()
+            obstacles = random_obstacles(
+                self.np_random,
+                self.task.reference,
+                self.task.move_time,
+                self._nominal_links,
+                lambda states: self._gaps_at(*start, states),
+                self.params.obj.radius,
+            )
+        self.obstacles = obstacles
+        self._sim.set_obstacles(obstacles)
+
+    # ----------------------------------------------------------------- observation
+    def _observe(self) -> tuple[np.ndarray, dict[str, Any]]:
+        obs, info = super()._observe()  # leaves the kinematic model at the current state
+        states = obstacle_states(self.obstacles, self.t)
+        res = compute_outer_distances(self._kin, states, True)
+        gaps = res.per_obstacle()
+        n_contacts = self._obstacle_contacts(gaps)
+        info["contacts"] += n_contacts
+        info["obstacle_contacts"] = n_contacts
+        info["cost_contact"] = 1.0 if info["contacts"] > 0 else 0.0
+        info["cost"] = info["cost_contact"] + info["cost_zone"]
+        info["obstacles"] = states
+        info["obstacle_distances"] = gaps
+        info["min_obstacle_distance"] = float(gaps.min()) if gaps.size else math.inf
+        full = np.concatenate([obs, self._obstacle_block(states, gaps, info)]).astype(np.float32)
+        self._obs = full
+        return full.copy(), info
+
+    def _obstacle_contacts(self, gaps: np.ndarray) -> int:
+        near = np.argwhere(gaps < CONTACT_MARGIN)
+        if near.size == 0:
+            return 0
+        return self._sim.count_obstacle_contacts([(self._parts[i], int(k)) for k, i in near])
+
+    def _obstacle_block(self, states: np.ndarray, gaps: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        block = np.zeros((self.n_observed_obstacles, OBSTACLE_SLOT))
+        if not len(states):
+            return block.reshape(-1)
+        eta, nu = info["eta"], info["nu"]
+        r_nb = euler_to_rot(eta[3:])
+        v_origin = r_nb @ nu[:3]  # NED velocity of the body origin
+        nearest = np.argsort(gaps.min(axis=1))[: self.n_observed_obstacles]
+        for slot, k in enumerate(nearest):
+            s = states[k]
+            block[slot, 0:3] = (s[POS] - eta[:3]) @ r_nb / OBSTACLE_POS_SCALE
+            block[slot, 3:6] = (s[VEL] - v_origin) @ r_nb / OBSTACLE_VEL_SCALE
+            block[slot, 6:9] = s[AXIS] @ r_nb
+            block[slot, 9] = s[RADIUS] / OBSTACLE_SIZE_SCALE
+            block[slot, 10] = s[HALF_LENGTH] / OBSTACLE_SIZE_SCALE
+            block[slot, 11] = (min(max(gaps[k].min(), 0.0), CLEARANCE_CLIP) - D1) / (D2 - D1)
+            block[slot, 12] = 1.0
+        return np.clip(block, -OBS_CLIP, OBS_CLIP).reshape(-1)
