@@ -22,8 +22,9 @@ from typing import Literal
 
 import numpy as np
 
-from baselines.mpc import KinematicMPC, MPCConfig, MPCProblem, MPCStepRecord
+from baselines.mpc import KinematicMPC, MPCConfig, MPCProblem, MPCStepRecord, damper_shape
 from uvdms_gym import distances
+from uvdms_gym.distances.outer import OuterDistances, compute_outer_distances, outer_distance_jacobian
 from uvdms_gym.physics.frames import euler_rate_matrix, euler_to_rot_batch, rot_error_batch, wrap_angle
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.params import UVDMSParams
@@ -85,6 +86,7 @@ class MPCController:
         self.last_distances: distances.DistanceResult | None = None
         self.last_problem: MPCProblem | None = None
         self.last_distance_us = 0.0
+        self.last_outer: OuterDistances | None = None
 
     def reset(self) -> None:
         """Start a new episode (the next solve is cold; the QP object is kept)."""
@@ -109,7 +111,12 @@ class MPCController:
         return y, kin.object_jacobian("right"), r
 
     def make_problem(
-        self, eta: np.ndarray, q: np.ndarray, y_ref: np.ndarray, zeta: np.ndarray | None = None
+        self,
+        eta: np.ndarray,
+        q: np.ndarray,
+        y_ref: np.ndarray,
+        zeta: np.ndarray | None = None,
+        obstacles: np.ndarray | None = None,
     ) -> MPCProblem:
         """Set the kinematic state and assemble the step's problem (kinematics, distances, ``J_dis``).
 
@@ -120,6 +127,8 @@ class MPCController:
                 ``[x y z phi theta psi]`` (ZYX Euler, rad) for ``"object_pose"``.
             zeta: measured velocity (18), optional: gives the measured distance rates for the collision
                 lookahead (:attr:`~baselines.mpc.MPCConfig.lookahead`).
+            obstacles: measured outer obstacles, ``info["obstacles"]`` rows (``(K, 11)``: centre, velocity, radius,
+                half length, axis); used with ``config.outer_rows > 0``.
 
         Returns:
             The problem (also kept as :attr:`last_problem`).
@@ -150,6 +159,8 @@ class MPCController:
             if self.q_nominal is None:
                 self.q_nominal = q.copy()
             e0[:, 6 + self.n_att :] = (self.q_nominal - q)[None, :]
+        if cfg.max_position_error is not None:
+            _govern(e0, cfg.max_position_error, rot is None)
         problem = MPCProblem(e0=e0, j_y=j_y, q=q)
         if cfg.collision:
             t0 = time.perf_counter()
@@ -160,13 +171,81 @@ class MPCController:
             if zeta is not None:
                 problem.v_dis = problem.j_dis @ np.asarray(zeta, dtype=float)
             self.last_distances = res
+            if cfg.n_outer:
+                self._outer_rows(problem, obstacles, zeta)
         if cfg.closed_chain:  # J_o,left - J_o,right; for "object_pose" J_y's first rows are J_o,right already
             j_right = jy if rot is not None else kin.object_jacobian("right")
             problem.j_eq = kin.object_jacobian("left") - j_right
         self.last_problem = problem
         return problem
 
-    def step(self, eta: np.ndarray, q: np.ndarray, y_ref: np.ndarray, zeta: np.ndarray | None = None) -> MPCStepRecord:
+    def _outer_rows(self, problem: MPCProblem, obstacles: np.ndarray | None, zeta: np.ndarray | None) -> None:
+        """Fill the problem's outer rows: the ``outer_rows`` robot-obstacle pairs nearest over the horizon.
+
+        Pairs are ranked by the gap the obstacle's own motion leaves at the end of the control horizon plus the
+        lookahead, ``d + min(0, n^T v_obs) (N_c T_c + T_look)``; unused rows stay inactive (``d = inf``).
+        """
+        cfg, m = self.config, self.config.n_outer
+        problem.outer_j_dis = np.zeros((m, 18))
+        problem.outer_d = np.full(m, np.inf)
+        problem.outer_rate = np.zeros(m)
+        self.last_outer = None
+        if obstacles is None or len(obstacles) == 0:
+            return
+        res = compute_outer_distances(self.kin, obstacles, self.output == "object_pose")
+        jac, rate = outer_distance_jacobian(self.kin, res, obstacles)
+        horizon = cfg.n_c * cfg.t_c + cfg.outer_lookahead
+        pick = np.argsort(res.d + np.minimum(rate, 0.0) * horizon, kind="stable")[:m]
+        k = pick.size
+        problem.outer_j_dis[:k] = jac[pick]
+        problem.outer_d[:k] = res.d[pick]
+        problem.outer_rate[:k] = rate[pick]
+        if zeta is not None:
+            problem.outer_v = problem.outer_j_dis @ np.asarray(zeta, dtype=float) - problem.outer_rate
+            problem.outer_v[k:] = 0.0
+        self.last_outer = res
+        if cfg.outer_escape > 0.0 and self.output == "object_pose":
+            approach = None if zeta is None else jac @ np.asarray(zeta, dtype=float) - rate
+            problem.e0[:, :3] += self._escape(res, obstacles, approach)
+
+    def _escape(self, res: OuterDistances, obstacles: np.ndarray, approach: np.ndarray | None = None) -> np.ndarray:
+        """The evasion bias added to the object's position error (m, NED).
+
+        For each obstacle whose nearest row lies inside the outer damper's zone, the direction that leaves its
+        swept path fastest: the part of ``p - e`` (from the obstacle toward the robot) across the obstacle's
+        velocity, weighted by ``1 - S``, the outer damper's shape at that row (with the lookahead on the measured
+        ``approach`` of every row, when given); scaled by ``outer_escape``. Without it the reference, which the
+        obstacle has just crossed, pulls the robot back in front of the obstacle, and the robot is carried along
+        while it slides around (module docstring of :mod:`baselines.controllers`).
+        """
+        cfg = self.config
+        bias = np.zeros(3)
+        gaps = res.per_obstacle()
+        states = np.asarray(obstacles, dtype=float).reshape(gaps.shape[0], -1)
+        for k in range(gaps.shape[0]):
+            i = k * res.n_parts + int(np.argmin(gaps[k]))
+            v_now = None if approach is None else approach[i : i + 1]
+            shape = damper_shape(self.mpc._outer_cfg, res.d[i : i + 1], v_now)[0][0]
+            if shape >= 1.0:
+                continue
+            away = res.p[i] - res.e[i]
+            v = states[k, 3:6]
+            speed = float(np.linalg.norm(v))
+            if speed > 1e-6:
+                away = away - (away @ v) / speed**2 * v
+            norm = float(np.linalg.norm(away))
+            if norm > 1e-9:
+                bias += (1.0 - shape) * away / norm
+        return cfg.outer_escape * bias
+
+    def step(
+        self,
+        eta: np.ndarray,
+        q: np.ndarray,
+        y_ref: np.ndarray,
+        zeta: np.ndarray | None = None,
+        obstacles: np.ndarray | None = None,
+    ) -> MPCStepRecord:
         """One control step: kinematics, distances, QP build and warm-started solve.
 
         Args:
@@ -174,6 +253,7 @@ class MPCController:
             q: joint angles (12).
             y_ref: the reference window (see :meth:`make_problem`).
             zeta: measured velocity (18), optional (collision lookahead).
+            obstacles: measured outer obstacles (see :meth:`make_problem`), optional.
 
         Returns:
             The step record; ``total_us`` covers the whole step, ``distance_us`` its distances and ``J_dis``
@@ -181,7 +261,7 @@ class MPCController:
         """
         t0 = time.perf_counter()
         self.last_distance_us = 0.0
-        problem = self.make_problem(eta, q, y_ref, zeta)
+        problem = self.make_problem(eta, q, y_ref, zeta, obstacles)
         rec = self.mpc.solve(problem)
         rec.total_us = (time.perf_counter() - t0) * 1e6
         rec.distance_us = self.last_distance_us
@@ -191,6 +271,18 @@ class MPCController:
     def reference_times(self, t: float) -> np.ndarray:
         """Times ``t + j T_c``, ``j = 1..N_p``, at which :meth:`step` expects the reference."""
         return t + self.config.t_c * np.arange(1, self.config.n_p + 1)
+
+
+def _govern(e0: np.ndarray, max_error: float, two_points: bool) -> None:
+    """Scale each row of ``e0`` in place so that its position error is at most ``max_error`` long.
+
+    The position error is the first 3 columns (object pose), or the longer of the two end-effector errors.
+    """
+    if two_points:
+        norm = np.maximum(np.linalg.norm(e0[:, :3], axis=1), np.linalg.norm(e0[:, 3:6], axis=1))
+    else:
+        norm = np.linalg.norm(e0[:, :3], axis=1)
+    e0 *= np.minimum(1.0, max_error / np.maximum(norm, 1e-12))[:, None]
 
 
 def resample_reference(t_grid: np.ndarray, y_grid: np.ndarray, times: np.ndarray, angle_cols=()) -> np.ndarray:

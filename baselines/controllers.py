@@ -15,7 +15,12 @@ name            action_mode   what
 ``campc``       velocity      collision-avoidance MPC (the 18 velocity-damper rows), same action
 ``campc-di``    torque        CAMPC + dynamic inversion without the RBF network (``a = tau / tau_max``)
 ``campc-nndi``  torque        CAMPC + dynamic inversion with the RBF network: the paper's full stack
+``campc-inner`` velocity      CAMPC without outer-obstacle rows (the ablation on ``TransportObstacles-v1``)
 ==============  ============  ===========================================================================
+
+In an environment with outer obstacles (``uvdms/TransportObstacles-v1``) the CAMPC baselines add
+:data:`OUTER_ROWS` velocity-damper rows for them, built from ``info["obstacles"]`` (the measured obstacle
+centres, velocities and shapes) and predicted over the horizon from the measured velocities.
 
 Timing. The MPC runs once per environment step with ``T_c = env.control_dt`` (0.04 s by default), on a
 reference window ``env.unwrapped.reference(t + j T_c)``, ``j = 1..N_p``. [D] In torque mode the dynamic
@@ -49,8 +54,30 @@ BASELINES: dict[str, dict[str, Any]] = {
     "campc": {"action_mode": "velocity", "collision": True},
     "campc-di": {"action_mode": "torque", "collision": True, "use_nn": False},
     "campc-nndi": {"action_mode": "torque", "collision": True, "use_nn": True},
+    "campc-inner": {"action_mode": "velocity", "collision": True, "outer": False},
 }
-"""The named baselines: required action mode, collision rows, RBF network."""
+"""The named baselines: required action mode, collision rows, RBF network, outer-obstacle rows (default: with
+the collision rows, when the environment has obstacles; ``campc-inner`` is CAMPC without them, the ablation)."""
+
+OUTER_ROWS = 8
+"""[D] Outer-obstacle rows of the CAMPC baselines in an environment with obstacles: the nearest robot-obstacle
+pairs over the horizon (of up to 3 x 14). Eight cover the parts an obstacle can reach within the horizon at once
+(the hull, the object and a few links) at a QP cost well below that of all 42 rows."""
+
+OBSTACLE_R_WEIGHT: tuple[float, ...] = (1.0, 1.0, 1.0, 2.0, 2.0, 2.0) + (0.01,) * 12
+"""[D] Velocity weight ``R`` of the MPC baselines in an environment with obstacles: joints five times cheaper
+than the transport default (0.05). After an evasion, the default let the vehicle carry the return, whose pitch
+moment (near its 150 N m limit while holding the object ahead) then saturated in a sustained pitch oscillation of
+1-2 degrees and 20-50 mm; with cheaper joints the arms take the fine correction and the hold settles."""
+
+ESCAPE = 0.1
+"""[D] ``outer_escape`` (m) of the MPC baselines in an environment with obstacles (see
+:attr:`baselines.mpc.MPCConfig.outer_escape`)."""
+
+GOVERNOR = 0.1
+"""[D] ``max_position_error`` (m) of the MPC baselines in an environment with obstacles: after an evasion the
+reference error the MPC sees is capped, so the robot returns at a bounded pace (uncapped, a 0.3-0.5 m return
+saturated the vehicle and set off a pitch oscillation that outlasted the episode)."""
 
 
 def task_of(env: Any) -> str:
@@ -76,7 +103,9 @@ def controller_config(task: str, collision: bool, control_dt: float, **overrides
 class _MPCBase:
     """Shared MPC part: reference window, kinematics, distances, QP (see module docstring)."""
 
-    def __init__(self, env: Any, collision: bool, mpc_overrides: dict[str, Any] | None = None) -> None:
+    def __init__(
+        self, env: Any, collision: bool, mpc_overrides: dict[str, Any] | None = None, outer: bool = True
+    ) -> None:
         u = env.unwrapped
         self.task = task_of(env)
         self.params = u.params
@@ -84,7 +113,15 @@ class _MPCBase:
         self.zeta_max = np.asarray(u.zeta_max, dtype=float)
         self.tau_max = np.asarray(u.tau_max, dtype=float)
         self._env = u
-        cfg = controller_config(self.task, collision, self.control_dt, **(mpc_overrides or {}))
+        self.has_obstacles = hasattr(u, "obstacles")
+        obstacle_settings = {
+            "outer_rows": OUTER_ROWS if (collision and outer) else 0,
+            "max_position_error": GOVERNOR,
+            "r_weight": OBSTACLE_R_WEIGHT,
+            "outer_escape": ESCAPE,
+        }
+        overrides = {**(obstacle_settings if self.has_obstacles else {}), **(mpc_overrides or {})}
+        cfg = controller_config(self.task, collision, self.control_dt, **overrides)
         output = "object_pose" if self.task == "transport" else "ee_positions"
         self.mpc = MPCController(output, cfg, self.params, kin=u.kinematic_model)
         self.last_record: dict[str, Any] = {}
@@ -95,7 +132,8 @@ class _MPCBase:
         t = float(info["t"])
         y_ref = self._env.reference(t + cfg.t_c * np.arange(1, cfg.n_p + 1))
         zeta = np.concatenate([info["nu"], info["qdot"]]).astype(float)
-        rec = self.mpc.step(np.asarray(info["eta"], dtype=float), np.asarray(info["q"], dtype=float), y_ref, zeta)
+        eta, q = np.asarray(info["eta"], dtype=float), np.asarray(info["q"], dtype=float)
+        rec = self.mpc.step(eta, q, y_ref, zeta, info.get("obstacles"))
         self.last_mpc = rec
         return rec
 
@@ -122,15 +160,19 @@ class MPCVelocityController(_MPCBase):
 
     action_mode = "velocity"
 
-    def __init__(self, env: Any, collision: bool = True, mpc_overrides: dict[str, Any] | None = None) -> None:
+    def __init__(
+        self, env: Any, collision: bool = True, mpc_overrides: dict[str, Any] | None = None, outer: bool = True
+    ) -> None:
         """Build the controller for ``env`` (its action mode must be ``"velocity"``).
 
         Args:
             env: the environment (wrapped or not).
             collision: CAMPC (``True``) or plain MPC.
             mpc_overrides: :class:`~baselines.mpc.MPCConfig` fields replacing the task's defaults.
+            outer: with collision rows, add :data:`OUTER_ROWS` outer-obstacle rows when the environment has
+                obstacles (``False``: the inner rows only).
         """
-        super().__init__(env, collision, mpc_overrides)
+        super().__init__(env, collision, mpc_overrides, outer)
 
     def reset(self, seed: int | None = None) -> None:
         """Start an episode: the next QP is solved cold (the QP object is kept)."""
@@ -166,6 +208,7 @@ class CascadeTorqueController(_MPCBase):
         collision: bool = True,
         mpc_overrides: dict[str, Any] | None = None,
         di_overrides: dict[str, Any] | None = None,
+        outer: bool = True,
     ) -> None:
         """Build the controller for ``env`` (its action mode must be ``"torque"``).
 
@@ -175,8 +218,9 @@ class CascadeTorqueController(_MPCBase):
             collision: collision rows in the MPC.
             mpc_overrides: :class:`~baselines.mpc.MPCConfig` fields replacing the task's defaults.
             di_overrides: :class:`~baselines.di.DIConfig` fields replacing the defaults.
+            outer: outer-obstacle rows when the environment has obstacles (see :class:`MPCVelocityController`).
         """
-        super().__init__(env, collision, mpc_overrides)
+        super().__init__(env, collision, mpc_overrides, outer)
         di_cfg = replace(DIConfig(), **{"dt": self.control_dt, "use_nn": use_nn, **(di_overrides or {})})
         model = UVDMSNominalModel(self.params, payload=self.task == "transport")
         self.di = DynamicInversionController(di_cfg, model, self.params, tau_max=self.tau_max, zeta_max=self.zeta_max)
@@ -236,9 +280,10 @@ def make_baseline(name: str, env: Any, **kwargs: Any) -> Controller:
         raise ValueError(f"unknown baseline {name!r}; choose one of {sorted(BASELINES)} or give a path to an agent")
     spec = BASELINES[name]
     check_action_mode(name, env, spec["action_mode"])
+    outer = spec.get("outer", True)
     if spec["action_mode"] == "velocity":
-        return MPCVelocityController(env, collision=spec["collision"], **kwargs)
-    return CascadeTorqueController(env, use_nn=spec["use_nn"], collision=spec["collision"], **kwargs)
+        return MPCVelocityController(env, collision=spec["collision"], outer=outer, **kwargs)
+    return CascadeTorqueController(env, use_nn=spec["use_nn"], collision=spec["collision"], outer=outer, **kwargs)
 
 
 def required_action_mode(spec: str) -> str | None:

@@ -156,7 +156,6 @@ def _fig_joint_angles(ep: dict, t: np.ndarray, out: Path, dpi: int) -> Path:
     return _save(fig, out / "fig13_joint_angles.png", dpi)
 
 
-
 def _fig_velocities(ep: dict, t: np.ndarray, out: Path, dpi: int) -> Path:
     """Paper Fig. 14: the object's NED rates and the vehicle's body velocity."""
     plt = _plt()
@@ -181,7 +180,6 @@ def _fig_velocities(ep: dict, t: np.ndarray, out: Path, dpi: int) -> Path:
     return _save(fig, out / "fig14_velocities.png", dpi)
 
 
-
 def _fig_joint_velocities_torques(ep: dict, t: np.ndarray, out: Path, dpi: int) -> Path:
     """Paper Fig. 15: joint velocities and torques (solid left, dashed right)."""
     plt = _plt()
@@ -201,7 +199,6 @@ def _fig_joint_velocities_torques(ep: dict, t: np.ndarray, out: Path, dpi: int) 
         ax.set_xlabel("t (s)")
         ax.legend(fontsize=6, ncol=3)
     return _save(fig, out / "fig15_joint_velocities_torques.png", dpi)
-
 
 
 def _fig_vehicle_torques_nn(ep: dict, t: np.ndarray, out: Path, dpi: int) -> Path:

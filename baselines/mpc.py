@@ -57,7 +57,7 @@ import sys
 import time
 import types
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -192,6 +192,22 @@ class MPCConfig:
         posture_weight: weight of joint-posture outputs ``q -> q_nominal`` (the joint angles at the episode's
             first step) added by :class:`baselines.campc.MPCController` (0 disables them) [D] 0; a small value
             keeps the redundant arms near their initial posture (used for transport).
+        outer_rows: number of velocity-damper rows for outer obstacles (CAMPC only; 0: none, the default). The
+            problem's outer rows (the robot-obstacle gaps of :mod:`uvdms_gym.distances.outer`, nearest first) fill
+            them; unused rows are inactive. Each has its own slack, like the inner rows.
+        outer_d1: collision-zone threshold of the outer rows, m (a surface gap) [D] 0.02.
+        outer_d2: anti-collision-zone threshold of the outer rows, m [D] 0.15: wider than the inner rows' because
+            an obstacle approaches on its own and the vehicle, which must carry the evasion, follows slowly.
+        outer_vbar: the outer rows' ``vbar``, m/s [D] 0.5: beyond ``outer_d2`` the rows must not slow the transport (up to 0.2 m/s).
+        outer_lookahead: the outer rows' lookahead on the measured approach, s [D] 0.8: the vehicle's velocity
+            loop brakes from a few tenths of a metre per second in about that time.
+        max_position_error: if set, a reference governor: each row of the reference error ``e0`` is scaled down so
+            that its position part is at most this long (m), so that after a large deviation (an evasion) the
+            plan returns at a bounded pace instead of saturating the vehicle [D] ``None`` (off; the baselines
+            set 0.1 m in environments with outer obstacles).
+        outer_escape: evasion bias, m: with outer rows, each obstacle inside the outer damper's zone adds
+            ``outer_escape (1 - S(gap))`` times the unit direction out of its swept path to the object's position
+            error (:meth:`baselines.campc.MPCController.make_problem`) [D] 0 (off).
     """
 
     n_c: int = 5
@@ -221,6 +237,13 @@ class MPCConfig:
     warm_mu_in: float | None = 1.0e-2
     attitude_weight: float = 100.0
     posture_weight: float = 0.0
+    outer_rows: int = 0
+    outer_d1: float = 0.02
+    outer_d2: float = 0.15
+    outer_vbar: float = 0.5
+    outer_lookahead: float = 0.8
+    max_position_error: float | None = None
+    outer_escape: float = 0.0
 
     def __post_init__(self) -> None:
         if self.n_c < 1 or self.n_p < self.n_c:
@@ -233,6 +256,15 @@ class MPCConfig:
             raise ValueError("need 0 <= d1 < d2")
         if self.collision_steps is not None and not 1 <= self.collision_steps <= self.n_c:
             raise ValueError("collision_steps must be in 1..n_c")
+        if self.outer_rows < 0:
+            raise ValueError(f"outer_rows must be >= 0, got {self.outer_rows}")
+        if not 0.0 <= self.outer_d1 < self.outer_d2:
+            raise ValueError("need 0 <= outer_d1 < outer_d2")
+
+    @property
+    def n_outer(self) -> int:
+        """Number of outer-obstacle rows per collision step (0 without collision rows)."""
+        return self.outer_rows if self.collision else 0
 
     @property
     def n_collision_steps(self) -> int:
@@ -256,6 +288,10 @@ class MPCProblem:
         j_eq: closed-chain matrix ``J_o,left - J_o,right`` (n_eq_rows, 18) (transport only).
         v_dis: measured distance rates ``J_dis zeta_measured`` (18), positive approaching (optional; used with
             ``config.lookahead``).
+        outer_j_dis: outer-obstacle rows ``n^T J_P`` (``config.outer_rows``, 18), inactive rows zero.
+        outer_d: their surface gaps, m (inactive rows: ``inf``).
+        outer_rate: ``n^T v_obs`` per row, m/s (the gap's growth from the obstacle's own motion).
+        outer_v: measured approach ``J zeta_measured - n^T v_obs`` per row (optional; lookahead).
     """
 
     e0: np.ndarray
@@ -265,6 +301,10 @@ class MPCProblem:
     d: np.ndarray | None = None
     j_eq: np.ndarray | None = None
     v_dis: np.ndarray | None = None
+    outer_j_dis: np.ndarray | None = None
+    outer_d: np.ndarray | None = None
+    outer_rate: np.ndarray | None = None
+    outer_v: np.ndarray | None = None
 
 
 @dataclass
@@ -360,24 +400,39 @@ class MPCStepRecord:
         }
 
 
+def damper_shape(cfg: MPCConfig, d: np.ndarray, v_now: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The damper's shape ``S(d_eff)`` and the distance it is evaluated at, ``d_eff``.
+
+    Args:
+        cfg: The damper's parameters (``d1``, ``d2``, ``lookahead``).
+        d: the distances, m.
+        v_now: measured distance rates (positive approaching); with ``cfg.lookahead > 0``,
+            ``d_eff = d - lookahead max(0, v_now)``, else ``d_eff = d``.
+
+    Returns:
+        ``(S, d_eff)``.
+    """
+    d = np.asarray(d, dtype=float)
+    if v_now is not None and cfg.lookahead > 0.0:
+        d = d - cfg.lookahead * np.maximum(0.0, np.asarray(v_now, dtype=float))
+    x = np.minimum(np.maximum((d - cfg.d1) / (cfg.d2 - cfg.d1), 0.0), 1.0)  # np.clip's values, cheaper
+    return np.sin(0.5 * np.pi * x) ** 2, d
+
+
 def damper_bound(cfg: MPCConfig, d: np.ndarray, v_now: np.ndarray | None = None) -> np.ndarray:
     """The velocity damper's bound on the approach rates: ``S(d) vbar - k_esc max(0, d1 - d)`` (18).
 
     Args:
         cfg: The damper's parameters (``vbar``, ``d1``, ``d2``, ``k_escape``, ``lookahead``).
-        d: the 18 distances, m.
+        d: the distances, m.
         v_now: measured distance rates (18, positive approaching); with ``cfg.lookahead > 0`` the bound is
             evaluated at ``d - lookahead max(0, v_now)``.
 
     Returns:
         The bound on ``v_dis = J_dis zeta`` for each row, m/s.
     """
-    d = np.asarray(d, dtype=float)
-    if v_now is not None and cfg.lookahead > 0.0:
-        d = d - cfg.lookahead * np.maximum(0.0, np.asarray(v_now, dtype=float))
-    x = np.minimum(np.maximum((d - cfg.d1) / (cfg.d2 - cfg.d1), 0.0), 1.0)  # np.clip's values, cheaper
-    s = np.sin(0.5 * np.pi * x) ** 2
-    return s * cfg.vbar - cfg.k_escape * np.maximum(0.0, cfg.d1 - d)
+    s, d_eff = damper_shape(cfg, d, v_now)
+    return s * cfg.vbar - cfg.k_escape * np.maximum(0.0, cfg.d1 - d_eff)
 
 
 def hold_matrix(n_p: int, n_c: int) -> np.ndarray:
@@ -425,7 +480,12 @@ class KinematicMPC:
 
         nc, n_p = cfg.n_c, cfg.n_p
         self.n_u = N_DOF * nc
-        self.n_s = N_DIS if cfg.collision else 0
+        self.n_outer = cfg.n_outer
+        self._outer_cfg = replace(  # the damper of the outer rows
+            cfg, d1=cfg.outer_d1, d2=cfg.outer_d2, vbar=cfg.outer_vbar, lookahead=cfg.outer_lookahead
+        )
+        self.n_rows_step = N_DIS + self.n_outer  # collision rows per step: the 18 inner, then the outer rows
+        self.n_s = self.n_rows_step if cfg.collision else 0
         self.n = self.n_u + self.n_s
         self.n_eq = cfg.n_eq_rows * nc if cfg.closed_chain else 0
         self.hold = hold_matrix(n_p, nc)
@@ -436,7 +496,7 @@ class KinematicMPC:
         self._pos_counts = self.hold[np.array(steps) - 1]  # (n_pos_steps, N_c)
         self._pos_horizon = cfg.t_c * self._pos_counts.sum(axis=1)  # time to each constrained step
         self.n_pos = N_JOINTS * len(steps) if cfg.joint_position_rows else 0
-        self.n_col = N_DIS * cfg.n_collision_steps
+        self.n_col = self.n_rows_step * cfg.n_collision_steps
         self.n_box_rows = 0 if cfg.box_constraints else self.n
         self.n_in = self.n_box_rows + self.n_pos + self.n_col
 
@@ -456,8 +516,8 @@ class KinematicMPC:
         r0 += self.n_pos
         self._col_rows = slice(r0, r0 + self.n_col)
         for j in range(cfg.n_collision_steps):
-            rows = slice(r0 + N_DIS * j, r0 + N_DIS * (j + 1))
-            self._C[rows, self.n_u :] = -np.eye(N_DIS)
+            rows = slice(r0 + self.n_rows_step * j, r0 + self.n_rows_step * (j + 1))
+            self._C[rows, self.n_u :] = -np.eye(self.n_rows_step)
         self._A = np.zeros((self.n_eq, self.n))
         self._b = np.zeros(self.n_eq)
         # The QP's arrays, allocated once and rewritten in place by every build (ProxSuite copies them on
@@ -483,9 +543,9 @@ class KinematicMPC:
         self._neg_qd_max = -self._qd_max
         self._l_pos = self._l[self._pos_rows].reshape(-1, N_JOINTS)
         self._u_pos = self._u[self._pos_rows].reshape(-1, N_JOINTS)
-        self._u_col = self._u[self._col_rows].reshape(-1, N_DIS)
+        self._u_col = self._u[self._col_rows].reshape(-1, self.n_rows_step)
         self._col_blocks = [
-            self._C[r0 + N_DIS * j : r0 + N_DIS * (j + 1), N_DOF * j : N_DOF * (j + 1)]
+            self._C[r0 + self.n_rows_step * j : r0 + self.n_rows_step * (j + 1), N_DOF * j : N_DOF * (j + 1)]
             for j in range(cfg.n_collision_steps)
         ]
         ne = cfg.n_eq_rows
@@ -614,12 +674,7 @@ class KinematicMPC:
             np.maximum(to_max, disp + 1e-9, out=self._u_pos)
 
         if self.n_col:
-            if p.j_dis is None or p.d is None:
-                raise ValueError("CAMPC needs j_dis and d in the problem")
-            jd = np.asarray(p.j_dis, dtype=float)
-            for block in self._col_blocks:
-                block[:] = jd
-            self._u_col[:] = self.collision_bound(p.d, p.v_dis)
+            self._build_collision(p)
 
         if self.n_eq:
             if p.j_eq is None:
@@ -628,6 +683,48 @@ class KinematicMPC:
             for block in self._eq_blocks:
                 block[:] = je
         return self._H, g, self._lo_box, self._hi_box
+
+    def _build_collision(self, p: MPCProblem) -> None:
+        """The inner collision rows of every collision step (the same ``J_dis`` and bound), then the outer rows."""
+        if p.j_dis is None or p.d is None:
+            raise ValueError("CAMPC needs j_dis and d in the problem")
+        jd = np.asarray(p.j_dis, dtype=float)
+        for block in self._col_blocks:
+            block[:N_DIS] = jd
+        self._u_col[:, :N_DIS] = self.collision_bound(p.d, p.v_dis)
+        if self.n_outer:
+            self._build_outer(p)
+
+    def _build_outer(self, p: MPCProblem) -> None:
+        """The outer rows of every collision step ``j``: ``n^T J_P zeta_j - s <= S vbar + (1 - S) n^T v_obs - esc``.
+
+        ``S = S(d_j)`` is the damper's shape at ``d_j = d + j T_c n^T v_obs``, the gap the obstacle's own motion
+        leaves at the start of step ``j`` (predicted from its measured velocity), with ``outer_d1``, ``outer_d2``
+        and the lookahead on the measured approach; ``esc = k_esc max(0, outer_d1 - d_j)``. Far from the obstacle
+        (``S = 1``) the robot's own approach is limited to ``outer_vbar`` and the obstacle's motion is ignored;
+        at ``outer_d1`` (``S = 0``) the robot must give way at the obstacle's approach speed, so the gap stops
+        shrinking. The gap's rate is then at least ``-S (outer_vbar - n^T v_obs)``. Rows without data are
+        inactive (zero row, bound ``INF``).
+        """
+        cfg, m = self.config, self.n_outer
+        if p.outer_j_dis is None or p.outer_d is None or p.outer_rate is None:
+            for block in self._col_blocks:
+                block[N_DIS:] = 0.0
+            self._u_col[:, N_DIS:] = INF
+            return
+        jo = np.asarray(p.outer_j_dis, dtype=float)
+        d = np.asarray(p.outer_d, dtype=float)
+        rate = np.asarray(p.outer_rate, dtype=float)
+        if jo.shape != (m, N_DOF) or d.shape != (m,) or rate.shape != (m,):
+            raise ValueError(f"outer rows must be ({m}, {N_DOF}), ({m},), ({m},)")
+        active = np.isfinite(d)
+        outer_cfg = self._outer_cfg
+        for j, block in enumerate(self._col_blocks):
+            block[N_DIS:] = jo
+            d_j = np.where(active, d + j * cfg.t_c * rate, 0.0)
+            shape, d_eff = damper_shape(outer_cfg, d_j, p.outer_v)
+            bound = shape * cfg.outer_vbar + (1.0 - shape) * rate - cfg.k_escape * np.maximum(0.0, cfg.outer_d1 - d_eff)
+            self._u_col[j, N_DIS:] = np.where(active, bound, INF)
 
     def solve(self, problem: MPCProblem) -> MPCStepRecord:
         """Build and solve one step (warm-started from the previous step's solution).
@@ -677,12 +774,12 @@ class KinematicMPC:
         if status in ("solved", "max_iter", "closest_primal_feasible") and np.isfinite(x).all():
             zeta = np.minimum(np.maximum(x[:N_DOF], lo_v), hi_v)  # np.clip's values, cheaper
             plan = x[: self.n_u].reshape(self.config.n_c, N_DOF).copy()
-            slack = x[self.n_u :].copy() if self.n_s else np.zeros(N_DIS)
+            slack = x[self.n_u :].copy() if self.n_s else np.zeros(self.n_rows_step)
         else:
             status = "failed"
             zeta = np.clip(np.zeros(N_DOF), lo_v, hi_v)
             plan = np.tile(zeta, (self.config.n_c, 1))
-            slack = np.zeros(N_DIS)
+            slack = np.zeros(self.n_rows_step)
             self._initialised = False  # do not warm start from garbage
         if status != "solved":
             self._initialised = False

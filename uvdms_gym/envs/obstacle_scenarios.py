@@ -1,14 +1,23 @@
 """Random outer-obstacle scenarios of ``uvdms/TransportObstacles-v1`` (``obstacles="random"``).
 
-[D] A scenario is 1 to :data:`MAX_RANDOM_OBSTACLES` obstacles, each aimed to cross the transport's path: an
-obstacle picks a crossing time ``t_c`` in :data:`CROSSING_WINDOW` times ``move_time`` and a target point that
-the nominal robot occupies at ``t_c`` (a point on the object's reference pose, or the midpoint of a distal arm
-link with the vehicle placed for that pose at ``q = 0``), plus a miss offset smaller than the sum of the radii,
-so that a robot that tracks its reference and ignores the obstacle touches it. It moves with a constant velocity
-(speed in :data:`SPEED_RANGE`, direction across the object's axis) through that point at ``t_c`` and keeps
-going. Spheres are debris; capsules are drifting pipes, broadside to their motion. An obstacle is redrawn when it
-would start within :data:`START_CLEARANCE` of the robot or of another obstacle. Everything is drawn from the
-environment's seeded generator, so a seed fixes the scenario.
+[D] A scenario is 1 to :data:`MAX_RANDOM_OBSTACLES` obstacles, each crossing the transport. A candidate picks a
+crossing time ``t_c`` in :data:`CROSSING_WINDOW` times ``move_time`` and a target point that the *nominal robot*
+(the object on its reference, all joints at zero, the vehicle placed accordingly) occupies at ``t_c``: a point on
+the object, or the midpoint of a distal arm link. It moves with a constant velocity (speed in
+:data:`SPEED_RANGE`, direction across the path's tangent at ``t_c``: an obstacle moving along the path, against
+or with the transport, could only be fled from) through that point, shifted sideways by up to the sum of the
+radii, and keeps going. Spheres are debris; capsules are drifting pipes, broadside to their motion.
+
+A candidate is kept only if, against the nominal robot over the whole episode (:func:`random_obstacles`'s
+``nominal_gaps``): it starts at least :data:`START_CLEARANCE` away; it touches the nominal robot (a controller
+that tracks the reference and ignores obstacles makes contact), but no deeper than :data:`MAX_DEPTH` (a
+glancing pass that a small evasion clears); it comes within :data:`EVASION_ZONE` of one group of parts only (one
+arm, the object or the hull: it brushes the robot from outside rather than threading the ring that the arms, the
+object and the hull form, from which no evasion frees it); it stays within :data:`EVASION_ZONE` for at most
+:data:`MAX_INTERACTION` (it crosses, rather than travelling along the path, where no local evasion lets it pass);
+and it is at least :data:`HOLD_CLEARANCE` away during the hold, where success is judged. Obstacles also start
+:data:`START_CLEARANCE` apart. Everything is drawn from the environment's seeded generator: a seed fixes the
+scenario.
 """
 
 from __future__ import annotations
@@ -18,22 +27,29 @@ from collections.abc import Callable
 import numpy as np
 
 from uvdms_gym.physics.frames import euler_to_rot
-from uvdms_gym.physics.obstacles import Obstacle, obstacle_states
+from uvdms_gym.physics.obstacles import Obstacle
 
 MAX_RANDOM_OBSTACLES = 3
 CROSSING_WINDOW = (0.25, 0.65)
 """Crossing time as a fraction of ``move_time``: obstacles are gone before the hold, where success is judged."""
-SPEED_RANGE = (0.06, 0.12)
+SPEED_RANGE = (0.08, 0.2)
 """Obstacle speed, m/s."""
-SPHERE_RADIUS = (0.06, 0.14)
+SPHERE_RADIUS = (0.05, 0.1)
 CAPSULE_RADIUS = (0.03, 0.06)
-CAPSULE_LENGTH = (0.3, 0.8)
+CAPSULE_LENGTH = (0.2, 0.4)
 SPHERE_PROBABILITY = 0.6
 OBJECT_TARGET_PROBABILITY = 0.6
 """Probability that an obstacle aims at the object (else at a distal arm link)."""
 START_CLEARANCE = 0.3
 """Smallest gap between a new obstacle at ``t = 0`` and the robot or another obstacle, m."""
-MAX_ATTEMPTS = 200
+MAX_DEPTH = 0.05
+"""Deepest overlap with the nominal robot an obstacle may reach, m: the pass glances (an evasion of about this)."""
+EVASION_ZONE = 0.1
+MAX_INTERACTION = 3.0
+"""Longest time an obstacle may spend within :data:`EVASION_ZONE` of the nominal robot, s."""
+HOLD_CLEARANCE = 0.4
+"""Smallest gap to the nominal robot during the hold (``t >= move_time``), where success is judged, m."""
+MAX_ATTEMPTS = 500
 
 
 def _unit_across(rng: np.random.Generator, axis: np.ndarray) -> np.ndarray:
@@ -60,14 +76,17 @@ def _draw_one(rng: np.random.Generator, reference, move_time: float, nominal_lin
     t_c = rng.uniform(*CROSSING_WINDOW) * move_time
     pose = np.asarray(reference(t_c), dtype=float)
     target, across = _target(rng, pose, nominal_links)
-    u = _unit_across(rng, across)
+    tangent = np.asarray(reference(t_c + 0.5), dtype=float)[:3] - np.asarray(reference(t_c - 0.5), dtype=float)[:3]
+    u = np.cross(across, tangent)  # across the path and across the part: it clears both quickly
+    norm = float(np.linalg.norm(u))
+    u = u / norm * rng.choice((-1.0, 1.0)) if norm > 1e-6 else _unit_across(rng, across)
     speed = rng.uniform(*SPEED_RANGE)
     if rng.uniform() < SPHERE_PROBABILITY:
         radius, length, axis = rng.uniform(*SPHERE_RADIUS), 0.0, (0.0, 1.0, 0.0)
     else:
         radius, length = rng.uniform(*CAPSULE_RADIUS), rng.uniform(*CAPSULE_LENGTH)
-        axis = tuple(_unit_across(rng, u))
-    miss = _unit_across(rng, u) * rng.uniform(0.0, 0.5) * (radius + part_radius)
+        axis = tuple(_unit_across(rng, u))  # broadside to its motion
+    miss = _unit_across(rng, u) * rng.uniform(0.0, 1.0) * (radius + part_radius)
     start = target + miss - speed * t_c * u
     return Obstacle(
         shape="sphere" if length == 0.0 else "capsule",
@@ -79,12 +98,30 @@ def _draw_one(rng: np.random.Generator, reference, move_time: float, nominal_lin
     )
 
 
+PART_GROUPS: tuple[slice, ...] = (slice(0, 6), slice(6, 12), slice(12, 13), slice(13, 14))
+"""The robot's parts in the gap rows, grouped: left arm, right arm, object, hull."""
+
+
+def _acceptable(times: np.ndarray, gaps: np.ndarray, move_time: float) -> bool:
+    """Whether a candidate's gaps to the nominal robot ``(T, 14)`` make a crossing worth keeping."""
+    closest = gaps.min(axis=1)
+    dt = float(times[1] - times[0])
+    near_groups = [g for g in PART_GROUPS if gaps[:, g].min() < EVASION_ZONE]
+    return bool(
+        closest[0] >= START_CLEARANCE
+        and -MAX_DEPTH <= closest.min() < 0.0
+        and len(near_groups) == 1  # it brushes one part (an arm, the object or the hull), not into the frame
+        and np.count_nonzero(closest < EVASION_ZONE) * dt <= MAX_INTERACTION
+        and closest[times >= move_time].min() >= HOLD_CLEARANCE
+    )
+
+
 def random_obstacles(
     rng: np.random.Generator,
     reference,
     move_time: float,
     nominal_links: Callable[[np.ndarray], np.ndarray],
-    start_gaps: Callable[[np.ndarray], np.ndarray],
+    nominal_gaps: Callable[[Obstacle], tuple[np.ndarray, np.ndarray]],
     part_radius: float,
 ) -> tuple[Obstacle, ...]:
     """A random scenario (module docstring).
@@ -94,7 +131,8 @@ def random_obstacles(
         reference: the task's object-pose reference ``t -> [x y z phi theta psi]``.
         move_time: the transport's move time, s.
         nominal_links: object pose -> link segments ``(2, 7, 2, 3)`` of the robot holding it at ``q = 0``.
-        start_gaps: obstacle states ``(K, 11)`` -> gaps ``(K, n_parts)`` to the robot's initial state.
+        nominal_gaps: obstacle -> ``(times, gaps)``: its gaps ``(T, n_parts)`` to the nominal robot (the object on
+            its reference, ``q = 0``) on an even time grid over the episode.
         part_radius: a typical radius of the robot's parts (the miss offset's scale), m.
 
     Returns:
@@ -106,13 +144,12 @@ def random_obstacles(
         if len(chosen) == n:
             break
         ob = _draw_one(rng, reference, move_time, nominal_links, part_radius)
-        if start_gaps(obstacle_states([ob], 0.0)).min() < START_CLEARANCE:
-            continue
         if any(_start_gap(ob, other) < START_CLEARANCE for other in chosen):
             continue
-        chosen.append(ob)
+        if _acceptable(*nominal_gaps(ob), move_time):
+            chosen.append(ob)
     if not chosen:
-        raise RuntimeError("could not place a random obstacle clear of the robot's start")
+        raise RuntimeError("could not place a random obstacle crossing the transport")
     return tuple(chosen)
 
 

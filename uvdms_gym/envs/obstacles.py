@@ -22,6 +22,8 @@ from uvdms_gym.physics.obstacles import AXIS, HALF_LENGTH, POS, RADIUS, VEL, Obs
 from uvdms_gym.physics.params import D1, D2
 from uvdms_gym.physics.sim import UVDMSSim
 
+NOMINAL_GRID_DT = 0.2
+"""Time step of the nominal-robot check of random obstacles, s."""
 OBSTACLE_SLOT = 13
 """Observation values per observed obstacle (see :class:`TransportObstaclesV1Env`)."""
 OBSTACLE_POS_SCALE = 2.0
@@ -94,6 +96,7 @@ class TransportObstaclesV1Env(TransportV1Env):
         self.n_observed_obstacles = n_observed_obstacles
         super().__init__(**kwargs)
         self.obstacles: tuple[Obstacle, ...] = ()
+        self._nominal_track: tuple[np.ndarray, list[np.ndarray]] | None = None
         self._parts = part_names(True)
         dim = OBS_DIM + OBSTACLE_SLOT * n_observed_obstacles
         self.observation_space = type(self.observation_space)(-OBS_CLIP, OBS_CLIP, (dim,), np.float32)
@@ -131,22 +134,36 @@ class TransportObstaclesV1Env(TransportV1Env):
                     f"(gap {row[i]:.3f} m at t = 0); move its start position"
                 )
 
+    def _nominal_gaps(self, obstacle: Obstacle) -> tuple[np.ndarray, np.ndarray]:
+        """Gaps ``(T, 14)`` of one obstacle to the nominal robot (object on its reference, ``q = 0``) over the episode."""
+        if self._nominal_track is None:
+            steps = self.spec.max_episode_steps if self.spec is not None and self.spec.max_episode_steps else 600
+            times = np.arange(0.0, steps * self.control_dt + 1e-9, NOMINAL_GRID_DT)
+            etas = [vehicle_pose_for_object(self._kin, pose) for pose in self.task.reference(times)]
+            self._nominal_track = (times, etas)
+        times, etas = self._nominal_track
+        gaps = np.empty((times.size, 14))
+        q0 = np.zeros(12)
+        for k, (t, eta) in enumerate(zip(times, etas)):
+            gaps[k] = self._gaps_at(eta, q0, obstacle_states([obstacle], float(t)))[0]
+        return times, gaps
+
     def _nominal_links(self, pose: np.ndarray) -> np.ndarray:
         self._kin.set_state(vehicle_pose_for_object(self._kin, pose), np.zeros(12))
         return self._kin.link_segments().copy()
 
     def _after_sim_reset(self) -> None:
+        self._nominal_track = None
         if self._scripted is not None:
             obstacles = self._scripted
             self._check_start(obstacles, self._initial_state())
         else:
-            start = self._initial_state()
             obstacles = random_obstacles(
                 self.np_random,
                 self.task.reference,
                 self.task.move_time,
                 self._nominal_links,
-                lambda states: self._gaps_at(*start, states),
+                self._nominal_gaps,
                 self.params.obj.radius,
             )
         self.obstacles = obstacles
