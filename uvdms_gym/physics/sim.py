@@ -44,7 +44,9 @@ a force and a torque in ``WORLD_FRAME``, each link's drag and buoyancy at its mi
 ``stepSimulation``, so all are reapplied every physics step. Every PyBullet state query copies its whole
 state buffer, so the state is read once per physics state: the sanity check at the end of :meth:`step`
 caches its read, and :meth:`state`, the object queries and the first substep's velocity loop reuse it until
-the next ``stepSimulation`` or reset (``docs/ARCHITECTURE.md``, Performance).
+the next ``stepSimulation`` or reset (``docs/ARCHITECTURE.md``, Performance). With an ocean current
+(:meth:`UVDMSSim.set_current`) the same loads act on the velocities relative to the water; without one the step
+runs exactly the formulas above (one flag test per load group, no extra arithmetic).
 
 Failures are never silent: an invalid ``tau`` raises :class:`ValueError`, saturation is reported in
 :class:`StepInfo`, and a state that is non-finite or beyond the sanity bounds :data:`NU_LIMIT`,
