@@ -27,8 +27,8 @@ COPIES = {
 }
 KWARGS = {  # non-default keywords, so that a copy that dropped them would show
     "uvdms/CircleTrack-v0": {"case": 2},
-    "uvdms/CircleTrack-v1": {"case": "random", "hydro_randomization": 0.2},
-    "uvdms/Transport-v0": {"goal": "random"},
+    "uvdms/CircleTrack-v1": {"case": "random", "hydro_randomization": 0.2, "current": "random"},
+    "uvdms/Transport-v0": {"goal": "random", "current": [0.1, -0.05, 0.0]},
     "uvdms/Transport-v1": {"goal": "paper", "contact_weight": 5.0},
 }
 STEPS = 4

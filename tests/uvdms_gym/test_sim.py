@@ -9,17 +9,23 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from scipy.integrate import solve_ivp
-from sim_helpers import mass_matrix, pin_config, random_state
+from sim_helpers import (
+    com_acceleration_world,
+    com_velocity_world,
+    mass_matrix,
+    pin_config,
+    random_state,
+    reference_acceleration,
+)
 
-from uvdms_gym.physics import frames, hydro, model
+from uvdms_gym.physics import frames, model
 from uvdms_gym.physics.hydro import HydroScale
 from uvdms_gym.physics.params import GRAVITY, JOINT_NAMES, UVDMSParams
-from uvdms_gym.physics.sim import PhysicsError, SimState, UVDMSSim
+from uvdms_gym.physics.sim import PhysicsError, UVDMSSim
 
 P = UVDMSParams()
 # Bare vehicle with buoyancy equal to weight: no net heave force, so 1-DOF responses can be isolated.
 P_NEUTRAL = dataclasses.replace(P, vehicle=dataclasses.replace(P.vehicle, buoyancy=P.vehicle.mass * GRAVITY))
-
 
 
 # ---------------------------------------------------------------------------------------------- frames/API
@@ -59,51 +65,6 @@ def test_pybullet_damping_is_disabled(sim):
     np.testing.assert_allclose(sim.state().nu, nu, atol=1e-12)  # PyBullet's default 0.04 would lose ~8 %
 
 
-def _reference_acceleration(s: UVDMSSim, pm, pd, st: SimState, tau: np.ndarray, nudot_est: np.ndarray):
-    """Pinocchio ABA with the reference hydrodynamics of uvdms_gym.physics.hydro applied at the documented points."""
-    h, params = s.hydro, s.params
-    r_nb = frames.euler_to_rot(st.eta[3:])
-    qp, v = pin_config(st.eta, st.q), st.zeta
-    pin.forwardKinematics(pm, pd, qp, v)
-    pin.updateFramePlacements(pm, pd)
-    pin.computeJointJacobians(pm, pd, qp)
-    f = tau.astype(float).copy()
-    f[6:] -= params.arm.joint_friction * st.qdot  # gear friction (PyBullet jointDamping)
-    f[:6] += hydro.vehicle_wrench(st.nu, nudot_est, h)
-    f_up = h.up_force * (r_nb.T @ np.array([0.0, 0.0, -1.0]))  # NED up in body coordinates
-    f[:3] += f_up
-    f[3:6] += np.cross(h.up_centroid, f_up)
-    k = 0
-    for side in ("left", "right"):
-        for i in range(1, 7):
-            fid = pm.getFrameId(f"{side}_link{i}")
-            a, b = model.link_segment(params, i)
-            o_m_f = pd.oMf[fid]
-            mid = o_m_f.act(0.5 * (a + b))
-            jac = pin.getFrameJacobian(pm, pd, fid, pin.LOCAL_WORLD_ALIGNED)
-            jp = jac[:3] - pin.skew(mid - o_m_f.translation) @ jac[3:]
-            axis = o_m_f.rotation @ model.link_axis(params, i)
-            force = hydro.link_force(jp @ v, axis, h.link_buoyancy[k], h.link_kn[k], h.link_kt[k], up=(0, 0, -1.0))
-            f += jp.T @ np.array(force)
-            k += 1
-    return pin.aba(pm, pd, qp, v, f)
-
-
-def _com_velocity_world(st: SimState) -> np.ndarray:
-    r_wb = frames.body_rot_ned_to_world(frames.euler_to_rot(st.eta[3:]))
-    r_g = r_wb @ np.array(P.vehicle.r_g)
-    w = r_wb @ st.nu[3:]
-    return r_wb @ st.nu[:3] + np.cross(w, r_g)
-
-
-def _com_acceleration_world(st: SimState, acc: np.ndarray) -> np.ndarray:
-    """Classical acceleration of the base COM (PyBullet integrates this velocity in the world frame)."""
-    nu, w, r_g = st.nu, st.nu[3:], np.array(P.vehicle.r_g)
-    a_o = acc[:3] + np.cross(w, nu[:3])
-    a_c = a_o + np.cross(acc[3:6], r_g) + np.cross(w, np.cross(w, r_g))
-    return frames.body_rot_ned_to_world(frames.euler_to_rot(st.eta[3:])) @ a_c
-
-
 def test_one_step_dynamics_match_pinocchio_with_reference_hydrodynamics(sim_nc):
     sim = sim_nc
     # The simulator evaluates the hydrodynamics inline for speed: one explicit step from random states must
@@ -121,12 +82,12 @@ def test_one_step_dynamics_match_pinocchio_with_reference_hydrodynamics(sim_nc):
         for _step in range(2):
             info = sim.step(tau)
             s1 = sim.state()
-            ref = _reference_acceleration(sim, pm, pd, s0, info.tau, nudot_est)
+            ref = reference_acceleration(sim, pm, pd, s0, info.tau, nudot_est)
             np.testing.assert_allclose((s1.qdot - s0.qdot) / dt, ref[6:], rtol=1e-7, atol=1e-7)
             np.testing.assert_allclose((s1.nu[3:] - s0.nu[3:]) / dt, ref[3:6], rtol=1e-7, atol=1e-7)
             np.testing.assert_allclose(
-                (_com_velocity_world(s1) - _com_velocity_world(s0)) / dt,
-                _com_acceleration_world(s0, ref),
+                (com_velocity_world(s1) - com_velocity_world(s0)) / dt,
+                com_acceleration_world(s0, ref),
                 rtol=1e-7,
                 atol=1e-7,
             )
@@ -338,5 +299,3 @@ def test_stability_check_detects_an_unstable_lag():
     bad = dataclasses.replace(P, vehicle=dataclasses.replace(P.vehicle, added_mass=(300.0, 32.2, 31.3, 5.6, 3.7, 3.4)))
     nus, _energy, error = _random_wrench_run(bad, 5.0)
     assert error is not None or (_high_frequency_ratio(nus) > 0.01).any()
-
-

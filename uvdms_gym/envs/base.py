@@ -24,6 +24,7 @@ slice       size  content
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any, ClassVar
 
@@ -33,6 +34,7 @@ from gymnasium.utils import EzPickle
 
 from uvdms_gym.distances import compute_distances, contact_thresholds, velocity_damper
 from uvdms_gym.envs.lowlevel import VelocityLoop
+from uvdms_gym.physics.current import CurrentModel, CurrentState, parse_current
 from uvdms_gym.physics.frames import euler_to_rot, rot_error
 from uvdms_gym.physics.hydro import HydroScale
 from uvdms_gym.physics.kinematics import KinematicModel
@@ -88,6 +90,7 @@ class UVDMSEnv(gym.Env, EzPickle):
         control_dt: float = 0.04,
         physics_dt: float = 0.01,
         hydro_randomization: float = 0.0,
+        current: CurrentModel | str | Sequence[float] | None = None,
         terminate_on_contact: bool = True,
         track_weight: float = 1.0,
         orientation_weight: float = 0.3,
@@ -120,6 +123,8 @@ class UVDMSEnv(gym.Env, EzPickle):
             raise ValueError(f"control_dt ({control_dt}) must be a whole multiple of physics_dt ({physics_dt})")
         if not 0.0 <= hydro_randomization < 1.0:
             raise ValueError(f"hydro_randomization must be in [0, 1), got {hydro_randomization}")
+        self.current_model = parse_current(current)  # ValueError naming the problem, before any client exists
+        """The ocean-current process (:mod:`uvdms_gym.physics.current`), or ``None`` for still water."""
         for name, w in (
             ("track_weight", track_weight),
             ("orientation_weight", orientation_weight),
@@ -135,6 +140,8 @@ class UVDMSEnv(gym.Env, EzPickle):
         self.physics_dt = float(physics_dt)
         self.n_substeps = n_sub
         self.hydro_randomization = float(hydro_randomization)
+        self._current_state: CurrentState | None = None
+        self._current_value = (0.0, 0.0, 0.0)
         self.terminate_on_contact = bool(terminate_on_contact)
         self.weights = {
             "track": float(track_weight),
@@ -228,6 +235,7 @@ class UVDMSEnv(gym.Env, EzPickle):
             self._closed = False
         self.task = self._build_task(self.np_random)
         self._apply_hydro_randomization()
+        self._reset_current()  # after the task and hydro draws: the episodes without a current are unchanged
         eta, q = self._initial_state()
         self._sim.reset(eta, np.zeros(6), q, np.zeros(12), with_object=self.with_object)
         self._after_sim_reset()
@@ -241,6 +249,8 @@ class UVDMSEnv(gym.Env, EzPickle):
     def step(self, action):
         """Apply the action over ``control_dt``, then observe, score and check the episode end."""
         a, clipped = self._validate_action(action)
+        if self._current_state is not None and self.current_model.random:
+            self._advance_current()
         physics_error = None
         try:
             tau_applied, saturated = self._apply(a)
@@ -365,6 +375,7 @@ class UVDMSEnv(gym.Env, EzPickle):
             "cost": cost_contact + cost_zone,
             "is_success": self._success(pos_err, ori_err),
             "physics_error": None,
+            "current": np.array(self._current_value),
         }
         self._last_info = info
         return self._obs.copy(), info
@@ -389,7 +400,27 @@ class UVDMSEnv(gym.Env, EzPickle):
     def _physics_error_info(self, msg: str) -> dict[str, Any]:
         terms = {f"reward_{k}": 0.0 for k in self.weights}
         terms["reward_physics_error"] = PHYSICS_ERROR_REWARD
-        return {**terms, "physics_error": msg, "t": self.t}
+        return {**terms, "physics_error": msg, "t": self.t, "current": np.array(self._current_value)}
+
+    def _reset_current(self) -> None:
+        """Start the episode's current process (draws from ``np_random`` only for a random current)."""
+        model = self.current_model
+        if model is None:
+            self._current_state = None
+            self._current_value = (0.0, 0.0, 0.0)
+            self._sim.set_current(None)
+            return
+        self._current_state = model.start(self.np_random)
+        self._set_current_value()
+
+    def _advance_current(self) -> None:
+        """One control step of the current process; the simulator applies the new value during the step."""
+        self._current_state = self.current_model.advance(self._current_state, self.control_dt, self.np_random)
+        self._set_current_value()
+
+    def _set_current_value(self) -> None:
+        self._current_value = self._current_state.value
+        self._sim.set_current(self._current_value)
 
     def _apply_hydro_randomization(self) -> None:
         s = self.hydro_randomization

@@ -65,7 +65,10 @@ class CircleTrackEnv(UVDMSEnv):
     (s, default 10) override the case; an infeasible request raises ``ValueError``. Common arguments:
     ``action_mode``, ``control_dt`` (0.04 s), ``physics_dt`` (0.01 s), ``hydro_randomization`` (s in [0, 1):
     added mass, damping, buoyancy and link drag scaled per episode by factors in [1 - s, 1 + s]),
-    ``terminate_on_contact``, ``track_weight``, ``orientation_weight``, ``effort_weight``,
+    ``current`` (``None``: still water; a NED vector of 3 floats, m/s, at most 2 m/s: a constant ocean current;
+    ``"random"``: a per-episode current of at most 0.2 m/s varying slowly within the episode; every hydrodynamic
+    load then acts on the velocity relative to the water, :mod:`uvdms_gym.physics.current`; ``info["current"]``
+    reports it), ``terminate_on_contact``, ``track_weight``, ``orientation_weight``, ``effort_weight``,
     ``proximity_weight``, ``contact_weight``, ``max_tracking_error``, ``render_mode``
     (``"rgb_array"``/``"human"``), ``render_width``, ``render_height``.
 

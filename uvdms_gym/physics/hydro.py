@@ -62,6 +62,26 @@ Object (gripped cylinder of radius ``r``, length ``L``, axis ``e`` = object ``y`
       plain lagged cross-flow force (a slowly decaying ringing of the grasp forces). While gripped the
       effective mass is the whole robot's and the ratio is far smaller. Munk moment
       ``-v x P = m_a (v . e) (v x e)`` explicit; the transverse rotational drag is neglected (as for links).
+
+Current (Fossen's relative-velocity form; :meth:`uvdms_gym.physics.sim.UVDMSSim.set_current`)
+    A uniform, irrotational ocean current ``v_c`` (NED, constant or slowly varying) enters every hydrodynamic
+    term through the velocity relative to the water; hydrostatics are unchanged. With ``v_c = 0`` everything
+    above holds as written (and the simulator runs the code path without a current, bit for bit).
+
+    * vehicle: ``nu_r = nu - [R_NB^T v_c; 0, 0, 0]`` (:func:`relative_body_velocity`; the angular part is
+      unchanged). Damping ``-D(nu_r) nu_r``, residual added mass ``-A (nu_r,k - nu_r,k-1) / dt`` and the
+      Coriolis/Munk terms ``(A nu_r1) x nu2``, ``(A nu_r1) x nu_r1``: :func:`vehicle_wrench` of ``nu_r``.
+    * rigid virtual added-mass links (vehicle and object): unchanged. Their momentum is ``m_a v``, and with
+      ``v_c`` constant in NED ``d/dt (m_a v_r) = m_a dv/dt``, so the rigid body already has Fossen's
+      ``M_A nu_r_dot`` for the isotropic part. For a slowly varying current the term ``m_a dv_c/dt`` is
+      neglected (as Fossen does for slowly varying currents); the lagged residuals neglect it too (the
+      simulator re-expresses their stored previous value when the current changes).
+    * arm links and object: Morison drag on ``v - v_c`` (:func:`morison_force` with ``current``); the object's
+      axial added momentum ``P_ax = m_a (v_r . e) e`` and Munk moment ``m_a (v_r . e) (v_r x e)`` with
+      ``v_r = v - v_c`` (:func:`object_wrench` with ``current``).
+
+    The current's value per control step comes from :mod:`uvdms_gym.physics.current` (the environments'
+    ``current`` keyword).
 """
 
 from __future__ import annotations
@@ -209,15 +229,33 @@ def hydro_coefficients(params: UVDMSParams, scale: HydroScale | None = None, *, 
     )
 
 
+def relative_body_velocity(nu: Sequence[float], r_nb: np.ndarray, v_c: Sequence[float] | None) -> np.ndarray:
+    """Body velocity relative to the water, ``nu_r = nu - [R_NB^T v_c; 0, 0, 0]`` (irrotational current).
+
+    Args:
+        nu: body velocity ``[u v w p q r]`` (FRD).
+        r_nb: body orientation ``R_NB``.
+        v_c: current, NED, m/s (``None``: no current, ``nu`` is returned as an array).
+
+    Returns:
+        ``nu_r`` (6).
+    """
+    out = np.array(nu, dtype=float)
+    if v_c is not None:
+        out[:3] -= np.asarray(r_nb, dtype=float).T @ np.asarray(v_c, dtype=float)
+    return out
+
+
 def vehicle_wrench(nu: Sequence[float], nudot_est: Sequence[float], c: HydroCoefficients) -> tuple[float, ...]:
     """Damping and residual added-mass wrench on the vehicle, body frame, about the body origin.
 
     ``tau = -D(nu) nu - A nudot_est - C_A,res(nu) nu`` with ``A = diag(a_res)`` (translational only):
-    force ``-d(nu1) nu1 - A nudot1 + (A nu1) x nu2``, moment ``-d(nu2) nu2 + (A nu1) x nu1``.
+    force ``-d(nu1) nu1 - A nudot1 + (A nu1) x nu2``, moment ``-d(nu2) nu2 + (A nu1) x nu1``. In a current
+    pass the relative velocity ``nu_r`` (:func:`relative_body_velocity`) and its lagged derivative estimate.
 
     Args:
-        nu: body velocity ``[u v w p q r]``.
-        nudot_est: estimate of ``nudot`` (only its first three entries are used).
+        nu: body velocity ``[u v w p q r]`` relative to the water (the body velocity without a current).
+        nudot_est: estimate of ``nudot`` (of ``nu_r`` in a current; only its first three entries are used).
         c: coefficients from :func:`hydro_coefficients`.
 
     Returns:
@@ -237,12 +275,19 @@ def vehicle_wrench(nu: Sequence[float], nudot_est: Sequence[float], c: HydroCoef
     )
 
 
-def morison_force(vel: Sequence[float], axis: Sequence[float], kn: float, kt: float) -> tuple[float, float, float]:
+def morison_force(
+    vel: Sequence[float],
+    axis: Sequence[float],
+    kn: float,
+    kt: float,
+    current: Sequence[float] | None = None,
+) -> tuple[float, float, float]:
     """Quadratic (Morison) drag on a slender body moving with ``vel``; ``axis`` is a unit vector.
 
-    ``F = -kn |v_n| v_n - kt |v_t| v_t e`` with ``v_t = v . e``, ``v_n = v - v_t e``.
+    ``F = -kn |v_n| v_n - kt |v_t| v_t e`` with ``v_t = v . e``, ``v_n = v - v_t e``, where ``v = vel - current``
+    is the velocity relative to the water (``current`` in the frame of ``vel``; ``None``: still water).
     """
-    vx, vy, vz = (float(x) for x in vel)
+    vx, vy, vz = (float(x) for x in _relative(vel, current))
     ex, ey, ez = (float(x) for x in axis)
     vt = vx * ex + vy * ey + vz * ez
     nx, ny, nz = vx - vt * ex, vy - vt * ey, vz - vt * ez
@@ -258,9 +303,13 @@ def link_force(
     kn: float,
     kt: float,
     up: Sequence[float] = (0.0, 0.0, 1.0),
+    current: Sequence[float] | None = None,
 ) -> tuple[float, float, float]:
-    """Total hydrodynamic force on an arm link at its midpoint: Morison drag plus buoyancy along ``up``."""
-    fx, fy, fz = morison_force(vel, axis, kn, kt)
+    """Total hydrodynamic force on an arm link at its midpoint: Morison drag plus buoyancy along ``up``.
+
+    The drag acts on ``vel - current`` (:func:`morison_force`); the buoyancy does not depend on the current.
+    """
+    fx, fy, fz = morison_force(vel, axis, kn, kt, current)
     return (fx + buoyancy * up[0], fy + buoyancy * up[1], fz + buoyancy * up[2])
 
 
@@ -282,7 +331,7 @@ def link_forces_world(states: np.ndarray, table: np.ndarray, out: np.ndarray) ->
 
     Args:
         states: flat ``[qx qy qz qw vx vy vz]`` per link (7 n): orientation of the link frame (xyzw) and
-            velocity of its midpoint, world frame.
+            velocity of its midpoint relative to the water (the simulator subtracts the current), world frame.
         table: :func:`link_table`.
         out: ``(n, 3)``, filled with the world force on each link's midpoint.
 
@@ -316,23 +365,27 @@ def object_wrench(
     axial_momentum_rate: Sequence[float],
     c: HydroCoefficients,
     up: Sequence[float] = (0.0, 0.0, 1.0),
+    current: Sequence[float] | None = None,
 ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """External hydrodynamic wrench on the object about its centre (any frame with an ``up`` direction).
 
     The object's body mass and inertia already include the rigid part of its added mass (see the module
     docstring), so this returns: buoyancy plus the cancellation of the added mass's weight, Morison drag,
-    the axial added-mass correction ``+dP_ax/dt`` and the Munk moment ``m_a (v . e) (v x e)``.
+    the axial added-mass correction ``+dP_ax/dt`` and the Munk moment ``m_a (v_r . e) (v_r x e)``, all with the
+    velocity relative to the water ``v_r = vel - current``.
 
     Args:
         vel: velocity of the object's centre.
         axis: unit axis ``e`` of the cylinder.
-        axial_momentum_rate: estimate of ``d/dt [m_a (v . e) e]`` (lagged finite difference).
+        axial_momentum_rate: estimate of ``d/dt [m_a (v_r . e) e]`` (lagged finite difference).
         c: coefficients from :func:`hydro_coefficients`.
         up: unit vector opposite to gravity.
+        current: the current in the frame of ``vel`` (``None``: still water).
 
     Returns:
         ``(force, moment)``.
     """
+    vel = _relative(vel, current)
     fx, fy, fz = morison_force(vel, axis, c.obj_kn, c.obj_kt)
     lift = c.obj_buoyancy + c.obj_added_mass * GRAVITY
     vx, vy, vz = (float(x) for x in vel)
@@ -345,3 +398,10 @@ def object_wrench(
     )
     moment = (k * (vy * ez - vz * ey), k * (vz * ex - vx * ez), k * (vx * ey - vy * ex))
     return force, moment
+
+
+def _relative(vel: Sequence[float], current: Sequence[float] | None) -> Sequence[float]:
+    """``vel - current`` (``vel`` itself without a current)."""
+    if current is None:
+        return vel
+    return tuple(float(a) - float(b) for a, b in zip(vel, current))

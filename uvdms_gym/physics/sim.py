@@ -44,7 +44,9 @@ a force and a torque in ``WORLD_FRAME``, each link's drag and buoyancy at its mi
 ``stepSimulation``, so all are reapplied every physics step. Every PyBullet state query copies its whole
 state buffer, so the state is read once per physics state: the sanity check at the end of :meth:`step`
 caches its read, and :meth:`state`, the object queries and the first substep's velocity loop reuse it until
-the next ``stepSimulation`` or reset (``docs/ARCHITECTURE.md``, Performance).
+the next ``stepSimulation`` or reset (``docs/ARCHITECTURE.md``, Performance). With an ocean current
+(:meth:`UVDMSSim.set_current`) the same loads act on the velocities relative to the water; without one the step
+runs exactly the formulas above (one flag test per load group, no extra arithmetic).
 
 Failures are never silent: an invalid ``tau`` raises :class:`ValueError`, saturation is reported in
 :class:`StepInfo`, and a state that is non-finite or beyond the sanity bounds :data:`NU_LIMIT`,
@@ -296,8 +298,11 @@ class UVDMSSim:
         self._t = 0.0
         self._raw: tuple | None = None  # cached raw state read, see _read_state
         self._raw_obj: tuple | None = None  # the same for the object, see _read_object
-        self._nu_prev = (0.0, 0.0, 0.0)
+        self._nu_prev = (0.0, 0.0, 0.0)  # previous substep's (relative) body velocity, for the lagged added mass
         self._obj_p_prev = (0.0, 0.0, 0.0)
+        self._has_current = False  # the no-current path evaluates exactly the formulas without a current
+        self._current_ned = (0.0, 0.0, 0.0)
+        self._current_world = (0.0, 0.0, 0.0)
         self._scale = HydroScale()
         self._hydro: HydroCoefficients = hydro_coefficients(self._params, self._scale, arms=self._arms)
         self.set_hydro_scale(hydro_scale or HydroScale())
@@ -361,6 +366,11 @@ class UVDMSSim:
     def hydro(self) -> HydroCoefficients:
         """The hydrodynamic coefficients in use."""
         return self._hydro
+
+    @property
+    def current(self) -> np.ndarray:
+        """The ocean current ``v_c`` (NED, m/s; zeros without a current), see :meth:`set_current`."""
+        return np.array(self._current_ned)
 
     @property
     def closed(self) -> bool:
@@ -432,6 +442,46 @@ class UVDMSSim:
         if self._obj is not None:
             self._set_object_dynamics()
 
+    def set_current(self, v_c_ned: Sequence[float] | np.ndarray | None) -> None:
+        """Set a uniform, irrotational ocean current ``v_c`` (NED, m/s); ``None`` or zeros: no current.
+
+        From the next physics step every hydrodynamic load acts on the velocity relative to the water
+        (:mod:`uvdms_gym.physics.hydro`, Current): the vehicle's damping and residual added mass on
+        ``nu_r = nu - [R_NB^T v_c; 0]``, the links' and the object's Morison drag on ``v - v_c``, the object's
+        axial added momentum and Munk moment on ``v_r = v - v_c``. Buoyancy and weight do not change. The current
+        stays set across :meth:`reset`.
+
+        The rigid virtual added-mass links (vehicle and object) need no change: their momentum is ``m_a v`` and,
+        with ``v_c`` constant in NED, ``d/dt (m_a v_r) = m_a dv/dt``. When the current changes (a slowly varying
+        current, set once per control step), its own acceleration ``m_a dv_c/dt`` is neglected, as Fossen does for
+        slowly varying currents; for consistency the lagged residual terms neglect it too: the stored previous
+        relative velocity and axial momentum are shifted by the change of ``v_c`` (evaluated at the present
+        orientation, which differs from the previous physics step's by one step's rotation).
+
+        Raises:
+            ValueError: not a finite 3-vector.
+        """
+        self._check_open()
+        v = (0.0, 0.0, 0.0) if v_c_ned is None else tuple(_vector(v_c_ned, 3, "current").tolist())
+        if v == self._current_ned:
+            return
+        old_world = np.array(self._current_world)
+        self._current_ned = v
+        self._current_world = tuple(frames.ned_to_world(np.array(v)).tolist())
+        self._has_current = v != (0.0, 0.0, 0.0)
+        self._shift_lag_states(np.array(self._current_world) - old_world)
+
+    def _shift_lag_states(self, dv_world: np.ndarray) -> None:
+        """Re-express the lagged added-mass states relative to a current changed by ``dv_world`` (z-up world)."""
+        _, quat, _, _, _ = self._read_state()
+        dv_body = frames.quat_xyzw_to_rot(np.array(quat)).T @ dv_world  # R_WB^T dv_W = R_NB^T dv_NED
+        self._nu_prev = tuple((np.array(self._nu_prev) - dv_body).tolist())
+        if self._obj is not None:
+            _, oquat, _, _ = self._read_object()
+            e = frames.quat_xyzw_to_rot(np.array(oquat))[:, 1]  # object axis (its y) in the world
+            dp = self._hydro.obj_added_mass * float(dv_world @ e) * e
+            self._obj_p_prev = tuple((np.array(self._obj_p_prev) - dp).tolist())
+
     def _set_object_dynamics(self) -> None:
         o, h = self._params.obj, self._hydro
         m = o.mass
@@ -496,6 +546,9 @@ class UVDMSSim:
         self._t = 0.0
         self._raw = self._raw_obj = None
         self._nu_prev = (float(nu[0]), float(nu[1]), float(nu[2]))
+        if self._has_current:  # the lag state is the relative velocity nu_r = nu - R_NB^T v_c
+            r_nb = frames.body_rot_world_to_ned(r_wb)
+            self._nu_prev = tuple((nu[:3] - r_nb.T @ np.array(self._current_ned)).tolist())
         if with_object:
             self._create_object()
         self._needs_collision_pass = True
@@ -553,9 +606,12 @@ class UVDMSSim:
         self._obj_p_prev = self._object_axial_momentum()
 
     def _object_axial_momentum(self) -> tuple[float, float, float]:
-        """Axial added momentum ``m_a (v . e) e`` of the object (world frame)."""
+        """Axial added momentum ``m_a (v_r . e) e`` of the object (world frame; ``v_r = v - v_c``)."""
         _, (qx, qy, qz, qw) = _base_pose(self._obj, self._cid)
         (vx, vy, vz), _ = _base_velocity(self._obj, self._cid)
+        if self._has_current:  # relative to the water
+            cx, cy, cz = self._current_world
+            vx, vy, vz = vx - cx, vy - cy, vz - cz
         ex, ey, ez = 2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw)
         k = self._hydro.obj_added_mass * (vx * ex + vy * ey + vz * ez)
         return (k * ex, k * ey, k * ez)
@@ -904,6 +960,13 @@ class UVDMSSim:
             self._fail(f"body velocity out of bounds or non-finite: nu = {[u, v, w, p, q, r]}")
         if feedback is not None:
             tau_v, tau_q = self._feedback(feedback, (u, v, w, p, q, r))
+        if self._has_current:  # from here on (u, v, w) is relative to the water: nu_r = nu - [R_NB^T v_c; 0]
+            kx, ky, kz = self._current_world  # R_WB^T v_c,W = R_NB^T v_c,NED
+            u, v, w = (
+                u - (r00 * kx + r10 * ky + r20 * kz),
+                v - (r01 * kx + r11 * ky + r21 * kz),
+                w - (r02 * kx + r12 * ky + r22 * kz),
+            )
         # vehicle: damping + residual added mass (hydro.vehicle_wrench, inlined) + control
         inv_dt = self._inv_dt
         u0, v0, w0 = self._nu_prev
@@ -945,6 +1008,8 @@ class UVDMSSim:
             links = st[1:]
             forces = self._link_forces
             states = _fromiter(_chain([ls[1] + ls[6] for ls in links]), float, self._n_link_state)
+            if self._has_current:  # Morison drag on the midpoint velocity relative to the water
+                states.reshape(-1, 7)[:, 4:] -= self._current_world
             link_forces_world(states, self._link_table, forces)
             world = _WORLD
             for link, force, ls in zip(self._joints, forces.tolist(), links):
@@ -963,6 +1028,9 @@ class UVDMSSim:
         cid, obj, h = self._cid, self._obj, self._hydro
         pos, (qx, qy, qz, qw) = _base_pose(obj, cid)
         (vx, vy, vz), _ = _base_velocity(obj, cid)
+        if self._has_current:  # every term below acts on the velocity relative to the water
+            cx, cy, cz = self._current_world
+            vx, vy, vz = vx - cx, vy - cy, vz - cz
         ex, ey, ez = 2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw)
         vt = vx * ex + vy * ey + vz * ez
         k = h.obj_added_mass * vt
