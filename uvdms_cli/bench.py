@@ -143,6 +143,74 @@ def _numba_first_call_ms() -> dict:
     return out
 
 
+OBSTACLE_ENV_ID = "uvdms/TransportObstacles-v1"
+OBSTACLE_REFERENCE_ID = "uvdms/Transport-v1"
+
+
+def _first_seed_with(env, n_obstacles: int) -> int:
+    """The smallest seed whose random scenario has ``n_obstacles`` obstacles."""
+    for seed in range(1000):
+        env.reset(seed=seed)
+        if len(env.unwrapped.obstacles) == n_obstacles:
+            return seed
+    raise RuntimeError(f"no seed below 1000 draws {n_obstacles} obstacles")
+
+
+def _bench_obstacles(n_blocks: int, block_steps: int, warmup: int) -> dict:
+    """``uvdms/TransportObstacles-v1`` with 3 obstacles against ``uvdms/Transport-v1``, in alternating blocks.
+
+    Both environments (velocity mode, no termination on contact) start from the same seed, one whose random
+    scenario has 3 obstacles, and take the same random actions (uniform in ``[-0.3, 0.3]``); blocks alternate
+    between them, so each block pair runs under the same machine load. Reported: both medians and
+    ``ratio_to_transport_v1``, the median of the per-pair ratios (the issue's target: at most 1.3). Only
+    ``step()`` is timed; an episode's reset (which draws the random scenario against the planned transport) is
+    reported apart as ``reset_ms``, the median over seeds 0-19.
+    """
+    import gymnasium as gym
+
+    envs = {
+        OBSTACLE_ENV_ID: gym.make(OBSTACLE_ENV_ID, action_mode="velocity", terminate_on_contact=False),
+        OBSTACLE_REFERENCE_ID: gym.make(OBSTACLE_REFERENCE_ID, action_mode="velocity", terminate_on_contact=False),
+    }
+    seed = _first_seed_with(envs[OBSTACLE_ENV_ID], 3)
+    actions = np.random.default_rng(0).uniform(-0.3, 0.3, (warmup + n_blocks * block_steps, 18)).astype(np.float32)
+    blocks: dict[str, list[float]] = {env_id: [] for env_id in envs}
+    for env in envs.values():
+        env.reset(seed=seed)
+        for a in actions[:warmup]:
+            env.step(a)
+    for b in range(n_blocks):
+        for env_id, env in envs.items():
+            elapsed = 0.0
+            for a in actions[warmup + b * block_steps : warmup + (b + 1) * block_steps]:
+                t0 = time.perf_counter()
+                _, _, term, trunc, _ = env.step(a)
+                elapsed += time.perf_counter() - t0
+                if term or trunc:  # resets are timed apart: a random scenario is drawn at each
+                    env.reset(seed=seed)
+            blocks[env_id].append(elapsed / block_steps * 1e6)
+    ratios = np.array(blocks[OBSTACLE_ENV_ID]) / np.array(blocks[OBSTACLE_REFERENCE_ID])
+    result = {
+        "seed": seed,
+        "n_obstacles": 3,
+        "step_us": float(np.median(blocks[OBSTACLE_ENV_ID])),
+        "reference_step_us": float(np.median(blocks[OBSTACLE_REFERENCE_ID])),
+        "ratio_to_transport_v1": float(np.median(ratios)),
+        "ratio_blocks": ratios.tolist(),
+        "reset_ms": 1e3 * float(np.median([_time_reset(envs[OBSTACLE_ENV_ID], k) for k in range(20)])),
+    }
+    for env in envs.values():
+        env.close()
+    return result
+
+
+def _time_reset(env, seed: int) -> float:
+    """Seconds of one ``reset(seed=seed)`` (which draws the random scenario)."""
+    t0 = time.perf_counter()
+    env.reset(seed=seed)
+    return time.perf_counter() - t0
+
+
 def bench_env(quick: bool = False) -> dict:
     """Environment steps per second (velocity mode, random actions) and the ratio to bare physics.
 
@@ -156,7 +224,8 @@ def bench_env(quick: bool = False) -> dict:
     figures (``step_us_blocks``, ``ratio_blocks``). ``env_bare_step_us`` is one ``stepSimulation`` of the
     environment's own multibody at its reset state (for the transport task: with the gripped object and its
     two grasp constraints, solved by the direct LCP solver) and ``ratio_to_env_physics`` the step against
-    that, i.e. the cost on top of the physics engine.
+    that, i.e. the cost on top of the physics engine. ``uvdms/TransportObstacles-v1`` is measured against
+    ``uvdms/Transport-v1`` in alternating blocks (:func:`_bench_obstacles`).
     """
     import gymnasium as gym
 
@@ -209,6 +278,7 @@ def bench_env(quick: bool = False) -> dict:
                 "step_us_blocks": step_blocks,
                 "ratio_blocks": ratio_blocks,
             }
+    result[OBSTACLE_ENV_ID] = _bench_obstacles(n_blocks, block_steps, warmup)
     result["bare_step_us"] = float(np.median(bare_all))
     result["warmup_steps"] = warmup
     result["blocks"] = {"n_blocks": n_blocks, "block_steps": block_steps}

@@ -85,7 +85,7 @@ def robot_parts(kin, with_object: bool) -> tuple[np.ndarray, np.ndarray]:
     """Core segments ``(n_parts - 1, 2, 3)`` of the capsule parts and their radii, at ``kin``'s state."""
     seg = kin.link_segments()  # (2, 7, 2, 3): side 0 left
     cores = [seg[0, 1:], seg[1, 1:]]
-    radii = [np.full(12, kin.params.arm.link_radius)]
+    radii = [np.full(12, kin.params.arm.link_radius)]  # (the reference path's own constants)
     if with_object:
         o = kin.params.obj
         p, r = kin.object_pose("right")
@@ -108,33 +108,103 @@ def compute_outer_distances(
     """
     states = np.ascontiguousarray(obstacles, dtype=float).reshape(-1, STATE_COLS)
     params = kin.params
+    consts = _constants(params, with_object)
+    radii, half_box, obj_half = consts.radii, consts.half_box, consts.obj_half
     obj_seg = _NO_OBJECT
     if with_object:
         p, r = kin.object_pose("right")
-        half_axis = (0.5 * params.obj.length - params.obj.radius) * r[:, 1]  # the object's axis is its y
+        half_axis = obj_half * r[:, 1]  # the object's axis is its y
         obj_seg = np.stack([p - half_axis, p + half_axis])
-    radii = _part_radii(params, with_object)
     pos, rot = kin.frame_placement("vehicle")
+    n_obs = states.shape[0]
     n_parts = radii.shape[0] + 1
-    rows = states.shape[0] * n_parts
+    rows = n_obs * n_parts
     d, pts, e = np.empty(rows), np.empty((rows, 3)), np.empty((rows, 3))
     seg = kin.link_segments() if segments is None else segments
-    outer_rows(seg, obj_seg, radii, rot, pos, 0.5 * np.asarray(params.vehicle.size), states, d, pts, e)
-    names = part_names(with_object)
-    return OuterDistances(d, pts, e, names * states.shape[0], np.repeat(np.arange(states.shape[0]), n_parts), n_parts)
+    outer_rows(seg, obj_seg, radii, rot, pos, half_box, states, d, pts, e)
+    labels = consts.labels.get(n_obs)
+    if labels is None:
+        index = np.repeat(np.arange(n_obs), n_parts)
+        index.flags.writeable = False  # shared by every result with n_obs obstacles
+        labels = consts.labels[n_obs] = (part_names(with_object) * n_obs, index)
+    return OuterDistances(d, pts, e, labels[0], labels[1], n_parts)
 
 
-_RADII: dict[tuple[int, bool], tuple[object, np.ndarray]] = {}
+@dataclass
+class _Constants:
+    """Per-parameter constants of the rows: capsule radii, the hull's half extents, the object's half core."""
+
+    params: object
+    radii: np.ndarray
+    half_box: np.ndarray
+    obj_half: float
+    labels: dict[int, tuple[tuple[str, ...], np.ndarray]]
+
+
+_CONSTANTS: dict[tuple[int, bool], _Constants] = {}
+
+
+def _constants(params, with_object: bool) -> _Constants:
+    hit = _CONSTANTS.get((id(params), with_object))
+    if hit is None or hit.params is not params:
+        radii = np.full(12, params.arm.link_radius)
+        hit = _CONSTANTS[(id(params), with_object)] = _Constants(
+            params,
+            np.r_[radii, params.obj.radius] if with_object else radii,
+            0.5 * np.asarray(params.vehicle.size, dtype=float),
+            0.5 * params.obj.length - params.obj.radius,
+            {},
+        )
+    return hit
+
+
 _NO_OBJECT = np.zeros((2, 3))
 
 
-def _part_radii(params, with_object: bool) -> np.ndarray:
-    """Radii of the capsule parts (12 links, then the object), cached per parameter object."""
-    hit = _RADII.get((id(params), with_object))
-    if hit is None or hit[0] is not params:
-        radii = np.full(12, params.arm.link_radius)
-        hit = _RADII[(id(params), with_object)] = (params, np.r_[radii, params.obj.radius] if with_object else radii)
-    return hit[1]
+@dataclass(frozen=True)
+class RobotTrack:
+    """The robot's parts at ``T`` instants (for checking obstacle paths against a planned motion).
+
+    Attributes:
+        times: the instants, s.
+        segs: link axes ``(T, 2, 7, 2, 3)``.
+        obj_segs: the object's core ``(T, 2, 3)`` (zeros without an object).
+        rots: hull rotations ``R_NB`` ``(T, 3, 3)``.
+        poss: hull centres ``(T, 3)``.
+        with_object: whether the object's rows are included.
+    """
+
+    times: np.ndarray
+    segs: np.ndarray
+    obj_segs: np.ndarray
+    rots: np.ndarray
+    poss: np.ndarray
+    with_object: bool
+
+
+def robot_track(kin, times: np.ndarray, etas: np.ndarray, qs: np.ndarray, with_object: bool) -> RobotTrack:
+    """A :class:`RobotTrack` from states ``(eta, q)`` at ``times`` (``kin``'s state is overwritten)."""
+    n = len(times)
+    segs, obj_segs = np.empty((n, 2, 7, 2, 3)), np.zeros((n, 2, 3))
+    rots, poss = np.empty((n, 3, 3)), np.empty((n, 3))
+    obj_half = _constants(kin.params, with_object).obj_half
+    for k in range(n):
+        kin.set_state(etas[k], qs[k])
+        segs[k] = kin.link_segments()
+        poss[k], rots[k] = kin.frame_placement("vehicle")
+        if with_object:
+            p, r = kin.object_pose("right")
+            obj_segs[k] = (p - obj_half * r[:, 1], p + obj_half * r[:, 1])
+    return RobotTrack(np.asarray(times, dtype=float), segs, obj_segs, rots, poss, with_object)
+
+
+def track_gaps(track: RobotTrack, params, states: np.ndarray) -> np.ndarray:
+    """Gaps ``(T, n_parts)`` of one obstacle (its ``obstacle_states`` row at each instant of the track)."""
+    consts = _constants(params, track.with_object)
+    out = np.empty((len(track.times), consts.radii.shape[0] + 1))
+    gaps_over_time(track.segs, track.obj_segs, consts.radii, track.rots, track.poss, consts.half_box,
+                   np.ascontiguousarray(states, dtype=float), out)  # fmt: skip
+    return out
 
 
 def outer_distance_jacobian(kin, res: OuterDistances, obstacles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -249,6 +319,37 @@ def _part_core(seg, obj_seg, i):  # pragma: no cover - compiled
 
 
 @jit
+def _obstacle_rows(seg, obj_seg, radii, rot, pos, half, ob, obs_seg, d, p, e, base):  # pragma: no cover - compiled
+    """The rows ``base .. base + n`` (``n = len(radii) + 1``) of one obstacle ``ob`` (an ``obstacle_states`` row).
+
+    ``obs_seg`` is a ``(2, 3)`` scratch array for the obstacle's core.
+    """
+    n = radii.shape[0]
+    r_obs, h = ob[6], ob[7]
+    for j in range(3):  # core A, B = centre -+ half length * axis
+        obs_seg[0, j] = ob[j] - h * ob[8 + j]
+        obs_seg[1, j] = ob[j] + h * ob[8 + j]
+    b0x, b0y, b0z = obs_seg[0, 0], obs_seg[0, 1], obs_seg[0, 2]
+    b1x, b1y, b1z = obs_seg[1, 0], obs_seg[1, 1], obs_seg[1, 2]
+    for i in range(n):
+        a0x, a0y, a0z, a1x, a1y, a1z = _part_core(seg, obj_seg, i)
+        s, t = _segment_segment(a0x, a0y, a0z, a1x, a1y, a1z, b0x, b0y, b0z, b1x, b1y, b1z)
+        row = base + i
+        px, py, pz = a0x + s * (a1x - a0x), a0y + s * (a1y - a0y), a0z + s * (a1z - a0z)
+        ex, ey, ez = b0x + t * (b1x - b0x), b0y + t * (b1y - b0y), b0z + t * (b1z - b0z)
+        p[row, 0], p[row, 1], p[row, 2] = px, py, pz
+        e[row, 0], e[row, 1], e[row, 2] = ex, ey, ez
+        d[row] = math.sqrt((ex - px) ** 2 + (ey - py) ** 2 + (ez - pz) ** 2) - radii[i] - r_obs
+    row = base + n
+    t = _box_segment(rot, pos, half, obs_seg[0], obs_seg[1])
+    ex, ey, ez = b0x + t * (b1x - b0x), b0y + t * (b1y - b0y), b0z + t * (b1z - b0z)
+    px, py, pz = _box_point(rot, pos, half, ex, ey, ez)
+    p[row, 0], p[row, 1], p[row, 2] = px, py, pz
+    e[row, 0], e[row, 1], e[row, 2] = ex, ey, ez
+    d[row] = math.sqrt((ex - px) ** 2 + (ey - py) ** 2 + (ez - pz) ** 2) - r_obs
+
+
+@jit
 def outer_rows(seg, obj_seg, radii, rot, pos, half, obstacles, d, p, e):  # pragma: no cover - compiled
     """Fill the gaps ``d``, part points ``p`` and obstacle points ``e`` of every (obstacle, part) row in place.
 
@@ -264,31 +365,29 @@ def outer_rows(seg, obj_seg, radii, rot, pos, half, obstacles, d, p, e):  # prag
         p: output points on the parts ``(K (n + 1), 3)``.
         e: output points on the obstacles ``(K (n + 1), 3)``.
     """
-    n = radii.shape[0]
+    n = radii.shape[0] + 1
     obs_seg = np.empty((2, 3))
     for k in range(obstacles.shape[0]):
-        r_obs, h = obstacles[k, 6], obstacles[k, 7]
-        for j in range(3):  # core A, B = centre -+ half length * axis
-            obs_seg[0, j] = obstacles[k, j] - h * obstacles[k, 8 + j]
-            obs_seg[1, j] = obstacles[k, j] + h * obstacles[k, 8 + j]
-        b0x, b0y, b0z = obs_seg[0, 0], obs_seg[0, 1], obs_seg[0, 2]
-        b1x, b1y, b1z = obs_seg[1, 0], obs_seg[1, 1], obs_seg[1, 2]
-        for i in range(n):
-            a0x, a0y, a0z, a1x, a1y, a1z = _part_core(seg, obj_seg, i)
-            s, t = _segment_segment(a0x, a0y, a0z, a1x, a1y, a1z, b0x, b0y, b0z, b1x, b1y, b1z)
-            row = k * (n + 1) + i
-            px, py, pz = a0x + s * (a1x - a0x), a0y + s * (a1y - a0y), a0z + s * (a1z - a0z)
-            ex, ey, ez = b0x + t * (b1x - b0x), b0y + t * (b1y - b0y), b0z + t * (b1z - b0z)
-            p[row, 0], p[row, 1], p[row, 2] = px, py, pz
-            e[row, 0], e[row, 1], e[row, 2] = ex, ey, ez
-            d[row] = math.sqrt((ex - px) ** 2 + (ey - py) ** 2 + (ez - pz) ** 2) - radii[i] - r_obs
-        row = k * (n + 1) + n
-        t = _box_segment(rot, pos, half, obs_seg[0], obs_seg[1])
-        ex, ey, ez = b0x + t * (b1x - b0x), b0y + t * (b1y - b0y), b0z + t * (b1z - b0z)
-        px, py, pz = _box_point(rot, pos, half, ex, ey, ez)
-        p[row, 0], p[row, 1], p[row, 2] = px, py, pz
-        e[row, 0], e[row, 1], e[row, 2] = ex, ey, ez
-        d[row] = math.sqrt((ex - px) ** 2 + (ey - py) ** 2 + (ez - pz) ** 2) - r_obs
+        _obstacle_rows(seg, obj_seg, radii, rot, pos, half, obstacles[k], obs_seg, d, p, e, k * n)
+
+
+@jit
+def gaps_over_time(segs, obj_segs, radii, rots, poss, half, states, out):  # pragma: no cover - compiled
+    """The gaps of one obstacle to a robot given at ``T`` instants: ``out[t] = d`` of :func:`outer_rows`.
+
+    Args:
+        segs: link axes per instant ``(T, 2, 7, 2, 3)``; obj_segs: object cores ``(T, 2, 3)``.
+        radii: capsule parts' radii (as :func:`outer_rows`).
+        rots: hull rotations ``(T, 3, 3)``; poss: hull centres ``(T, 3)``; half: hull half extents.
+        states: the obstacle's ``obstacle_states`` row at each instant ``(T, STATE_COLS)``.
+        out: output gaps ``(T, len(radii) + 1)``.
+    """
+    n = radii.shape[0] + 1
+    obs_seg = np.empty((2, 3))
+    p = np.empty((n, 3))
+    e = np.empty((n, 3))
+    for t in range(states.shape[0]):
+        _obstacle_rows(segs[t], obj_segs[t], radii, rots[t], poss[t], half, states[t], obs_seg, out[t], p, e, 0)
 
 
 # ------------------------------------------------------------------------------------------------ reference

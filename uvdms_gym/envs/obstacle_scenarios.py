@@ -4,9 +4,10 @@
 crossing time ``t_c`` in :data:`CROSSING_WINDOW` times ``move_time`` and a target point that the *nominal robot*
 (the object on its reference, all joints at zero, the vehicle placed accordingly) occupies at ``t_c``: a point on
 the object, or the midpoint of a distal arm link. It moves with a constant velocity (speed in
-:data:`SPEED_RANGE`, direction across the path's tangent at ``t_c``: an obstacle moving along the path, against
-or with the transport, could only be fled from) through that point, shifted sideways by up to the sum of the
-radii, and keeps going. Spheres are debris; capsules are drifting pipes, broadside to their motion.
+:data:`SPEED_RANGE`, direction across the path's tangent at ``t_c`` and across the part: an obstacle moving
+along the path could only be fled from, one moving along the part takes long to clear it) past that point, its
+path shifted sideways (across the part and the motion) so that it overlaps the part by up to :data:`MAX_DEPTH`,
+and keeps going. Spheres are debris; capsules are drifting pipes, broadside to their motion.
 
 A candidate is kept only if, against the nominal robot over the whole episode (:func:`random_obstacles`'s
 ``nominal_gaps``): it starts at least :data:`START_CLEARANCE` away; it touches the nominal robot (a controller
@@ -62,20 +63,20 @@ def _unit_across(rng: np.random.Generator, axis: np.ndarray) -> np.ndarray:
             return v / n
 
 
-def _target(rng: np.random.Generator, pose: np.ndarray, nominal_links: Callable[[np.ndarray], np.ndarray]):
-    """A point the nominal robot occupies at the object pose ``pose``, and the radius of the part there."""
+def _target(rng: np.random.Generator, pose: np.ndarray, nominal_links: Callable[[np.ndarray], np.ndarray], radii):
+    """A point on the axis of a part the nominal robot has at the object pose ``pose``, the axis, the part's radius."""
     rot = euler_to_rot(pose[3:])
     if rng.uniform() < OBJECT_TARGET_PROBABILITY:
-        return pose[:3] + rng.uniform(-0.2, 0.2) * rot[:, 1], rot[:, 1]
+        return pose[:3] + rng.uniform(-0.2, 0.2) * rot[:, 1], rot[:, 1], radii[0]
     seg = nominal_links(pose)  # (2, 7, 2, 3)
     a, b = seg[int(rng.integers(2)), int(rng.integers(4, 7))]
-    return 0.5 * (a + b), (b - a) / max(float(np.linalg.norm(b - a)), 1e-9)
+    return 0.5 * (a + b), (b - a) / max(float(np.linalg.norm(b - a)), 1e-9), radii[1]
 
 
-def _draw_one(rng: np.random.Generator, reference, move_time: float, nominal_links, part_radius: float) -> Obstacle:
+def _draw_one(rng: np.random.Generator, reference, move_time: float, nominal_links, radii) -> Obstacle:
     t_c = rng.uniform(*CROSSING_WINDOW) * move_time
     pose = np.asarray(reference(t_c), dtype=float)
-    target, across = _target(rng, pose, nominal_links)
+    target, across, part_radius = _target(rng, pose, nominal_links, radii)
     tangent = np.asarray(reference(t_c + 0.5), dtype=float)[:3] - np.asarray(reference(t_c - 0.5), dtype=float)[:3]
     u = np.cross(across, tangent)  # across the path and across the part: it clears both quickly
     norm = float(np.linalg.norm(u))
@@ -86,7 +87,10 @@ def _draw_one(rng: np.random.Generator, reference, move_time: float, nominal_lin
     else:
         radius, length = rng.uniform(*CAPSULE_RADIUS), rng.uniform(*CAPSULE_LENGTH)
         axis = tuple(_unit_across(rng, u))  # broadside to its motion
-    miss = _unit_across(rng, u) * rng.uniform(0.0, 1.0) * (radius + part_radius)
+    side = np.cross(across, u)  # across the part and across the motion: a glancing pass, |miss| from the axis
+    side_norm = float(np.linalg.norm(side))
+    side = side / side_norm if side_norm > 1e-6 else _unit_across(rng, u)
+    miss = side * rng.choice((-1.0, 1.0)) * (radius + part_radius - rng.uniform(0.005, MAX_DEPTH))
     start = target + miss - speed * t_c * u
     return Obstacle(
         shape="sphere" if length == 0.0 else "capsule",
@@ -122,7 +126,7 @@ def random_obstacles(
     move_time: float,
     nominal_links: Callable[[np.ndarray], np.ndarray],
     nominal_gaps: Callable[[Obstacle], tuple[np.ndarray, np.ndarray]],
-    part_radius: float,
+    radii: tuple[float, float],
 ) -> tuple[Obstacle, ...]:
     """A random scenario (module docstring).
 
@@ -133,7 +137,7 @@ def random_obstacles(
         nominal_links: object pose -> link segments ``(2, 7, 2, 3)`` of the robot holding it at ``q = 0``.
         nominal_gaps: obstacle -> ``(times, gaps)``: its gaps ``(T, n_parts)`` to the nominal robot (the object on
             its reference, ``q = 0``) on an even time grid over the episode.
-        part_radius: a typical radius of the robot's parts (the miss offset's scale), m.
+        radii: the object's and the arm links' radii, m.
 
     Returns:
         1 to :data:`MAX_RANDOM_OBSTACLES` obstacles.
@@ -143,7 +147,7 @@ def random_obstacles(
     for _ in range(MAX_ATTEMPTS):
         if len(chosen) == n:
             break
-        ob = _draw_one(rng, reference, move_time, nominal_links, part_radius)
+        ob = _draw_one(rng, reference, move_time, nominal_links, radii)
         if any(_start_gap(ob, other) < START_CLEARANCE for other in chosen):
             continue
         if _acceptable(*nominal_gaps(ob), move_time):

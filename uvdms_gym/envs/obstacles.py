@@ -12,13 +12,22 @@ from typing import Any
 
 import numpy as np
 
-from uvdms_gym.distances.outer import compute_outer_distances, part_names
+from uvdms_gym.distances.outer import RobotTrack, compute_outer_distances, part_names, robot_track, track_gaps
 from uvdms_gym.envs.base import CLEARANCE_CLIP, CONTACT_MARGIN, OBS_CLIP, OBS_DIM
 from uvdms_gym.envs.obstacle_scenarios import random_obstacles
 from uvdms_gym.envs.transport import vehicle_pose_for_object
 from uvdms_gym.envs.v1 import TransportV1Env
-from uvdms_gym.physics.frames import euler_to_rot
-from uvdms_gym.physics.obstacles import AXIS, HALF_LENGTH, POS, RADIUS, VEL, Obstacle, obstacle_states, parse_obstacles
+from uvdms_gym.physics.obstacles import (
+    AXIS,
+    HALF_LENGTH,
+    POS,
+    RADIUS,
+    STATE_COLS,
+    VEL,
+    Obstacle,
+    obstacle_states,
+    parse_obstacles,
+)
 from uvdms_gym.physics.params import D1, D2
 from uvdms_gym.physics.sim import UVDMSSim
 
@@ -32,6 +41,9 @@ OBSTACLE_VEL_SCALE = 0.5
 """Obstacle velocities in the observation are divided by this, m/s."""
 OBSTACLE_SIZE_SCALE = 0.5
 """Obstacle radii and half lengths in the observation are divided by this, m."""
+
+
+_SLOT_SCALE = np.repeat([1.0 / OBSTACLE_POS_SCALE, 1.0 / OBSTACLE_VEL_SCALE, 1.0], 3)
 
 
 class TransportObstaclesV1Env(TransportV1Env):
@@ -96,7 +108,9 @@ class TransportObstaclesV1Env(TransportV1Env):
         self.n_observed_obstacles = n_observed_obstacles
         super().__init__(**kwargs)
         self.obstacles: tuple[Obstacle, ...] = ()
-        self._nominal_track: tuple[np.ndarray, list[np.ndarray]] | None = None
+        self._states0 = np.zeros((0, STATE_COLS))
+        self._scripted_rows: list[int] = []
+        self._nominal_track: RobotTrack | None = None
         self._parts = part_names(True)
         dim = OBS_DIM + OBSTACLE_SLOT * n_observed_obstacles
         self.observation_space = type(self.observation_space)(-OBS_CLIP, OBS_CLIP, (dim,), np.float32)
@@ -139,14 +153,12 @@ class TransportObstaclesV1Env(TransportV1Env):
         if self._nominal_track is None:
             steps = self.spec.max_episode_steps if self.spec is not None and self.spec.max_episode_steps else 600
             times = np.arange(0.0, steps * self.control_dt + 1e-9, NOMINAL_GRID_DT)
-            etas = [vehicle_pose_for_object(self._kin, pose) for pose in self.task.reference(times)]
-            self._nominal_track = (times, etas)
-        times, etas = self._nominal_track
-        gaps = np.empty((times.size, 14))
-        q0 = np.zeros(12)
-        for k, (t, eta) in enumerate(zip(times, etas)):
-            gaps[k] = self._gaps_at(eta, q0, obstacle_states([obstacle], float(t)))[0]
-        return times, gaps
+            etas = np.array([vehicle_pose_for_object(self._kin, pose) for pose in self.task.reference(times)])
+            self._nominal_track = robot_track(self._kin, times, etas, np.zeros((times.size, 12)), True)
+        track = self._nominal_track
+        states = np.tile(obstacle_states([obstacle], 0.0), (track.times.size, 1))
+        states[:, POS] = obstacle.position_at(track.times)
+        return track.times, track_gaps(track, self.params, states)
 
     def _nominal_links(self, pose: np.ndarray) -> np.ndarray:
         self._kin.set_state(vehicle_pose_for_object(self._kin, pose), np.zeros(12))
@@ -164,15 +176,25 @@ class TransportObstaclesV1Env(TransportV1Env):
                 self.task.move_time,
                 self._nominal_links,
                 self._nominal_gaps,
-                self.params.obj.radius,
+                (self.params.obj.radius, self.params.arm.link_radius),
             )
         self.obstacles = obstacles
         self._sim.set_obstacles(obstacles)
+        self._states0 = obstacle_states(obstacles, 0.0)
+        self._scripted_rows = [k for k, ob in enumerate(obstacles) if ob.waypoints]
+
+    def _states_at(self, t: float) -> np.ndarray:
+        """:func:`~uvdms_gym.physics.obstacles.obstacle_states` at ``t`` (constant-velocity rows in one update)."""
+        states = self._states0.copy()
+        states[:, POS] += t * states[:, VEL]
+        if self._scripted_rows:
+            states[self._scripted_rows] = obstacle_states([self.obstacles[k] for k in self._scripted_rows], t)
+        return states
 
     # ----------------------------------------------------------------- observation
     def _observe(self) -> tuple[np.ndarray, dict[str, Any]]:
         obs, info = super()._observe()  # leaves the kinematic model at the current state
-        states = obstacle_states(self.obstacles, self.t)
+        states = self._states_at(self.t)
         res = compute_outer_distances(self._kin, states, True)
         gaps = res.per_obstacle()
         n_contacts = self._obstacle_contacts(gaps)
@@ -194,20 +216,24 @@ class TransportObstaclesV1Env(TransportV1Env):
         return self._sim.count_obstacle_contacts([(self._parts[i], int(k)) for k, i in near])
 
     def _obstacle_block(self, states: np.ndarray, gaps: np.ndarray, info: dict[str, Any]) -> np.ndarray:
-        block = np.zeros((self.n_observed_obstacles, OBSTACLE_SLOT))
-        if not len(states):
+        """The observation slots (class docstring), nearest obstacle first; padding is zero."""
+        n_slots = self.n_observed_obstacles
+        block = np.zeros((n_slots, OBSTACLE_SLOT))
+        if not len(states) or not n_slots:
             return block.reshape(-1)
-        eta, nu = info["eta"], info["nu"]
-        r_nb = euler_to_rot(eta[3:])
-        v_origin = r_nb @ nu[:3]  # NED velocity of the body origin
-        nearest = np.argsort(gaps.min(axis=1))[: self.n_observed_obstacles]
-        for slot, k in enumerate(nearest):
-            s = states[k]
-            block[slot, 0:3] = (s[POS] - eta[:3]) @ r_nb / OBSTACLE_POS_SCALE
-            block[slot, 3:6] = (s[VEL] - v_origin) @ r_nb / OBSTACLE_VEL_SCALE
-            block[slot, 6:9] = s[AXIS] @ r_nb
-            block[slot, 9] = s[RADIUS] / OBSTACLE_SIZE_SCALE
-            block[slot, 10] = s[HALF_LENGTH] / OBSTACLE_SIZE_SCALE
-            block[slot, 11] = (min(max(gaps[k].min(), 0.0), CLEARANCE_CLIP) - D1) / (D2 - D1)
-            block[slot, 12] = 1.0
-        return np.clip(block, -OBS_CLIP, OBS_CLIP).reshape(-1)
+        r_nb = self._kin.frame_placement("vehicle")[1]  # the kinematic model holds the observed state
+        nearest_gap = gaps.min(axis=1)
+        order = np.argsort(nearest_gap, kind="stable")[:n_slots]
+        k = order.size
+        s = states[order]
+        rel = np.empty((k, 9))
+        rel[:, 0:3] = s[:, POS] - info["eta"][:3]
+        rel[:, 3:6] = s[:, VEL] - r_nb @ info["nu"][:3]  # relative to the body origin's velocity
+        rel[:, 6:9] = s[:, AXIS]
+        block[:k, :9] = (rel.reshape(3 * k, 3) @ r_nb).reshape(k, 9) * _SLOT_SCALE
+        block[:k, 9] = s[:, RADIUS] / OBSTACLE_SIZE_SCALE
+        block[:k, 10] = s[:, HALF_LENGTH] / OBSTACLE_SIZE_SCALE
+        block[:k, 11] = (np.minimum(np.maximum(nearest_gap[order], 0.0), CLEARANCE_CLIP) - D1) / (D2 - D1)
+        block[:k, 12] = 1.0
+        np.minimum(np.maximum(block, -OBS_CLIP, out=block), OBS_CLIP, out=block)
+        return block.reshape(-1)

@@ -253,13 +253,19 @@ class KinematicModel:
         """Capsule axes of all links in NED: shape (2, 7, 2, 3) = [side][link 0..6][A, B][xyz].
 
         Side 0 is left, 1 right; ``A`` is the end nearer the arm base (see
-        :func:`uvdms_gym.physics.model.link_segment`).
+        :func:`uvdms_gym.physics.model.link_segment`). Computed once per state and returned read-only (the
+        environment's inner and outer distances both read it); copy it to modify it.
         """
-        # oMf.tolist() (~0.1 µs per frame) instead of oMf[i] (~1 µs per item access, measured)
-        omf = self.data.oMf.tolist()
-        h = np.array([omf[i].homogeneous for i in self._link_ids])  # (14, 4, 4)
-        pts = self._seg_local_h @ h[:, :3].transpose(0, 2, 1)  # (14, 2, 3): rows [A 1] and [B 1] mapped to NED
-        return pts.reshape(2, self._n_links, 2, 3)  # C-contiguous (the compiled distance kernel's fast path)
+        seg = self._cache.get("seg")
+        if seg is None:
+            # oMf.tolist() (~0.1 µs per frame) instead of oMf[i] (~1 µs per item access, measured)
+            omf = self.data.oMf.tolist()
+            h = np.array([omf[i].homogeneous for i in self._link_ids])  # (14, 4, 4)
+            pts = self._seg_local_h @ h[:, :3].transpose(0, 2, 1)  # (14, 2, 3): rows [A 1], [B 1] mapped to NED
+            seg = pts.reshape(2, self._n_links, 2, 3)  # C-contiguous (the compiled distance kernel's fast path)
+            seg.flags.writeable = False
+            self._cache["seg"] = seg
+        return seg
 
     def plates(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[float, float]]]:
         """The frame plates in NED, in the order of ``params.plates``.

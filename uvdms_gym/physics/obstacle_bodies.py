@@ -1,7 +1,7 @@
 """PyBullet bodies of the outer obstacles (:mod:`uvdms_gym.physics.obstacles`), owned by a simulator.
 
 Each obstacle is a static (mass 0) PyBullet body with a sphere or capsule collision and visual shape, moved
-kinematically: :meth:`ObstacleBodies.place` puts every body at its script's pose and velocity for a time, and the
+kinematically: :meth:`ObstacleBodies.place` puts every body at its script's pose for a time, and the
 simulator calls it after every physics step, so a body is always where its script says at the simulator's time.
 During a step the contact solver treats it as immovable: it pushes the robot, nothing pushes it.
 
@@ -25,6 +25,7 @@ ROBOT_GROUP = 1
 OBJECT_GROUP = 2
 OBSTACLE_GROUP = 4
 OBSTACLE_RGBA = (0.85, 0.25, 0.2, 1.0)
+_reset_pose = pb.resetBasePositionAndOrientation
 
 
 def axis_quaternion(axis_ned: Sequence[float]) -> list[float]:
@@ -84,17 +85,21 @@ class ObstacleBodies:
         self.obstacles, self.body_ids, self._linear, self._orientations = (), (), [], []
 
     def place(self, t: float) -> None:
-        """Put every body at its script's position and velocity at time ``t`` (z-up world)."""
+        """Put every body at its script's position at time ``t`` (z-up world).
+
+        A PyBullet body of mass 0 is fixed: its velocity does not enter the contact solver (and
+        ``resetBasePositionAndOrientation`` zeroes it), so only the pose is set; a robot part the obstacle moves
+        into is pushed out by the solver's penetration recovery in the next physics step.
+        """
         cid = self._cid
         for body, ob, lin, quat in zip(self.body_ids, self.obstacles, self._linear, self._orientations):
             if lin is not None:
                 (x, y, z), (vx, vy, vz) = lin
-                pos, vel = (x + t * vx, -(y + t * vy), -(z + t * vz)), (vx, -vy, -vz)
+                pos = (x + t * vx, -(y + t * vy), -(z + t * vz))
             else:
-                p, v = ob.position_at(t), ob.velocity_at(t)
-                pos, vel = (p[0], -p[1], -p[2]), (v[0], -v[1], -v[2])
-            pb.resetBasePositionAndOrientation(body, pos, quat, physicsClientId=cid)
-            pb.resetBaseVelocity(body, vel, (0.0, 0.0, 0.0), physicsClientId=cid)
+                p = ob.position_at(t)
+                pos = (p[0], -p[1], -p[2])
+            _reset_pose(body, pos, quat, physicsClientId=cid)
 
     def positions(self) -> np.ndarray:
         """Centres as PyBullet holds them, NED ``(K, 3)`` (for checks against the script)."""
