@@ -163,21 +163,26 @@ class MPCController:
             _govern(e0, cfg.max_position_error, rot is None)
         problem = MPCProblem(e0=e0, j_y=j_y, q=q)
         if cfg.collision:
-            t0 = time.perf_counter()
-            res = distances.compute_distances(kin, cfg.distance_method, cfg.distance_samples)
-            problem.d = res.d
-            problem.j_dis = distances.distance_jacobian(kin, res)
-            self.last_distance_us = (time.perf_counter() - t0) * 1e6
-            if zeta is not None:
-                problem.v_dis = problem.j_dis @ np.asarray(zeta, dtype=float)
-            self.last_distances = res
-            if cfg.n_outer:
-                self._outer_rows(problem, obstacles, zeta)
+            self._collision_rows(problem, zeta, obstacles)
         if cfg.closed_chain:  # J_o,left - J_o,right; for "object_pose" J_y's first rows are J_o,right already
             j_right = jy if rot is not None else kin.object_jacobian("right")
             problem.j_eq = kin.object_jacobian("left") - j_right
         self.last_problem = problem
         return problem
+
+    def _collision_rows(self, problem: MPCProblem, zeta: np.ndarray | None, obstacles: np.ndarray | None) -> None:
+        """The inner rows (distances, ``J_dis``, measured rates) and, with ``outer_rows``, the outer ones."""
+        cfg, kin = self.config, self.kin
+        t0 = time.perf_counter()
+        res = distances.compute_distances(kin, cfg.distance_method, cfg.distance_samples)
+        problem.d = res.d
+        problem.j_dis = distances.distance_jacobian(kin, res)
+        self.last_distance_us = (time.perf_counter() - t0) * 1e6
+        if zeta is not None:
+            problem.v_dis = problem.j_dis @ np.asarray(zeta, dtype=float)
+        self.last_distances = res
+        if cfg.n_outer:
+            self._outer_rows(problem, obstacles, zeta)
 
     def _outer_rows(self, problem: MPCProblem, obstacles: np.ndarray | None, zeta: np.ndarray | None) -> None:
         """Fill the problem's outer rows: the ``outer_rows`` robot-obstacle pairs nearest over the horizon.

@@ -198,7 +198,8 @@ class MPCConfig:
         outer_d1: collision-zone threshold of the outer rows, m (a surface gap) [D] 0.02.
         outer_d2: anti-collision-zone threshold of the outer rows, m [D] 0.15: wider than the inner rows' because
             an obstacle approaches on its own and the vehicle, which must carry the evasion, follows slowly.
-        outer_vbar: the outer rows' ``vbar``, m/s [D] 0.5: beyond ``outer_d2`` the rows must not slow the transport (up to 0.2 m/s).
+        outer_vbar: the outer rows' ``vbar``, m/s [D] 0.5: beyond ``outer_d2`` the rows must not slow the
+            transport (up to 0.2 m/s).
         outer_lookahead: the outer rows' lookahead on the measured approach, s [D] 0.8: the vehicle's velocity
             loop brakes from a few tenths of a metre per second in about that time.
         max_position_error: if set, a reference governor: each row of the reference error ``e0`` is scaled down so

@@ -376,9 +376,12 @@ def gaps_over_time(segs, obj_segs, radii, rots, poss, half, states, out):  # pra
     """The gaps of one obstacle to a robot given at ``T`` instants: ``out[t] = d`` of :func:`outer_rows`.
 
     Args:
-        segs: link axes per instant ``(T, 2, 7, 2, 3)``; obj_segs: object cores ``(T, 2, 3)``.
+        segs: link axes per instant ``(T, 2, 7, 2, 3)``.
+        obj_segs: object cores ``(T, 2, 3)``.
         radii: capsule parts' radii (as :func:`outer_rows`).
-        rots: hull rotations ``(T, 3, 3)``; poss: hull centres ``(T, 3)``; half: hull half extents.
+        rots: hull rotations ``(T, 3, 3)``.
+        poss: hull centres ``(T, 3)``.
+        half: hull half extents.
         states: the obstacle's ``obstacle_states`` row at each instant ``(T, STATE_COLS)``.
         out: output gaps ``(T, len(radii) + 1)``.
     """

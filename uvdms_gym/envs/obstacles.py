@@ -149,7 +149,7 @@ class TransportObstaclesV1Env(TransportV1Env):
                 )
 
     def _nominal_gaps(self, obstacle: Obstacle) -> tuple[np.ndarray, np.ndarray]:
-        """Gaps ``(T, 14)`` of one obstacle to the nominal robot (object on its reference, ``q = 0``) over the episode."""
+        """Gaps ``(T, 14)`` of one obstacle to the nominal robot (object on its reference, ``q = 0``), whole episode."""
         if self._nominal_track is None:
             steps = self.spec.max_episode_steps if self.spec is not None and self.spec.max_episode_steps else 600
             times = np.arange(0.0, steps * self.control_dt + 1e-9, NOMINAL_GRID_DT)
