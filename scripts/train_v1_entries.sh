@@ -62,6 +62,11 @@ RESIDUAL_TRANSPORT="--residual mpc --residual-scale 0.3 --hyperparams action_sca
 # crossed d1 by 0.4 mm in Case 1, where that teacher (clipped to the residual) keeps 60.5 mm and with 2 cm 73.2 mm
 # (README, "Learned entries").
 RESIDUAL_DAGGER="--residual mpc --residual-scale 0.5 --residual-observation clearance --hyperparams teacher=campc teacher_margin=0.02"
+# The obstacle task (uvdms/TransportObstacles-v1, moving obstacles and a random current): the same DAgger residual
+# over plain `mpc`, fitted to CAMPC with its outer-obstacle rows (baselines/controllers.py: in an environment with
+# obstacles the CAMPC baselines add them); the network sees the obstacle slots of the observation.
+OBSTACLES="obstacles=random current=random"
+RESIDUAL_DAGGER_OBSTACLES="--residual mpc --residual-scale 0.5 --hyperparams teacher=campc"
 
 # entry | algo | env id | env kwargs | extra training arguments | budget (env steps)
 ENTRIES=(
@@ -71,6 +76,7 @@ ENTRIES=(
   "residual-mpc-td3prior-clearance-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE_MIX $RESIDUAL_CIRCLE_KWARGS track_scale=0.02|$RESIDUAL_CIRCLE_CLEARANCE|150000"
   "residual-mpc-td3prior-nullspace-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE $RESIDUAL_CIRCLE_KWARGS|$RESIDUAL_CIRCLE_NULLSPACE|150000"
   "residual-mpc-dagger-campc-circle-v1|dagger|uvdms/CircleTrack-v1|$CIRCLE_MIX|$RESIDUAL_DAGGER|100000"
+  "residual-mpc-dagger-campc-obstacles-v1|dagger|uvdms/TransportObstacles-v1|$OBSTACLES|$RESIDUAL_DAGGER_OBSTACLES|150000"
   "residual-mpc-sac-transport-v1|sac|uvdms/Transport-v1|$TRANSPORT|$RESIDUAL_TRANSPORT|150000"
   "ppo-lagrangian-circle-v1|ppo_lagrangian|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PPO_LAGRANGIAN|1000000"
   "ppo-lagrangian-transport-v1|ppo_lagrangian|uvdms/Transport-v1|$TRANSPORT $E2E|$PPO_LAGRANGIAN|1000000"
