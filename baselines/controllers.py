@@ -54,10 +54,17 @@ BASELINES: dict[str, dict[str, Any]] = {
     "campc": {"action_mode": "velocity", "collision": True},
     "campc-di": {"action_mode": "torque", "collision": True, "use_nn": False},
     "campc-nndi": {"action_mode": "torque", "collision": True, "use_nn": True},
-    "campc-inner": {"action_mode": "velocity", "collision": True, "outer": False},
+    "campc-inner": {
+        "action_mode": "velocity",
+        "collision": True,
+        "outer": False,
+        "env_id": "uvdms/TransportObstacles-v1",
+    },
 }
 """The named baselines: required action mode, collision rows, RBF network, outer-obstacle rows (default: with
-the collision rows, when the environment has obstacles; ``campc-inner`` is CAMPC without them, the ablation)."""
+the collision rows, when the environment has obstacles; ``campc-inner`` is CAMPC without them, the ablation), and
+``env_id``, the one environment a baseline is meant for (``campc-inner`` is ``campc`` wherever there are no
+obstacles, so the leaderboard runs it on the obstacle task only; it works on any)."""
 
 OUTER_ROWS = 8
 """[D] Outer-obstacle rows of the CAMPC baselines in an environment with obstacles: the nearest robot-obstacle

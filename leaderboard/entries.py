@@ -37,7 +37,7 @@ from leaderboard.agent_files import (
     run_seed,
     training_seeds,
 )
-from leaderboard.registry import TRACK_OF, resolve_controller
+from leaderboard.registry import BASELINE_ENV, TRACK_OF, resolve_controller
 from leaderboard.tasks import TRACKS, Task, env_family
 
 log = logging.getLogger("uvdms.leaderboard")
@@ -203,7 +203,7 @@ def _token_entry(spec: str, raw_token: str, token: str, filtered: bool, trust: b
     """``(dedup key, entry)`` of one spec of a token; ``None`` for a torque member of a filtered keyword."""
     if spec in BASELINES:
         key = spec
-        entry = Entry(name=spec, kind="baseline", spec=spec, track=BASELINES[spec])
+        entry = Entry(name=spec, kind="baseline", spec=spec, track=BASELINES[spec], env_id=BASELINE_ENV[spec])
     else:
         path = Path(resolve_controller(spec))  # a shipped name from any directory, a former name
         if not path.exists():

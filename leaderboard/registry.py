@@ -38,6 +38,8 @@ CONTROLLERS: dict[str, Callable[..., Any]] = {name: make_baseline for name in BA
 """Named controllers: name -> factory ``(name, env, **kwargs) -> controller``."""
 TRACK_OF: dict[str, str] = {name: spec["action_mode"] for name, spec in BASELINES.items()}
 """The action mode (leaderboard track) each named controller needs."""
+BASELINE_ENV: dict[str, str | None] = {name: spec.get("env_id") for name, spec in BASELINES.items()}
+"""The environment a named baseline's leaderboard entry runs on (``None``: every task)."""
 AGENT_FILES: tuple[str, ...] = ("agent.json", "model.zip", "final_model.zip", "best_model.zip")
 """Files that make a folder an agent: a weights-only export, a shipped agent, or a run directory."""
 
@@ -69,7 +71,9 @@ def load_agent(path: str | Path, trust: bool = False) -> Any:
         raise ValueError(f"{path}: a model file is not a valid zip archive, corrupt or truncated ({exc})") from None
 
 
-RESIDUAL_BASES: tuple[str, ...] = tuple(name for name, mode in TRACK_OF.items() if mode == "velocity")
+RESIDUAL_BASES: tuple[str, ...] = tuple(
+    name for name, mode in TRACK_OF.items() if mode == "velocity" and BASELINE_ENV[name] is None
+)
 """The baselines a residual agent can be trained on: those whose action is a velocity command."""
 
 

@@ -185,8 +185,14 @@ def run_leaderboard(
     )
     with timing_record() as run_record:  # the run's machine and load (each episode has its own record)
         execute = functools.partial(
-            _execute, backend=backend, trust=trust, jobs=jobs, executor=executor, address=address,
-            num_cpus=num_cpus, max_retries=max_retries,
+            _execute,
+            backend=backend,
+            trust=trust,
+            jobs=jobs,
+            executor=executor,
+            address=address,
+            num_cpus=num_cpus,
+            max_retries=max_retries,
         )
         _compute(todo, len(all_jobs), n_cached + n_reused, execute, results, progress)
     result = LeaderboardResult(

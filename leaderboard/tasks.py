@@ -67,6 +67,7 @@ def env_version(env_id: str) -> str:
 
 
 CIRCLE_ID, TRANSPORT_ID = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"
+OBSTACLES_ID = "uvdms/TransportObstacles-v1"
 HYDRO_RANDOMIZATION = 0.3
 TASKS: tuple[Task, ...] = (
     Task("case1", "Case 1", CIRCLE_ID, {"case": 1}, paper=True, trajectory=True),
@@ -86,8 +87,16 @@ TASKS: tuple[Task, ...] = (
         {"goal": "random", "hydro_randomization": HYDRO_RANDOMIZATION},
         paper=False,
     ),
+    Task(
+        "transport-obstacles",
+        "Moving obstacles, current",
+        OBSTACLES_ID,
+        {"obstacles": "random", "current": "random"},
+        paper=False,
+    ),
 )
-"""The task suite: the paper's three tasks, then the held-out randomised variants."""
+"""The task suite: the paper's three tasks, then the held-out randomised variants and the obstacle task (the paper's
+stated future work: moving outer obstacles in a current)."""
 
 
 def select_tasks(names: Sequence[str] | None = None, *, quick: bool = False) -> tuple[Task, ...]:

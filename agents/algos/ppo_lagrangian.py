@@ -450,8 +450,6 @@ class PPOLagrangian(RolloutPPO):
         self.logger.record("train/cost_value_loss", float(np.mean(losses)))
 
 
-
-
 # SB3 zips of PPO-Lagrangian runs written before the move record their policy class as
 # ``agents.ppo_lagrangian.CostActorCriticPolicy`` (cloudpickled); this alias lets them load and resume.
 sys.modules.setdefault("agents.ppo_lagrangian", sys.modules[__name__])

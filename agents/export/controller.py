@@ -220,7 +220,6 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
         raise ValueError(f"agent {name} outputs actions of shape {agent.action_space.shape}")
 
 
-
 def recorded_composition(record: Mapping[str, Any], where: str) -> ActionComposition:
     """The residual base and safety filter recorded in a run's config entry or an export's ``agent.json``.
 
@@ -233,4 +232,3 @@ def recorded_composition(record: Mapping[str, Any], where: str) -> ActionComposi
         return ActionComposition.from_record(record)
     except ValueError as exc:
         raise ExportFormatError(f"{where}: {exc}") from None
-

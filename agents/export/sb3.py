@@ -36,6 +36,7 @@ TRUSTED_DIR = trained_agents_dir()
 """The shipped agents (the checkout's ``trained_agents/`` or its installed copy, :mod:`agents.common.paths`): SB3 zips
 and pickles inside this folder (committed, reviewed agents) load without ``trust=True``."""
 
+
 def is_trusted_path(path: str | Path) -> bool:
     """Whether ``path`` (symlinks resolved) lies inside the repository's ``trained_agents/`` folder."""
     return Path(path).resolve().is_relative_to(TRUSTED_DIR.resolve())
@@ -185,5 +186,3 @@ def load_sb3_agent(
         action_scale=float(config.get("action_scale", 1.0)),
         composition=recorded_composition(config, str(model_path)),
     )
-
-

@@ -178,8 +178,9 @@ class TrainingSegment:
             "filter_factory": filter_factory,
         }
         # the teacher labels training states only: the evaluation callback needs no labels
-        train = self._factories("train", cfg.env_kwargs, cfg.n_envs, scalar_info=True, **composed,
-                                teacher_factory=teacher_factory)
+        train = self._factories(
+            "train", cfg.env_kwargs, cfg.n_envs, scalar_info=True, **composed, teacher_factory=teacher_factory
+        )
         evaluation = self._factories("eval", self.eval_kwargs, cfg.n_eval_envs, **composed, episode_metrics=True)
         return train, evaluation
 

@@ -337,6 +337,7 @@ class ResumeRequest:
     vec_env: str
     given: Mapping[str, Any]
 
+
 def resume_run(
     run_dir: Path,
     request: ResumeRequest,
@@ -403,9 +404,7 @@ def _resumed_config(run_dir: Path, request: ResumeRequest) -> tuple[dict[str, An
     algo, env_id = resolved["algo"], resolved["env_id"]
     cfg = parse_entry(resolved["config"], algo, source=str(config_file), entry_name=env_id)
     if request.n_envs is not None and request.n_envs != cfg.n_envs:
-        raise ConfigError(
-            f"--resume: n_envs cannot change ({cfg.n_envs} in {config_file}, got {request.n_envs})"
-        )
+        raise ConfigError(f"--resume: n_envs cannot change ({cfg.n_envs} in {config_file}, got {request.n_envs})")
     for name, value in request.given.items():
         if value is not None and value != getattr(cfg, name):
             raise ConfigError(

@@ -146,5 +146,3 @@ class Runs:
                 gym_packages=["uvdms_gym"],
             )
         return self._done[key]
-
-

@@ -18,5 +18,3 @@ def config_dir(tmp_path_factory) -> Path:
 def runs(tmp_path_factory, config_dir) -> Runs:
     """The shared training runs (:class:`Runs`), shared by several tests."""
     return Runs(tmp_path_factory.mktemp("runs"), config_dir)
-
-

@@ -143,5 +143,3 @@ def test_residual_observation_choices_of_the_light_parser_match_the_composition(
     from uvdms_gym.residual import RESIDUAL_OBSERVATIONS
 
     assert RESIDUAL_OBSERVATION_NAMES == RESIDUAL_OBSERVATIONS
-
-

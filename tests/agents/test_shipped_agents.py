@@ -62,5 +62,3 @@ def test_shipped_agents_load_and_act():
         action = agent.predict(obs, info)
         assert env.action_space.contains(action.astype(np.float32))
         env.close()
-
-

@@ -279,5 +279,3 @@ def test_scale_action_layer_on_ppo_and_td3_target():
     scale_action_layer(td3, 0.1)
     for p, q in zip(td3.policy.actor.parameters(), td3.policy.actor_target.parameters()):
         torch.testing.assert_close(p, q)
-
-

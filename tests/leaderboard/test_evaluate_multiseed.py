@@ -39,8 +39,9 @@ def test_a_folder_of_seeds_is_evaluated_per_seed_and_aggregated_like_the_leaderb
     # each seed as the single-agent command evaluates it, independently
     runs = []
     for name in seeds:
-        alone = evaluate(str(ENTRY / name), "uvdms/CircleTrack-v1", {"case": 2, "max_episode_steps": 4}, 2, 7,
-                         progress=False)
+        alone = evaluate(
+            str(ENTRY / name), "uvdms/CircleTrack-v1", {"case": 2, "max_episode_steps": 4}, 2, 7, progress=False
+        )
         assert _behaviour(summary["per_seed"][name]) == _behaviour(alone["summary"])
         runs.append([compact_result(ep) for ep in alone["episodes"]])
     expected = {metric: stat.to_json() for metric, stat in aggregate_runs(runs).items()}

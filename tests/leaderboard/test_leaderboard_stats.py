@@ -135,5 +135,3 @@ def test_tracks_and_tables(tmp_path):
     csv_lines = (tmp_path / "out" / "leaderboard.csv").read_text().splitlines()
     assert len(csv_lines) == 1 + len(BASELINE_ENTRIES) * len(TINY_TASKS)
     assert all(r.entry.track == lb.BASELINES[r.entry.name] for r in result.rows)
-
-

@@ -80,5 +80,3 @@ def check_against_reference(res, ref, seg, plates=None, unique_points=True):
             np.testing.assert_allclose(res.e[i], ref.e[i], rtol=0, atol=1e-11)
             n_ties += 1
     return n_ties
-
-

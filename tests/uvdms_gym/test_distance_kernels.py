@@ -194,5 +194,3 @@ def test_pybullet_capsule_length_is_cylinder_part_and_bare_box_edges_differ():
         assert d_box + 0.01 + t / 2 == pytest.approx(core + t / 2, abs=1e-5)  # bare box: off by t/2
     finally:
         client.disconnect()
-
-

@@ -227,6 +227,7 @@ def test_algorithm1_min_over_several_obstacles():
 
 # ------------------------------------------------------------------------------- the 18 UVDMS distances
 
+
 def test_exact_rows_match_generic_geometry(kin):
     rng = np.random.default_rng(8)
     for it in range(100):

@@ -117,5 +117,3 @@ def test_hydro_scale_updates_the_object(sim):
     assert mass == pytest.approx(P.obj.mass + 0.5 * P.obj.added_mass_coefficient * P.water_density * P.obj.volume)
     with pytest.raises(TypeError):
         sim.set_hydro_scale(2.0)  # type: ignore[arg-type]
-
-

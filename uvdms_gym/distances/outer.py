@@ -7,7 +7,9 @@ vehicle hull (a box of ``params.vehicle.size`` centred at the body origin). Row 
 part ``i`` against obstacle ``k``.
 
 Unlike the 18 internal rows (axis to core), these rows report **gaps between surfaces**: the core distance minus
-both radii (a box has none), so that ``d = 0`` is contact whatever the obstacle's size. ``p`` is the closest point
+both radii (a box has none), so that ``d = 0`` is contact whatever the obstacle's size. A negative gap is an
+overlap; for the hull, once the obstacle's core is inside the box the row reports ``-radius`` (the depth is not
+resolved: the episode has ended on the contact long before). ``p`` is the closest point
 of the part's core (or the box), ``e`` of the obstacle's core, ``n = (e - p) / |e - p|``.
 
 Rate: the obstacle translates with ``v_obs`` (no rotation), so

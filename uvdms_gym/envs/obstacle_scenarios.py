@@ -7,14 +7,14 @@ the object, or the midpoint of a distal arm link. It moves with a constant veloc
 :data:`SPEED_RANGE`, direction across the path's tangent at ``t_c`` and across the part: an obstacle moving
 along the path could only be fled from, one moving along the part takes long to clear it) past that point, its
 path shifted sideways (across the part and the motion) so that it overlaps the part by up to :data:`MAX_DEPTH`,
-and keeps going. Spheres are debris; capsules are drifting pipes, broadside to their motion.
+and keeps going. Spheres are debris; capsules are drifting pipes, broadside to their motion and alongside the part they pass.
 
 A candidate is kept only if, against the nominal robot over the whole episode (:func:`random_obstacles`'s
 ``nominal_gaps``): it starts at least :data:`START_CLEARANCE` away; it touches the nominal robot (a controller
 that tracks the reference and ignores obstacles makes contact), but no deeper than :data:`MAX_DEPTH` (a
-glancing pass that a small evasion clears); it comes within :data:`EVASION_ZONE` of one group of parts only (one
-arm, the object or the hull: it brushes the robot from outside rather than threading the ring that the arms, the
-object and the hull form, from which no evasion frees it); it stays within :data:`EVASION_ZONE` for at most
+glancing pass that a small evasion clears); it comes within :data:`EVASION_ZONE` of neither the hull nor both arms (it
+brushes the object and at most one arm from outside, rather than threading the ring that the arms, the object and
+the hull form, from which no evasion frees it); it stays within :data:`EVASION_ZONE` for at most
 :data:`MAX_INTERACTION` (it crosses, rather than travelling along the path, where no local evasion lets it pass);
 and it is at least :data:`HOLD_CLEARANCE` away during the hold, where success is judged. Obstacles also start
 :data:`START_CLEARANCE` apart. Everything is drawn from the environment's seeded generator: a seed fixes the
@@ -86,7 +86,7 @@ def _draw_one(rng: np.random.Generator, reference, move_time: float, nominal_lin
         radius, length, axis = rng.uniform(*SPHERE_RADIUS), 0.0, (0.0, 1.0, 0.0)
     else:
         radius, length = rng.uniform(*CAPSULE_RADIUS), rng.uniform(*CAPSULE_LENGTH)
-        axis = tuple(_unit_across(rng, u))  # broadside to its motion
+        axis = tuple(across)  # alongside the part it passes (broadside to its motion, as u is across the part)
     side = np.cross(across, u)  # across the part and across the motion: a glancing pass, |miss| from the axis
     side_norm = float(np.linalg.norm(side))
     side = side / side_norm if side_norm > 1e-6 else _unit_across(rng, u)
@@ -110,11 +110,12 @@ def _acceptable(times: np.ndarray, gaps: np.ndarray, move_time: float) -> bool:
     """Whether a candidate's gaps to the nominal robot ``(T, 14)`` make a crossing worth keeping."""
     closest = gaps.min(axis=1)
     dt = float(times[1] - times[0])
-    near_groups = [g for g in PART_GROUPS if gaps[:, g].min() < EVASION_ZONE]
+    left, right, obj, hull = (bool(gaps[:, g].min() < EVASION_ZONE) for g in PART_GROUPS)
     return bool(
         closest[0] >= START_CLEARANCE
         and -MAX_DEPTH <= closest.min() < 0.0
-        and len(near_groups) == 1  # it brushes one part (an arm, the object or the hull), not into the frame
+        and not hull
+        and not (left and right)  # it brushes the object and/or one arm from outside, not into the frame
         and np.count_nonzero(closest < EVASION_ZONE) * dt <= MAX_INTERACTION
         and closest[times >= move_time].min() >= HOLD_CLEARANCE
     )
