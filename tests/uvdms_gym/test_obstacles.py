@@ -125,7 +125,7 @@ def test_random_scenarios_cross_the_transport_and_start_clear():
         assert 1 <= len(u.obstacles) <= 3
         assert info["obstacle_distances"].min() >= START_CLEARANCE  # never starting in contact (or near it)
         for ob in u.obstacles:
-            times, gaps = u._nominal_gaps(ob)
+            _, gaps = u._nominal_gaps(ob)
             assert gaps.min() < 0.0  # a robot tracking its reference and ignoring it would touch it
     assert len(counts) > 1
     env.close()
@@ -157,12 +157,14 @@ def test_an_obstacle_driven_into_the_object_is_a_contact_and_ends_the_episode():
     u = env.unwrapped
     env.reset(seed=0)
     p = u._sim.object_position()
-    ram = [{"shape": "sphere", "radius": 0.06, "position": (p + [0.0, 0.0, -0.4]).tolist(), "velocity": [0, 0, 0.5]}]
+    ram = [
+        {"shape": "sphere", "radius": 0.06, "position": np.add(p, [0.0, 0.0, -0.4]).tolist(), "velocity": [0, 0, 0.5]}
+    ]
     env = gym.make(ENV_ID, obstacles=ram)
     _, info = env.reset(seed=0)
     z0 = info["eta"][2]
     for _ in range(50):
-        _, reward, term, _, info = env.step(np.zeros(18, np.float32))
+        _, _, term, _, info = env.step(np.zeros(18, np.float32))
         if term:
             break
     assert term and info["obstacle_contacts"] >= 1 and info["cost_contact"] == 1.0

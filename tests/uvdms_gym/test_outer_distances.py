@@ -25,7 +25,7 @@ TOLERANCE = {"vehicle": 1e-3, "object": 1e-5}
 
 
 def _random_scene(rng):
-    eta = np.r_[rng.uniform(-1, 1, 3) + [0, 0, 10], rng.uniform(-0.3, 0.3, 3)]
+    eta = np.r_[np.add(rng.uniform(-1, 1, 3), [0, 0, 10]), rng.uniform(-0.3, 0.3, 3)]
     q = rng.uniform(-0.6, 0.6, 12)
     centre = eta[:3] + rng.normal(size=3) * 0.6
     obstacles = [
@@ -104,7 +104,7 @@ def test_jdis_with_obstacle_velocity_matches_finite_differences():
         jac, rate = outer_distance_jacobian(kin, res, states)
         predicted = -(jac @ zeta - rate)
 
-        def gaps_at(t):
+        def gaps_at(t, config=config, zeta=zeta, obstacles=obstacles):
             kin.set_configuration(pin.integrate(kin.model, config, zeta * t))
             return compute_outer_distances(kin, obstacle_states(obstacles, t), True).d
 
@@ -121,12 +121,12 @@ def test_gaps_over_a_track_equal_the_per_instant_rows():
     rng = np.random.default_rng(2)
     eta, q, obstacles = _random_scene(rng)
     times = np.linspace(0.0, 3.0, 7)
-    etas = np.array([eta + [0.1 * t, 0, 0, 0, 0, 0.05 * t] for t in times])
+    etas = np.array([np.add(eta, [0.1 * t, 0, 0, 0, 0, 0.05 * t]) for t in times])
     qs = np.tile(q, (times.size, 1))
     track = robot_track(kin, times, etas, qs, True)
     ob = obstacles[1]
     states = np.array([obstacle_states([ob], t)[0] for t in times])
     gaps = track_gaps(track, P, states)
-    for k, t in enumerate(times):
+    for k in range(times.size):
         kin.set_state(etas[k], qs[k])
         np.testing.assert_allclose(gaps[k], compute_outer_distances(kin, states[k : k + 1], True).d, atol=1e-12)

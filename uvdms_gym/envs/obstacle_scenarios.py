@@ -7,7 +7,8 @@ the object, or the midpoint of a distal arm link. It moves with a constant veloc
 :data:`SPEED_RANGE`, direction across the path's tangent at ``t_c`` and across the part: an obstacle moving
 along the path could only be fled from, one moving along the part takes long to clear it) past that point, its
 path shifted sideways (across the part and the motion) so that it overlaps the part by up to :data:`MAX_DEPTH`,
-and keeps going. Spheres are debris; capsules are drifting pipes, broadside to their motion and alongside the part they pass.
+and keeps going. Spheres are debris; capsules are drifting pipes, broadside to their motion and alongside the
+part they pass.
 
 A candidate is kept only if, against the nominal robot over the whole episode (:func:`random_obstacles`'s
 ``nominal_gaps``): it starts at least :data:`START_CLEARANCE` away; it touches the nominal robot (a controller
@@ -110,7 +111,7 @@ def _acceptable(times: np.ndarray, gaps: np.ndarray, move_time: float) -> bool:
     """Whether a candidate's gaps to the nominal robot ``(T, 14)`` make a crossing worth keeping."""
     closest = gaps.min(axis=1)
     dt = float(times[1] - times[0])
-    left, right, obj, hull = (bool(gaps[:, g].min() < EVASION_ZONE) for g in PART_GROUPS)
+    left, right, _, hull = (bool(gaps[:, g].min() < EVASION_ZONE) for g in PART_GROUPS)
     return bool(
         closest[0] >= START_CLEARANCE
         and -MAX_DEPTH <= closest.min() < 0.0
