@@ -6,13 +6,16 @@ Experiments (all with :func:`uvdms_gym.evaluation.run_episode`, seed 0 unless st
   ``terminate_on_contact=False`` so that plain MPC runs on through its collisions), ``mpc`` vs ``campc``;
 * object transport (``uvdms/Transport-v0``, torque mode) with ``campc-nndi``, the paper's full stack;
 * ablation: ``campc-di`` vs ``campc-nndi`` with ``hydro_randomization=0.3`` over seeds 0-4, on Case 1 (the checked
-  one), Case 2 and transport (the last two skipped with ``quick``).
+  one), Case 2 and transport (the last two skipped with ``quick``);
+* beyond the paper, its stated future work: the transport among moving outer obstacles
+  (``uvdms/TransportObstacles-v1``, the scripted scenario of :mod:`baselines.obstacle_figure`), ``campc`` with and
+  without its outer-obstacle rows.
 
 Figures (PNG, numbered like the paper's): ``fig07_case1_end_effectors.png``, ``fig08_case2_end_effectors.png``,
 ``fig09_min_distances.png``, ``fig11_object_pose.png``, ``fig12_vehicle_pose.png``, ``fig13_joint_angles.png``,
 ``fig14_velocities.png``, ``fig15_joint_velocities_torques.png``, ``fig16_vehicle_torques_nn.png``,
-``ablation.png``; ``summary.md`` holds the numbers and the acceptance checks, ``results.json`` the per-episode
-metrics (without trajectories).
+``ablation.png``, ``obstacles.png``; ``summary.md`` holds the numbers and the acceptance checks, ``results.json``
+the per-episode metrics (without trajectories).
 
 Acceptance checks (:func:`acceptance`): see ``docs/REPRODUCTION.md``. The figures are drawn by :mod:`baselines.figures`.
 """
@@ -27,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from baselines.figures import ABLATION_SEEDS, ROW_RIGHT_LINK3_FRAME, ROW_RIGHT_LINK5_LEFT_ARM, make_figures
+from baselines.obstacle_figure import fig_obstacles, obstacle_checks, run_obstacle_experiment
 from uvdms_gym.evaluation import run_episode
 from uvdms_gym.physics.frames import wrap_angle
 from uvdms_gym.physics.params import D1
@@ -97,6 +101,8 @@ def run_experiments(quick: bool = False, progress: bool = True) -> dict:
             kwargs = {**kw, "hydro_randomization": 0.3, "terminate_on_contact": False}
             ablation[name][spec] = [_episode(spec, env_id, kwargs, s, save=False) for s in ABLATION_SEEDS]
     out["ablation"] = ablation
+    note("outer obstacles campc, campc-inner")
+    out["obstacles"] = run_obstacle_experiment()
     out["nearest_left_link_case2_mpc"] = _nearest_left_link(out["case2_mpc"]["trajectory"], ROW_RIGHT_LINK5_LEFT_ARM)
     out["wall_s"] = time.perf_counter() - t_all
     return out
@@ -184,6 +190,8 @@ def acceptance(res: dict) -> list[tuple[str, bool, str]]:
         unsolved == 0,
         f"{unsolved} unsolved, max slack {slack:.2e} m/s",
     )
+    if "obstacles" in res:
+        checks += obstacle_checks(res["obstacles"])
     return checks
 
 
@@ -229,6 +237,14 @@ def summary_markdown(res: dict, checks: list[tuple[str, bool, str]], figures: li
         nn = [e["rmse_pos"] for e in runs["campc-nndi"]]
         per = ", ".join(f"{a * 1e3:.2f}/{b * 1e3:.2f}" for a, b in zip(di, nn))
         lines.append(f"| {task} | {np.mean(di) * 1e3:.3f} | {np.mean(nn) * 1e3:.3f} | {per} |")
+    if "obstacles" in res:
+        lines += ["", "## Outer obstacles (TransportObstacles-v1, scripted scenario, seed 0)", ""]
+        lines += ["| run | contact steps | min gap (mm) | final error (mm) | success |", "|---|---|---|---|---|"]
+        for name, run in res["obstacles"].items():
+            lines.append(
+                f"| {name} | {run['contacts']} | {run['gaps'].min() * 1e3:.1f} | {run['final_error_m'] * 1e3:.1f} "
+                f"| {run['success']} |"
+            )
     lines += ["", "## Figures", ""]
     lines += [f"![{p.stem}]({p.name})" for p in figures]
     lines += ["", f"Wall time of the experiments: {res.get('wall_s', float('nan')):.0f} s.", ""]
@@ -258,9 +274,16 @@ def reproduce(out: str | Path, *, check: bool = False, quick: bool = False, prog
     res = run_experiments(quick=quick, progress=progress)
     checks = acceptance(res)
     figures = make_figures(res, out, dpi=80 if quick else 110)
+    figures.append(fig_obstacles(res["obstacles"], out / "obstacles.png", dpi=80 if quick else 110))
     (out / "summary.md").write_text(summary_markdown(res, checks, figures), encoding="utf-8")
     flat = {
-        k: (_strip(v) if isinstance(v, dict) and "trajectory" in v else v) for k, v in res.items() if k != "ablation"
+        k: (_strip(v) if isinstance(v, dict) and "trajectory" in v else v)
+        for k, v in res.items()
+        if k not in ("ablation", "obstacles")
+    }
+    flat["obstacles"] = {
+        name: {k: run[k] for k in ("contacts", "success", "final_error_m")} | {"min_gap_m": float(run["gaps"].min())}
+        for name, run in res["obstacles"].items()
     }
     flat["ablation"] = {t: {s: [_strip(e) for e in eps] for s, eps in r.items()} for t, r in res["ablation"].items()}
     flat["checks"] = [{"check": n, "passed": ok, "measured": m} for n, ok, m in checks]
