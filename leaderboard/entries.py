@@ -192,8 +192,8 @@ def resolve_entries(
 
 def _token_specs(token: str, agents_dir: str | Path) -> list[str]:
     """The controller specs a token stands for: the baselines, the agent folders, or the token itself."""
-    if token == "baselines":
-        return list(BASELINES)
+    if token == "baselines":  # the four of every task; a one-task ablation (campc-inner) is named explicitly
+        return [name for name in BASELINES if BASELINE_ENV[name] is None]
     if token == "agents":
         return [str(p) for p in find_agent_folders(agents_dir)]
     return [token]
