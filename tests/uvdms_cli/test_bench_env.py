@@ -18,3 +18,18 @@ def test_bench_env_reports_block_medians():
         implied_bare = np.array(row["step_us_blocks"]) / (row["substeps"] * np.array(row["ratio_blocks"]))
         assert np.all(implied_bare > 0)
         assert np.isclose(np.median(implied_bare), out["bare_step_us"], rtol=1.0)
+
+
+def test_bench_env_reports_the_obstacle_task_against_transport_v1():
+    from uvdms_cli.bench import OBSTACLE_ENV_ID
+
+    row = bench_env(quick=True)[OBSTACLE_ENV_ID]
+    assert row["n_obstacles"] == 3
+    assert row["ratio_to_transport_v1"] == np.median(row["ratio_blocks"]) > 0
+    assert row["step_us"] > 0 and row["reference_step_us"] > 0 and row["reset_ms"] > 0
+    import gymnasium as gym
+
+    env = gym.make(OBSTACLE_ENV_ID)
+    env.reset(seed=row["seed"])
+    assert len(env.unwrapped.obstacles) == 3  # the seed it reports has the 3 obstacles it claims
+    env.close()

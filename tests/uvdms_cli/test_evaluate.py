@@ -218,3 +218,23 @@ def test_evaluate_a_trained_agent(tiny_agent, tmp_path):
     assert [e["return"] for e in again["episodes"]] == pytest.approx([e["return"] for e in result["episodes"]])
     with pytest.raises(ValueError, match="action_mode='velocity'"):
         evaluate(str(export), CIRCLE, {**SHORT, "action_mode": "torque"}, episodes=1, progress=False)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        (
+            "obstacles=[{shape: sphere, radius: -0.1, position: [3, 1, 29]}]",
+            "obstacles[0]: obstacle radius must be > 0",
+        ),
+        ("obstacles=[{shape: sphere, radius: 0.1, position: [3, 1, 29], spin: 1}]", "unknown key(s) ['spin']"),
+        ("current=[3, 0, 0]", "above the limit of 2.0 m/s"),
+        ("current=[.nan, 0, 0]", "current"),
+    ],
+)
+def test_cli_evaluate_names_bad_obstacles_and_currents_in_one_line(kwargs, message):
+    cmd = [sys.executable, "-m", "uvdms_cli", "evaluate", "--controller", "campc", "--env"]
+    cmd += ["uvdms/TransportObstacles-v1", "--env-kwargs", kwargs, "--no-progress"]
+    bad = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 2
+    assert message in bad.stderr and len(bad.stderr.strip().splitlines()) == 1, bad.stderr
