@@ -30,7 +30,7 @@ def _approaching_sphere(eta, gap: float, speed: float = 0.15):
     kin.set_state(eta, np.zeros(12))
     p, _ = kin.object_pose("right")
     r = 0.08
-    centre = p + [0.05, 0.1, -(0.05 + r + gap)]  # object radius 0.05
+    centre = np.add(p, [0.05, 0.1, -(0.05 + r + gap)])  # object radius 0.05
     return [Obstacle("sphere", r, tuple(centre), (0.0, 0.0, speed))]
 
 
