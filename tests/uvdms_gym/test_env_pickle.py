@@ -30,6 +30,7 @@ KWARGS = {  # non-default keywords, so that a copy that dropped them would show
     "uvdms/CircleTrack-v1": {"case": "random", "hydro_randomization": 0.2, "current": "random"},
     "uvdms/Transport-v0": {"goal": "random", "current": [0.1, -0.05, 0.0]},
     "uvdms/Transport-v1": {"goal": "paper", "contact_weight": 5.0},
+    "uvdms/TransportObstacles-v1": {"current": "random", "n_observed_obstacles": 2},
 }
 STEPS = 4
 SEED = 11
