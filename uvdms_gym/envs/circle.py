@@ -6,7 +6,8 @@ from typing import Any
 
 import numpy as np
 
-from uvdms_gym.envs.base import UVDMSEnv, errors_positions
+from uvdms_gym.envs.base import UVDMSEnv
+from uvdms_gym.envs.errors import errors_positions
 from uvdms_gym.envs.tasks import CircleTask, make_circle_task
 
 TRACKING_TRANSIENT = 5.0

@@ -6,7 +6,8 @@ from typing import Any
 
 import numpy as np
 
-from uvdms_gym.envs.base import UVDMSEnv, errors_pose
+from uvdms_gym.envs.base import UVDMSEnv
+from uvdms_gym.envs.errors import errors_pose
 from uvdms_gym.envs.tasks import TransportTask, make_transport_task
 from uvdms_gym.physics.frames import euler_to_rot
 from uvdms_gym.physics.kinematics import KinematicModel
