@@ -192,20 +192,22 @@ class TransportObstaclesV1Env(TransportV1Env):
         states = self._states_at(self.t)
         res = compute_outer_distances(self._kin, states, True)
         gaps = res.per_obstacle()
-        n_contacts = self._obstacle_contacts(gaps)
+        gap_min = float(gaps.min()) if gaps.size else math.inf
+        n_contacts = self._obstacle_contacts(gaps, gap_min)
         info["contacts"] += n_contacts
         info["obstacle_contacts"] = n_contacts
         info["cost_contact"] = 1.0 if info["contacts"] > 0 else 0.0
         info["cost"] = info["cost_contact"] + info["cost_zone"]
         info["obstacles"] = states
         info["obstacle_distances"] = gaps
-        info["min_obstacle_distance"] = float(gaps.min()) if gaps.size else math.inf
+        info["min_obstacle_distance"] = gap_min
         full = np.concatenate([obs, self._obstacle_block(states, gaps, info)]).astype(np.float32)
         self._obs = full
         return full.copy(), info
 
-    def _obstacle_contacts(self, gaps: np.ndarray) -> int:
-        if not gaps.size or gaps.min() >= CONTACT_MARGIN:  # the usual case, without argwhere's cost
+    def _obstacle_contacts(self, gaps: np.ndarray, gap_min: float) -> int:
+        """PyBullet's contact report for the (part, obstacle) pairs within a margin of contact (none: no query)."""
+        if gap_min >= CONTACT_MARGIN:  # the usual case, without argwhere's cost
             return 0
         near = np.argwhere(gaps < CONTACT_MARGIN)
         if near.size == 0:

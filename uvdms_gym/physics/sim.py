@@ -518,6 +518,10 @@ class UVDMSSim:
                 coincide within :data:`GRASP_TOLERANCE` (e.g. equal joint angles, as at ``q = 0``).
                 Without it, any existing object and its constraints are removed.
 
+        Outer obstacles (:meth:`set_obstacles`) are removed too, before the object, so that a caller that sets them
+        again after the reset (as ``uvdms/TransportObstacles-v1`` does for every episode) builds the bodies in the
+        same order every episode: PyBullet's solver order follows it, and the episodes repeat bit for bit.
+
         Returns:
             The state after the reset.
         """
