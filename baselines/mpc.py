@@ -502,26 +502,7 @@ class KinematicMPC:
         self.n_box_rows = 0 if cfg.box_constraints else self.n
         self.n_in = self.n_box_rows + self.n_pos + self.n_col
 
-        # Constant parts of the matrices.
-        self._C = np.zeros((self.n_in, self.n))
-        self._l = np.full(self.n_in, -INF)
-        self._u = np.full(self.n_in, INF)
-        r0 = 0
-        if self.n_box_rows:
-            self._C[: self.n, : self.n] = np.eye(self.n)
-            r0 = self.n
-        self._pos_rows = slice(r0, r0 + self.n_pos)
-        if self.n_pos:
-            sel = np.zeros((N_JOINTS, N_DOF))
-            sel[:, 6:] = np.eye(N_JOINTS)
-            self._C[self._pos_rows, : self.n_u] = cfg.t_c * np.kron(self._pos_counts, sel)
-        r0 += self.n_pos
-        self._col_rows = slice(r0, r0 + self.n_col)
-        for j in range(cfg.n_collision_steps):
-            rows = slice(r0 + self.n_rows_step * j, r0 + self.n_rows_step * (j + 1))
-            self._C[rows, self.n_u :] = -np.eye(self.n_rows_step)
-        self._A = np.zeros((self.n_eq, self.n))
-        self._b = np.zeros(self.n_eq)
+        r0 = self._constant_rows()
         # The QP's arrays, allocated once and rewritten in place by every build (ProxSuite copies them on
         # ``update``). Only what depends on the step is written: the ``U`` block of ``H`` (``R`` on its diagonal),
         # ``g[:n_u]``, the ``U`` part of the box, the bounds of the joint-position and collision rows, the
@@ -568,6 +549,34 @@ class KinematicMPC:
         self.n_steps = 0
         self.n_cold_retries = 0
         self.n_infeasible_retries = 0
+
+    def _constant_rows(self) -> int:
+        """Allocate ``C``, its bounds and ``A``, ``b``, with their constant parts; return the first collision row.
+
+        Rows of ``C``: the velocity box (when not ProxSuite box constraints), the joint-position rows, then per
+        collision step the inner and outer collision rows with their slack columns ``-I``.
+        """
+        cfg = self.config
+        self._C = np.zeros((self.n_in, self.n))
+        self._l = np.full(self.n_in, -INF)
+        self._u = np.full(self.n_in, INF)
+        r0 = 0
+        if self.n_box_rows:
+            self._C[: self.n, : self.n] = np.eye(self.n)
+            r0 = self.n
+        self._pos_rows = slice(r0, r0 + self.n_pos)
+        if self.n_pos:
+            sel = np.zeros((N_JOINTS, N_DOF))
+            sel[:, 6:] = np.eye(N_JOINTS)
+            self._C[self._pos_rows, : self.n_u] = cfg.t_c * np.kron(self._pos_counts, sel)
+        r0 += self.n_pos
+        self._col_rows = slice(r0, r0 + self.n_col)
+        for j in range(cfg.n_collision_steps):
+            rows = slice(r0 + self.n_rows_step * j, r0 + self.n_rows_step * (j + 1))
+            self._C[rows, self.n_u :] = -np.eye(self.n_rows_step)
+        self._A = np.zeros((self.n_eq, self.n))
+        self._b = np.zeros(self.n_eq)
+        return r0
 
     # ------------------------------------------------------------------ reset
     def reset(self) -> None:
