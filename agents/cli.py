@@ -14,6 +14,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from agents.common.names import NO_BASE
+
 if TYPE_CHECKING:
     from agents.common.envs import ActionComponents
 
@@ -120,7 +122,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
                 raise ValueError(str(exc)) from None
         check_make_kwargs(args.env_id, env_kwargs)
     components = args._components() if args._components is not None else None
-    if args.residual is not None and components is not None:
+    if args.residual not in (None, NO_BASE) and components is not None:
         components.base_factory(args.residual)  # an unknown or torque-mode base: one line, before torch loads
     from agents.training.train import main
 

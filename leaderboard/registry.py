@@ -15,7 +15,8 @@ controller is one line in :data:`CONTROLLERS`.
 
 ``uvdms evaluate`` (:func:`evaluate`) and the leaderboard (:mod:`leaderboard.runner`) resolve through here.
 Training gets the same pieces injected (``agents`` does not import ``baselines``): :func:`action_components`
-returns the picklable factories :class:`BaselineFactory` and :class:`SafetyFilterFactory` that ``uvdms train``
+returns the picklable factories :class:`BaselineFactory`, :class:`SafetyFilterFactory` and :class:`TeacherFactory` that
+``uvdms train``
 passes to :func:`agents.training.train.train`.
 """
 
@@ -100,11 +101,7 @@ class BaselineFactory:
     collision_margin: float = 0.0
 
     def __post_init__(self) -> None:
-        margin = self.collision_margin
-        if isinstance(margin, bool) or not isinstance(margin, int | float) or not math.isfinite(margin) or margin < 0:
-            raise ValueError(f"collision_margin must be a finite number >= 0 (metres), got {margin!r}")
-        if margin and not BASELINES.get(self.name, {}).get("collision", False):
-            raise ValueError(f"collision_margin={margin} widens collision rows, but {self.name!r} has none (use campc)")
+        _check_collision_margin(self.collision_margin, self.name)
         if self.name not in TRACK_OF:
             raise ValueError(
                 f"unknown residual base {self.name!r}: a residual agent's base is a velocity-mode baseline, one of "
@@ -118,10 +115,74 @@ class BaselineFactory:
 
     def __call__(self, env: Any) -> Any:
         """The baseline for ``env`` (:func:`baselines.controllers.make_baseline`), thresholds moved by the margin."""
-        if not self.collision_margin:
-            return make_baseline(self.name, env)
-        shifted = {"d1": D1 + self.collision_margin, "d2": D2 + self.collision_margin}
-        return make_baseline(self.name, env, mpc_overrides=shifted)
+        return _baseline_with_margin(self.name, env, self.collision_margin)
+
+
+def _check_collision_margin(margin: Any, name: str) -> None:
+    """A margin is a finite number >= 0, and nonzero only for a baseline with collision rows."""
+    if isinstance(margin, bool) or not isinstance(margin, int | float) or not math.isfinite(margin) or margin < 0:
+        raise ValueError(f"collision_margin must be a finite number >= 0 (metres), got {margin!r}")
+    if margin and not BASELINES.get(name, {}).get("collision", False):
+        raise ValueError(f"collision_margin={margin} widens collision rows, but {name!r} has none (use campc)")
+
+
+def _baseline_with_margin(name: str, env: Any, margin: float) -> Any:
+    """The baseline ``name`` for ``env`` with both collision thresholds ``d1``, ``d2`` moved out by ``margin``."""
+    if not margin:
+        return make_baseline(name, env)
+    return make_baseline(name, env, mpc_overrides={"d1": D1 + margin, "d2": D2 + margin})
+
+
+@dataclass(frozen=True)
+class TeacherFactory:
+    """A picklable ``(env) -> controller`` for an imitation learner's teacher (``agents.algos.dagger``).
+
+    Unlike a residual base, a teacher may command either action mode (the learner imitates it in that mode) and may
+    be a trained agent: a path to a weights-only export (e.g. a shipped residual entry's ``seed_0``), composed as
+    it was trained (:func:`compose_agent`).
+
+    Attributes:
+        name: A baseline of :data:`CONTROLLERS` or the path of a weights-only agent export (shipped names resolve
+            as in :func:`resolve_controller`).
+        collision_margin: Metres added to both collision thresholds of a baseline with collision rows
+            (:class:`BaselineFactory`); 0 for an agent.
+
+    Raises:
+        ValueError: An unknown name that is no weights-only export, a negative or non-finite margin, or a margin
+            on a teacher without collision rows.
+    """
+
+    name: str
+    collision_margin: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_collision_margin(self.collision_margin, self.name)
+        if self.name in CONTROLLERS:
+            return
+        from leaderboard.entries import is_weights_only
+
+        path = Path(resolve_controller(self.name))
+        if not (path.is_dir() and is_weights_only(path)):
+            raise ValueError(
+                f"unknown teacher {self.name!r}: name a baseline ({', '.join(CONTROLLERS)}) or the folder of a "
+                "weights-only agent export (holding agent.json)"
+            )
+
+    @property
+    def action_mode(self) -> str:
+        """The action mode the teacher commands (a baseline's registered one, an agent's training env's)."""
+        if self.name in TRACK_OF:
+            return TRACK_OF[self.name]
+        from leaderboard.agent_files import agent_env
+
+        _env_id, kwargs = agent_env(resolve_controller(self.name))
+        return str(kwargs.get("action_mode", "velocity"))
+
+    def __call__(self, env: Any) -> Any:
+        """The teacher for ``env``: the baseline (thresholds moved by the margin) or the composed agent."""
+        if self.name in CONTROLLERS:
+            return _baseline_with_margin(self.name, env, self.collision_margin)
+        return make_controller(self.name, env)
 
 
 @dataclass(frozen=True)
@@ -137,7 +198,9 @@ def action_components() -> ActionComponents:
     """What ``uvdms train`` injects into :func:`agents.training.train.train`: the residual bases and the filter."""
     from agents.common.envs import ActionComponents
 
-    return ActionComponents(base_factory=BaselineFactory, filter_factory=SafetyFilterFactory())
+    return ActionComponents(
+        base_factory=BaselineFactory, filter_factory=SafetyFilterFactory(), teacher_factory=TeacherFactory
+    )
 
 
 def with_safety_filter(controller: Any, env: Any) -> Any:

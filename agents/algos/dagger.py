@@ -1,4 +1,4 @@
-"""DAgger for a residual policy: imitate a teacher's correction of the base, on the states the learner visits.
+"""DAgger: imitate a teacher's command (or its correction of a residual base) on the states the learner visits.
 
 Imitation learning with dataset aggregation (Ross, Gordon & Bagnell, "A Reduction of Imitation Learning and
 Structured Prediction to No-Regret Online Learning", AISTATS 2011), in its online form: the learner's own
@@ -7,6 +7,12 @@ Laskey et al., CoRL 2017), every visited state is labelled with the teacher's ac
 states stay in a replay buffer, and each gradient step fits the policy to a batch of them by least squares::
 
     loss = mean((pi(s) - a_teacher(s))^2)
+
+With no base (``--residual none``: a distilled controller, the network outputs the whole command) the label is
+:func:`uvdms_gym.residual.teacher_action`, the teacher's command clipped to the action box, which
+:class:`uvdms_gym.residual.TeacherLabel` computes at every state. The teacher may command either action mode (the
+training env's), and may be a trained agent (e.g. a shipped residual entry). At evaluation such an agent is the
+network alone: no base, no QP, no distance query beyond its observation.
 
 For a residual agent (:mod:`uvdms_gym.residual`) the label is :func:`uvdms_gym.residual.teacher_residual`, the
 residual output closest to the teacher's command, which :class:`uvdms_gym.residual.ResidualAction` computes at
@@ -117,8 +123,8 @@ class TeacherReplayBuffer(ReplayBuffer):
             if label is None or np.shape(label) != (self.action_dim,):
                 raise ValueError(
                     f"DAgger needs the teacher's label in info[{TEACHER_INFO_KEY!r}] of shape ({self.action_dim},) "
-                    f"(env {i} gave {None if label is None else np.shape(label)}): train a residual agent "
-                    "(--residual BASE) with `uvdms train`, which builds the teacher named by --hyperparams teacher=..."
+                    f"(env {i} gave {None if label is None else np.shape(label)}): train with `uvdms train`, which "
+                    "builds the teacher named by --hyperparams teacher=... in every training env"
                 )
             labels.append(label)
         self.labels[self.pos] = np.asarray(labels, dtype=np.float32)

@@ -28,7 +28,7 @@ from agents.common.names import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
 from agents.common.rollouts import RolloutVecEnv
 from agents.common.vecenv import HybridVecEnv
 from agents.common.wrappers import AliveBonus, ScalarInfo, ScaledAction
-from uvdms_gym.residual import ControllerFactory, FilteredAction, FilterFactory, ResidualAction
+from uvdms_gym.residual import ControllerFactory, FilteredAction, FilterFactory, ResidualAction, TeacherLabel
 
 SEGMENT_SEED_STRIDE = 1000
 """Seed distance between training segments (so at most 1000 training envs)."""
@@ -97,12 +97,17 @@ class ActionComponents:
     Attributes:
         base_factory: ``residual_base`` name -> the factory of that base controller; raises ``ValueError`` for a
             name that cannot be a residual base (unknown, or not a velocity-mode controller). Also builds an
-            imitation learner's teacher, with the keyword ``collision_margin`` (m added to its collision thresholds).
+            imitation learner's teacher when ``teacher_factory`` is ``None``, with the keyword ``collision_margin``
+            (m added to its collision thresholds).
         filter_factory: Wraps a controller in the safety filter.
+        teacher_factory: Teacher name (a controller of either action mode, or a trained agent's folder) and the
+            keyword ``collision_margin`` -> the factory of an imitation learner's teacher; the factory's
+            ``action_mode`` attribute, if any, names the mode the teacher commands. ``None``: ``base_factory``.
     """
 
     base_factory: Callable[..., ControllerFactory]
     filter_factory: FilterFactory
+    teacher_factory: Callable[..., ControllerFactory] | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,8 +133,9 @@ class EnvFactory:
             :class:`FilteredAction`).
         episode_metrics: Put each episode's benchmark metrics into its last ``info``
             (:class:`agents.common.learning_curve.EpisodeMetrics`; evaluation envs of a uvdms id, else no effect).
-        teacher_factory: A teacher whose correction of the base labels every step (with ``base_factory``;
-            ``None``: none; :class:`ResidualAction`'s ``teacher_factory``, for :mod:`agents.algos.dagger`).
+        teacher_factory: A teacher that labels every step, for :mod:`agents.algos.dagger` (``None``: none): with
+            ``base_factory`` its correction of the base (:class:`ResidualAction`'s ``teacher_factory``), without
+            one its own command (:class:`TeacherLabel`).
     """
 
     env_id: str
@@ -153,7 +159,8 @@ class EnvFactory:
         """Create the environment wrapped in a ``Monitor`` (filter, residual, action scaling and alive bonus inside).
 
         From the inside out: ``gymnasium.make``, :class:`agents.common.learning_curve.EpisodeMetrics` (evaluation envs),
-        :class:`FilteredAction`, :class:`ResidualAction` (both see the full ``info``), ``ScaledAction``,
+        :class:`FilteredAction`, :class:`ResidualAction` or :class:`TeacherLabel` (both see the full ``info``),
+        ``ScaledAction``,
         ``AliveBonus``, ``ScalarInfo``, ``Monitor``; so the policy's
         ``action_scale * a`` is the residual, and the filter gets the composed command.
 
@@ -182,6 +189,8 @@ class EnvFactory:
                 self.residual_space,
                 self.teacher_factory,
             )
+        elif self.teacher_factory is not None:
+            env = TeacherLabel(env, self.teacher_factory)
         if self.action_scale != 1.0:
             env = ScaledAction(env, self.action_scale)
         if self.alive_bonus:

@@ -9,6 +9,8 @@ ALGO_NAMES: tuple[str, ...] = ("dagger", "ppo", "ppo_lagrangian", "sac", "td3", 
 """Names of :data:`agents.algos.ALGOS` (kept equal to its keys; checked by the tests)."""
 DEFAULT_GYM_PACKAGES: tuple[str, ...] = ("uvdms_gym",)
 """Packages imported by default so that the env ids are registered."""
+NO_BASE = "none"
+"""``--residual none``: no residual base (the policy outputs the whole command), whatever the config file says."""
 RESIDUAL_OBSERVATION_NAMES: tuple[str, ...] = ("base", "clearance")
 """Choices of ``--residual-observation``: :data:`uvdms_gym.residual.RESIDUAL_OBSERVATIONS` (checked by the tests)."""
 RESIDUAL_SPACE_NAMES: tuple[str, ...] = ("full", "nullspace")

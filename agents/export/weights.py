@@ -30,6 +30,7 @@ from agents.common.wrappers import is_unit_scale
 from agents.config import ConfigError
 from agents.config.policy_kwargs import plain_policy_kwargs, resolve_policy_kwargs
 from agents.export.controller import AgentController, ExportFormatError, ObsNormalizer, recorded_composition
+from uvdms_gym.residual import ActionComposition
 from uvdms_gym.utils.io import mirror_file, write_json_atomic
 from uvdms_gym.utils.provenance import package_versions
 
@@ -41,6 +42,19 @@ WEIGHTS_FILE = "policy.pt"
 NORMALIZATION_FILE = "normalization.npz"
 _DTYPES = {"float32": np.float32, "float64": np.float64}
 _SPACE_ARGS = ("observation_space", "action_space", "lr_schedule")
+
+
+def run_time_record(composition: ActionComposition) -> dict[str, Any]:
+    """What runs besides the network when the agent acts: ``network_only`` says nothing does.
+
+    A residual agent's base (an MPC: a QP every step) and the safety filter (a QP) run with it; an agent with
+    neither is the network alone (a distilled controller: no QP, no distance query beyond its observation).
+    """
+    return {
+        "network_only": composition.is_plain,
+        "base": composition.residual_base,
+        "safety_filter": composition.safety_filter,
+    }
 
 
 def export_controller(agent: AgentController, out_path: str | Path, *, overwrite: bool = False) -> Path:
@@ -87,6 +101,7 @@ def export_controller(agent: AgentController, out_path: str | Path, *, overwrite
         "normalization": normalization,
         "action_scale": agent.action_scale,
         **agent.composition.to_record(),
+        "run_time": run_time_record(agent.composition),
         "num_timesteps": agent.num_timesteps,
         "source": Path(agent.source).name,
         "versions": package_versions(),

@@ -79,7 +79,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--residual",
         metavar="BASE",
         help="train a residual agent on this velocity-mode baseline (mpc, campc): the env gets "
-        "clip(a_base + S * a, -1, 1), the policy observes [obs; a_base] (uvdms train only)",
+        "clip(a_base + S * a, -1, 1), the policy observes [obs; a_base] (uvdms train only); 'none': no base "
+        "(the policy outputs the whole command, e.g. a distilled controller with --algo dagger)",
     )
     parser.add_argument(
         "--residual-scale", type=float, metavar="S", help="bound S of the residual, in (0, 1] (with --residual)"

@@ -14,6 +14,9 @@ from agents.common.rollouts import check_rollout_vec_env
 from agents.config import ConfigError, TrainConfig
 from uvdms_gym.residual import ControllerFactory, FilterFactory
 
+DEFAULT_ACTION_MODE = "velocity"
+"""The uvdms environments' default ``action_mode`` (a training env without one commands velocities)."""
+
 
 def composition_factories(
     cfg: TrainConfig, components: ActionComponents | None
@@ -26,14 +29,16 @@ def composition_factories(
 
     Returns:
         ``(base_factory, filter_factory, teacher_factory)``, each ``None`` when not configured; the teacher is that
-        of an imitation learner (``dagger``'s ``teacher`` hyperparameter, :mod:`agents.algos.dagger`), built like a
-        base.
+        of an imitation learner (``dagger``'s ``teacher`` hyperparameter, :mod:`agents.algos.dagger`): with a
+        residual base it labels its correction of the base, without one its whole command.
 
     Raises:
-        ConfigError: A residual base or the filter without ``components`` (the message names ``uvdms train``), a
-            base or teacher name the components reject, a ``residual_penalty`` without a residual base, or a
-            ``dagger`` configuration without a residual base, with ``residual_space: nullspace`` or with
-            ``action_scale`` other than 1 (its labels are residuals in the base's action units, on the full space).
+        ConfigError: A residual base, the filter or a teacher without ``components`` (the message names
+            ``uvdms train``), a base or teacher name the components reject, a teacher that commands the other
+            action mode, a ``residual_penalty`` without a residual base, or a ``dagger`` configuration with
+            ``residual_space: nullspace``, with ``action_scale`` other than 1 (its labels are in the action's own
+            units, on the full space) or with the safety filter but no base (the filter would change the
+            imitated command).
     """
     composition = cfg.composition
     if cfg.residual_penalty and not composition.is_residual:
@@ -44,7 +49,7 @@ def composition_factories(
     imitation = cfg.algo == "dagger"
     if imitation:
         _check_imitation(cfg)
-    if composition.is_plain:
+    if composition.is_plain and not imitation:
         return None, None, None
     if components is None:
         parts = []
@@ -52,47 +57,58 @@ def composition_factories(
             parts.append(f"a residual on {composition.residual_base!r}")
         if composition.safety_filter:
             parts.append("the safety filter")
+        if imitation:
+            parts.append(f"the teacher {teacher_name(cfg.hyperparams)!r}")
         raise ConfigError(
             f"this configuration trains {' with '.join(parts)}, whose controllers live in the baselines package, "
             "which agents does not import: train it with `uvdms train` (python -m agents.train cannot), or pass "
             "components= to agents.train.train"
         )
-    base_factory = teacher_factory = None
-    if composition.is_residual:
-        base_factory, teacher_factory = _base_and_teacher(cfg, components, imitation)
+    base_factory = None
+    try:
+        if composition.is_residual:
+            base_factory = components.base_factory(str(composition.residual_base))
+        teacher_factory = _teacher(cfg, components) if imitation else None
+    except ValueError as exc:
+        raise ConfigError(f"{exc}" if not imitation else f"dagger's teacher or base: {exc}") from None
     return base_factory, components.filter_factory if composition.safety_filter else None, teacher_factory
 
 
 def _check_imitation(cfg: TrainConfig) -> None:
-    """DAgger labels residuals of a base on the full action space in the residual's own units."""
+    """DAgger labels the whole command, or residuals of a base on the full action space, in the action's own units."""
     composition = cfg.composition
     problems = []
-    if not composition.is_residual:
-        problems.append("no residual_base (--residual mpc)")
     if composition.residual_space != "full":
         problems.append(f"residual_space={composition.residual_space!r} (its labels live on the full space)")
     if cfg.action_scale != 1.0:
-        problems.append(f"action_scale={cfg.action_scale} (its labels are in the residual's own units: use 1.0)")
+        problems.append(f"action_scale={cfg.action_scale} (its labels are in the action's own units: use 1.0)")
+    if composition.safety_filter and not composition.is_residual:
+        problems.append("the safety filter but no residual base (the filter would change the command it imitates)")
     if problems:
-        raise ConfigError(
-            f"dagger imitates a teacher's correction of a residual base, but this configuration has "
-            f"{'; '.join(problems)}"
+        raise ConfigError(f"dagger imitates a teacher's command, but this configuration has {'; '.join(problems)}")
+
+
+def _teacher(cfg: TrainConfig, components: ActionComponents) -> ControllerFactory:
+    """The factory of an imitation learner's teacher, its thresholds moved out by ``teacher_margin``.
+
+    Raises:
+        ValueError: A name or margin the components reject, or a teacher in the other action mode than the
+            training environment's.
+    """
+    name, margin = teacher_name(cfg.hyperparams), teacher_margin(cfg.hyperparams)
+    if components.teacher_factory is None:
+        return components.base_factory(name, collision_margin=margin)
+    factory = components.teacher_factory(name, collision_margin=margin)
+    teacher_mode = getattr(factory, "action_mode", None)
+    env_mode = cfg.env_kwargs.get("action_mode", DEFAULT_ACTION_MODE)
+    if cfg.composition.is_residual and teacher_mode not in (None, "velocity"):
+        raise ValueError(f"teacher {name!r} commands joint torques, but a residual corrects a velocity command")
+    if not cfg.composition.is_residual and teacher_mode not in (None, env_mode):
+        raise ValueError(
+            f"teacher {name!r} commands action_mode={teacher_mode!r}, but the training env has "
+            f"action_mode={env_mode!r}: set --env-kwargs action_mode={teacher_mode} or choose a {env_mode}-mode teacher"
         )
-
-
-def _base_and_teacher(
-    cfg: TrainConfig, components: ActionComponents, imitation: bool
-) -> tuple[ControllerFactory, ControllerFactory | None]:
-    """The residual base's factory and, for an imitation learner, its teacher's (a base with a collision margin)."""
-    try:
-        base_factory = components.base_factory(str(cfg.composition.residual_base))
-        teacher_factory = None
-        if imitation:
-            margin = teacher_margin(cfg.hyperparams)
-            teacher_factory = components.base_factory(teacher_name(cfg.hyperparams), collision_margin=margin)
-    except ValueError as exc:
-        raise ConfigError(f"{exc}" if not imitation else f"dagger's teacher or base: {exc}") from None
-    return base_factory, teacher_factory
+    return factory
 
 
 def check_vec_env(cfg: TrainConfig, vec_env: str) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from agents.algos import ALGOS
-from agents.common.names import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
+from agents.common.names import DEFAULT_GYM_PACKAGES, NO_BASE, VEC_ENV_TYPES
 from agents.config import ConfigError, TrainConfig, default_config_path, load_config, parse_entry
 
 COMPOSITION_FIELDS: tuple[str, ...] = (
@@ -44,7 +44,7 @@ class RunSpec:
         hyperparams: Extra config keys overriding the file, validated like the file.
         vec_env: Vectorised env type (:data:`agents.common.names.VEC_ENV_TYPES`).
         gym_packages: Packages imported so that the env id is registered.
-        residual_base: ``--residual`` (``None``: the config's ``residual_base``).
+        residual_base: ``--residual`` (``None``: the config's ``residual_base``; :data:`NO_BASE`: none).
         residual_scale: ``--residual-scale``.
         residual_observation: ``--residual-observation``.
         residual_space: ``--residual-space``.
@@ -85,8 +85,14 @@ class RunSpec:
         return self.config_path if self.config_path is not None else default_config_path(self.algo)
 
     def composition(self) -> dict[str, Any]:
-        """The action-composition overrides that are set (``--residual`` ..., ``--safety-filter``)."""
-        return {name: getattr(self, name) for name in COMPOSITION_FIELDS if getattr(self, name) is not None}
+        """The action-composition overrides that are set (``--residual`` ..., ``--safety-filter``).
+
+        ``--residual none`` (:data:`NO_BASE`) sets ``residual_base`` to ``None``: no base, whatever the file says.
+        """
+        overrides = {name: getattr(self, name) for name in COMPOSITION_FIELDS if getattr(self, name) is not None}
+        if overrides.get("residual_base") == NO_BASE:
+            overrides["residual_base"] = None
+        return overrides
 
     def replace(self, **changes: Any) -> RunSpec:
         """A copy with ``changes`` (``dataclasses.replace``)."""
@@ -159,8 +165,9 @@ class RunSpec:
 
 
 def command_prefix(cfg: TrainConfig) -> list[str]:
-    """What runs ``cfg``: ``uvdms train`` when it composes controllers, else ``python -m agents.train``."""
-    return ["python", "-m", "agents.train"] if cfg.composition.is_plain else ["uvdms", "train"]
+    """What runs ``cfg``: ``uvdms train`` when it composes controllers or has a teacher, else ``python -m agents.train``."""
+    plain = cfg.composition.is_plain and cfg.algo != "dagger"
+    return ["python", "-m", "agents.train"] if plain else ["uvdms", "train"]
 
 
 def resolve_config(

@@ -24,7 +24,7 @@ from gymnasium import spaces
 from agents.algos.dagger import TEACHER_INFO_KEY, DAgger, TeacherReplayBuffer
 from agents.common.wrappers import KEPT_ARRAYS, ScalarInfo
 from agents.training.train import run_dir_for
-from leaderboard.registry import BaselineFactory
+from leaderboard.registry import BaselineFactory, TeacherFactory
 from uvdms_cli.main import main as uvdms
 from uvdms_gym.physics.params import D1, D2
 from uvdms_gym.residual import TEACHER_KEY, ResidualAction, compose_residual, teacher_residual
@@ -161,7 +161,7 @@ def test_uvdms_train_dagger_export_and_evaluate(tmp_path, capsys):
     config = yaml.safe_load((run_dir / "config.yml").read_text())["config"]
     assert config["teacher"] == "campc" and config["residual_base"] == "mpc"
     composition = json.loads((run_dir / "meta.json").read_text())["segments"][0]["action_composition"]
-    assert composition["teacher_factory"] == repr(BaselineFactory("campc"))
+    assert composition["teacher_factory"] == repr(TeacherFactory("campc"))
     export = tmp_path / "export"
     assert uvdms(["export-agent", str(run_dir), str(export), "--trust"]) == 0
     doc = json.loads((export / "agent.json").read_text())
@@ -183,10 +183,9 @@ RESIDUAL = ["--residual", "mpc", "--residual-scale", "0.5"]
 @pytest.mark.parametrize(
     ("flags", "message"),
     [
-        ([], r"dagger imitates a teacher's correction of a residual base, but .* no residual_base"),
         ([*RESIDUAL, "--residual-space", "nullspace"], r"residual_space='nullspace'"),
         ([*RESIDUAL, "--hyperparams", "action_scale=0.3"], r"action_scale=0.3"),
-        ([*RESIDUAL, "--hyperparams", "teacher=nope"], r"dagger's teacher or base: unknown residual base 'nope'"),
+        ([*RESIDUAL, "--hyperparams", "teacher=nope"], r"dagger's teacher or base: unknown teacher 'nope'"),
         ([*RESIDUAL, "--hyperparams", "teacher=3"], r"key 'teacher': expected str, got int"),
         ([*RESIDUAL, "--hyperparams", "teacher_margin=-0.01"], r"teacher_margin must be a finite number >= 0"),
         ([*RESIDUAL, "--hyperparams", "teacher=mpc", "teacher_margin=0.01"], r"'mpc' has none \(use campc\)"),

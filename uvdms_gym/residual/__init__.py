@@ -60,6 +60,7 @@ from uvdms_gym.residual.composition import (
     compose_residual,
     is_residual_penalty,
     is_residual_scale,
+    teacher_action,
     teacher_residual,
 )
 from uvdms_gym.residual.nullspace import (
@@ -70,6 +71,7 @@ from uvdms_gym.residual.wrappers import (
     FilteredAction,
     ResidualAction,
     ResidualController,
+    TeacherLabel,
     residual_observation,
     residual_observation_space,
 )
@@ -92,6 +94,7 @@ __all__ = [
     "NullspaceProjection",
     "ResidualAction",
     "ResidualController",
+    "TeacherLabel",
     "compose_residual",
     "is_residual_penalty",
     "is_residual_scale",
@@ -99,5 +102,6 @@ __all__ = [
     "residual_observation",
     "residual_observation_space",
     "residual_projection",
+    "teacher_action",
     "teacher_residual",
 ]

@@ -189,8 +189,17 @@ def teacher_residual(teacher_action: np.ndarray, base_action: np.ndarray, scale:
     return np.clip(raw, ACTION_LOW, ACTION_HIGH).astype(np.float32)
 
 
+def teacher_action(teacher_action: np.ndarray) -> np.ndarray:
+    """The label of imitation learning with no base: the teacher's command clipped to the action box, float32.
+
+    :func:`teacher_residual` over a zero base with scale 1 (a policy that outputs the whole command).
+    """
+    return teacher_residual(teacher_action, np.zeros(np.shape(teacher_action)), 1.0)
+
+
 TEACHER_KEY = "teacher_residual"
-"""``info`` key of :class:`ResidualAction`'s teacher label (:func:`teacher_residual`)."""
+"""``info`` key of the teacher's label: :class:`ResidualAction`'s (:func:`teacher_residual`) and
+:class:`TeacherLabel`'s (:func:`teacher_action`, the label of a policy with no base)."""
 
 
 def is_residual_penalty(value: Any) -> bool:

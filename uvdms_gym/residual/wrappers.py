@@ -1,7 +1,8 @@
 """The residual and the filter as a training wrapper and as an evaluation controller.
 
 :class:`ResidualAction` (training) and :class:`ResidualController` (evaluation) apply the same formula to the same
-inputs, bit for bit; :class:`FilteredAction` filters every action in training (package docstring:
+inputs, bit for bit; :class:`FilteredAction` filters every action in training; :class:`TeacherLabel` labels the steps of a policy with no
+base for imitation learning (package docstring:
 :mod:`uvdms_gym.residual`).
 """
 
@@ -13,7 +14,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from uvdms_gym.evaluation import Controller
+from uvdms_gym.evaluation import Controller, check_action_mode
 from uvdms_gym.residual.clearance import FEATURE_CLIP, ClearanceFeatures
 from uvdms_gym.residual.composition import (
     ACTION_HIGH,
@@ -26,6 +27,7 @@ from uvdms_gym.residual.composition import (
     compose_residual,
     is_residual_penalty,
     is_residual_scale,
+    teacher_action,
     teacher_residual,
 )
 from uvdms_gym.residual.nullspace import NullspaceProjection
@@ -180,6 +182,53 @@ class ResidualAction(gym.Wrapper):
             info["reward_residual"] = -self.penalty * float(residual @ residual) / residual.size
             reward = float(reward) + info["reward_residual"]
         return observation, reward, terminated, truncated, info
+
+
+class TeacherLabel(gym.Wrapper):
+    """Labels every step with a teacher's command, for imitation learning of a policy with no base.
+
+    At every state the teacher acts on the same ``(obs, info)`` the policy sees, and ``step``'s
+    ``info[TEACHER_KEY]`` is :func:`teacher_action` (the teacher's command clipped to ``Box(-1, 1)``) at the state
+    *the action was taken in*: the label of the observation the policy acted on. The teacher never acts on the
+    environment; the observation and the action pass through unchanged. ``reset`` resets the teacher with the
+    environment's seed (as :func:`uvdms_gym.evaluation.run_episode` does).
+
+    Args:
+        env: The environment, in the teacher's action mode, with the action space ``Box(-1, 1)``.
+        teacher_factory: Builds the teacher for ``env``.
+
+    Raises:
+        ValueError: An action space other than ``Box(-1, 1)``, a teacher whose ``action_mode`` is not the
+            environment's (the message names both), or what the factory raises.
+    """
+
+    def __init__(self, env: gym.Env, teacher_factory: ControllerFactory) -> None:
+        super().__init__(env)
+        _check_unit_box(env, "imitation of a teacher's command")
+        self.teacher = teacher_factory(env)
+        mode = getattr(self.teacher, "action_mode", None)
+        if mode is not None:
+            check_action_mode(f"teacher {getattr(teacher_factory, 'name', type(self.teacher).__name__)}", env, mode)
+        self._label: np.ndarray | None = None
+
+    def _teacher_label(self, obs: Any, info: Mapping[str, Any]) -> np.ndarray:
+        return teacher_action(np.asarray(self.teacher.predict(obs, info)))  # type: ignore[arg-type]
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset the environment and the teacher; label the first state."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.teacher.reset(seed)
+        self._label = self._teacher_label(obs, info)
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        """Step with ``action``; ``info[TEACHER_KEY]`` is the label of the state it was taken in."""
+        if self._label is None:
+            raise RuntimeError("TeacherLabel.step called before reset")
+        label = self._label
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._label = self._teacher_label(obs, info)
+        return obs, reward, terminated, truncated, {**info, TEACHER_KEY: label}
 
 
 class ResidualController:
