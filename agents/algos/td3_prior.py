@@ -1,4 +1,4 @@
-"""TD3 with its actor held near a prior action: TD3+BC's actor loss with the zero action as the behaviour.
+"""TD3 with its actor held near a prior action: TD3+BC's actor loss with the zero action (or a prior policy's) as the behaviour.
 
 For a residual agent (:mod:`uvdms_gym.residual`) the zero action is the base controller alone, so this is "stay
 with the base unless the critic is sure a correction pays". The actor minimises::
@@ -16,10 +16,20 @@ The penalty keeps the actor where the data is, while a consistent gain in Q stil
 
 Everything else (critics, target smoothing, delayed updates, exploration noise) is SB3's ``TD3``; with
 ``prior_coef = 0`` the actor's update direction is TD3's, its step scaled by ``1 / mean|Q|``.
+
+Fine-tuning (``prior_policy``: a weights-only export of a TD3-family agent, e.g. a distilled controller trained by
+DAgger): the actor and its target start from the prior's actor, and the penalty holds the actor near the prior's
+action instead of zero::
+
+    actor_loss = -mean(Q1(s, pi(s))) / mean(|Q1(s, pi(s))|)  +  prior_coef * mean((pi(s) - pi_prior(s))^2)
+
+``pi_prior`` is a frozen copy of the starting actor: RL improves on it where the critic is sure, and stays with it
+elsewhere (the same TD3+BC trade-off, with the prior policy as the behaviour).
 """
 
 # NOTE: no ``from __future__ import annotations`` here: agents.config.schema validates YAML keys against the evaluated
 # annotations of ``TD3Prior.__init__`` (as for agents.algos.ppo_lagrangian).
+import copy
 import math
 from collections.abc import Mapping
 from typing import Any
@@ -34,16 +44,22 @@ from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.td3.policies import TD3Policy
 from torch.nn import functional as F
 
+from agents.algos.prior import load_prior_actor
+
 DEFAULT_PRIOR_COEF = 0.4
 """TD3+BC's ``alpha = 2.5``."""
 Q_SCALE_EPS = 1e-6
 """Floor of the detached ``mean(|Q1|)`` normalisation (a critic that outputs zeros)."""
 
 
-def actor_loss(q: th.Tensor, actions: th.Tensor, prior_coef: float) -> th.Tensor:
-    """``-mean(q) / mean(|q|).detach() + prior_coef * mean(actions^2)`` (the module's formula)."""
+def actor_loss(q: th.Tensor, actions: th.Tensor, prior_coef: float, prior_actions: th.Tensor | None = None) -> th.Tensor:
+    """``-mean(q) / mean(|q|).detach() + prior_coef * mean((actions - prior_actions)^2)`` (the module's formulas).
+
+    ``prior_actions`` ``None``: the zero action.
+    """
     scale = q.abs().mean().detach().clamp_min(Q_SCALE_EPS)
-    return -q.mean() / scale + prior_coef * actions.pow(2).mean()
+    deviation = actions if prior_actions is None else actions - prior_actions
+    return -q.mean() / scale + prior_coef * deviation.pow(2).mean()
 
 
 class TD3Prior(TD3):
@@ -52,10 +68,14 @@ class TD3Prior(TD3):
     Args:
         policy: As ``TD3`` (and every other argument but ``prior_coef``).
         env: The environment.
-        prior_coef: Weight of ``mean(pi(s)^2)`` in the actor loss, >= 0.
+        prior_coef: Weight of ``mean((pi(s) - pi_prior(s))^2)`` in the actor loss, >= 0.
+        prior_policy: Folder of a weights-only export whose actor the actor starts from and is held near
+            (``None``: start fresh, held near the zero action). Its network must have the same shape.
 
     Raises:
-        ValueError: A negative or non-finite ``prior_coef``.
+        ValueError: A negative or non-finite ``prior_coef``; a ``prior_policy`` that is no TD3-family export
+            (:func:`agents.algos.prior.load_prior_actor`) or whose actor has another shape (the message names
+            both).
     """
 
     def __init__(
@@ -79,6 +99,7 @@ class TD3Prior(TD3):
         target_policy_noise: float = 0.2,
         target_noise_clip: float = 0.5,
         prior_coef: float = DEFAULT_PRIOR_COEF,
+        prior_policy: str | None = None,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
@@ -87,8 +108,10 @@ class TD3Prior(TD3):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ) -> None:
-        self.check_hyperparams({"prior_coef": prior_coef})
+        self.check_hyperparams({"prior_coef": prior_coef, "prior_policy": prior_policy})
         self.prior_coef = float(prior_coef)
+        self.prior_policy = prior_policy
+        self.prior_actor: th.nn.Module | None = None
         super().__init__(
             policy,
             env,
@@ -127,6 +150,28 @@ class TD3Prior(TD3):
         value = hyperparams.get("prior_coef", DEFAULT_PRIOR_COEF)
         if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
             raise ValueError(f"prior_coef must be a finite number >= 0, got {value!r}")
+        prior = hyperparams.get("prior_policy")
+        if prior is not None:
+            if not isinstance(prior, str) or not prior:
+                raise ValueError(f"prior_policy must be the folder of a weights-only agent export, got {prior!r}")
+            load_prior_actor(prior)
+
+    def _setup_model(self) -> None:
+        """SB3's setup; with a ``prior_policy``, the actor and its target start from the prior's actor."""
+        super()._setup_model()
+        if self.prior_policy is None:
+            return
+        weights, _record = load_prior_actor(self.prior_policy)
+        try:
+            self.actor.load_state_dict(weights)
+        except RuntimeError as exc:
+            first = str(exc).strip().splitlines()[-1].strip()
+            raise ValueError(
+                f"prior_policy {self.prior_policy!r}: its actor does not fit this policy (net_arch "
+                f"{self.policy_kwargs.get('net_arch')}, observation {self.observation_space.shape}): {first}"
+            ) from None
+        self.actor_target.load_state_dict(weights)
+        self.prior_actor = copy.deepcopy(self.actor).requires_grad_(False).eval()
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         """SB3's ``TD3.train`` with the actor loss of :func:`actor_loss`."""
@@ -155,9 +200,14 @@ class TD3Prior(TD3):
             if self._n_updates % self.policy_delay == 0:
                 actions = self.actor(replay_data.observations)
                 q = self.critic.q1_forward(replay_data.observations, actions)
-                loss = actor_loss(q, actions, self.prior_coef)
+                prior_actions = None
+                if self.prior_actor is not None:
+                    with th.no_grad():
+                        prior_actions = self.prior_actor(replay_data.observations)
+                loss = actor_loss(q, actions, self.prior_coef, prior_actions)
                 actor_losses.append(loss.item())
-                prior_terms.append(float(actions.detach().pow(2).mean()))
+                deviation = actions.detach() if prior_actions is None else actions.detach() - prior_actions
+                prior_terms.append(float(deviation.pow(2).mean()))
                 self.actor.optimizer.zero_grad()
                 loss.backward()
                 self.actor.optimizer.step()

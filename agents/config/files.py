@@ -203,6 +203,7 @@ def parse_entry(
         values["normalize"] = _validate_normalize(values["normalize"], where)
     _check_ranges(values, algo, where)
     _check_hyperparam_ranges(algo_cls, hyperparams, where)
+    _check_prior(values, hyperparams, where)
     return TrainConfig(algo=algo, hyperparams=hyperparams, **values)
 
 
@@ -313,6 +314,16 @@ def _check_composition(values: dict[str, Any], where: str) -> None:
     if mode != "velocity":
         what = "residual_base" if composition.is_residual else "safety_filter"
         raise ConfigError(f"{where}: key {what!r} composes velocity commands, but env_kwargs has action_mode={mode!r}")
+
+
+def _check_prior(values: dict[str, Any], hyperparams: Mapping[str, Any], where: str) -> None:
+    """A run that starts from a prior policy's actor (``prior_policy``) must not shrink it (``action_init_scale``)."""
+    scale = values.get("action_init_scale")
+    if hyperparams.get("prior_policy") is not None and scale not in (None, 1.0):
+        raise ConfigError(
+            f"{where}: key 'action_init_scale' ({scale}) would shrink the actor that prior_policy starts from: "
+            "set action_init_scale=null"
+        )
 
 
 def _check_hyperparam_ranges(algo_cls: type, hyperparams: Mapping[str, Any], where: str) -> None:

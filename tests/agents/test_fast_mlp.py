@@ -1,0 +1,57 @@
+"""The NumPy actor (agents/export/fast_mlp.py) gives SB3's ``policy.predict`` action, to float32 rounding.
+
+Checked on a TD3 actor with ReLU and with Tanh hidden layers and on an asymmetric action box, on batches and on
+single observations; a policy it cannot read (SAC's Gaussian actor) is left to ``policy.predict``.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+from gymnasium import spaces
+from stable_baselines3 import SAC, TD3
+
+from agents.export.controller import AgentController
+from agents.export.fast_mlp import NumpyActor
+
+
+class _BoxEnv(gym.Env):
+    observation_space = spaces.Box(-5.0, 5.0, (7,), np.float32)
+    action_space = spaces.Box(np.array([-1.0, -2.0, 0.0], np.float32), np.array([1.0, 0.5, 3.0], np.float32))
+
+    def reset(self, *, seed=None, options=None):
+        return np.zeros(7, np.float32), {}
+
+    def step(self, action):
+        return np.zeros(7, np.float32), 0.0, False, False, {}
+
+
+@pytest.mark.parametrize("activation", [torch.nn.ReLU, torch.nn.Tanh])
+def test_the_numpy_actor_matches_sb3_predict(activation):
+    model = TD3("MlpPolicy", _BoxEnv(), seed=0, policy_kwargs={"net_arch": [32, 16], "activation_fn": activation})
+    with torch.no_grad():  # spread the weights so that the tanh output covers its range
+        for p in model.policy.actor.parameters():
+            p.mul_(3.0)
+    actor = NumpyActor.from_policy(model.policy)
+    assert actor is not None and [layer[2] for layer in actor.layers][-1] == "tanh"
+    obs = np.random.default_rng(0).uniform(-5.0, 5.0, (200, 7)).astype(np.float32)
+    expected, _ = model.policy.predict(obs, deterministic=True)
+    got = actor(obs)
+    assert got.dtype == np.float32 and got.shape == expected.shape
+    np.testing.assert_allclose(got, expected, atol=2e-6)
+    assert np.ptp(expected[:, 2]) > 1.0  # the box mapping was exercised
+    for o, e in zip(obs[:10], expected[:10], strict=True):
+        np.testing.assert_allclose(actor(o), e, atol=2e-6)
+    controller = AgentController(model.policy, algo="td3")
+    assert controller.fast_actor is not None
+    np.testing.assert_allclose(controller.predict(obs[0]), expected[0], atol=2e-6)
+
+
+def test_a_policy_it_cannot_read_keeps_sb3_predict():
+    model = SAC("MlpPolicy", _BoxEnv(), seed=0, policy_kwargs={"net_arch": [8]})
+    assert NumpyActor.from_policy(model.policy) is None
+    controller = AgentController(model.policy, algo="sac")
+    obs = np.ones(7, np.float32)
+    np.testing.assert_array_equal(controller.predict(obs), model.policy.predict(obs, deterministic=True)[0])
