@@ -38,7 +38,9 @@ def load_prior_actor(path: str | Path) -> tuple[dict[str, torch.Tensor], dict[st
     """
     folder = Path(path)
     if not (folder / AGENT_JSON).is_file() or not (folder / WEIGHTS_FILE).is_file():
-        raise ValueError(f"prior_policy {str(path)!r} is not a weights-only agent export ({AGENT_JSON} + {WEIGHTS_FILE})")
+        raise ValueError(
+            f"prior_policy {str(path)!r} is not a weights-only agent export ({AGENT_JSON} + {WEIGHTS_FILE})"
+        )
     try:
         record = json.loads((folder / AGENT_JSON).read_text(encoding="utf-8"))
         state = torch.load(folder / WEIGHTS_FILE, map_location="cpu", weights_only=True)
@@ -48,7 +50,9 @@ def load_prior_actor(path: str | Path) -> tuple[dict[str, torch.Tensor], dict[st
     if not actor:
         raise ValueError(f"prior_policy {str(path)!r} holds no actor weights (a TD3-family agent's export is needed)")
     if (record.get("normalization") or {}).get("norm_obs"):
-        raise ValueError(f"prior_policy {str(path)!r} was trained with observation normalisation, which a prior cannot use")
+        raise ValueError(
+            f"prior_policy {str(path)!r} was trained with observation normalisation, which a prior cannot use"
+        )
     if float(record.get("action_scale", 1.0)) != 1.0:
         raise ValueError(f"prior_policy {str(path)!r} has action_scale {record['action_scale']}; a prior needs 1.0")
     return actor, record

@@ -1,4 +1,4 @@
-"""TD3 with its actor held near a prior action: TD3+BC's actor loss with the zero action (or a prior policy's) as the behaviour.
+"""TD3 with its actor held near a prior: TD3+BC's actor loss with the zero action (or a prior policy's) as behaviour.
 
 For a residual agent (:mod:`uvdms_gym.residual`) the zero action is the base controller alone, so this is "stay
 with the base unless the critic is sure a correction pays". The actor minimises::
@@ -52,7 +52,9 @@ Q_SCALE_EPS = 1e-6
 """Floor of the detached ``mean(|Q1|)`` normalisation (a critic that outputs zeros)."""
 
 
-def actor_loss(q: th.Tensor, actions: th.Tensor, prior_coef: float, prior_actions: th.Tensor | None = None) -> th.Tensor:
+def actor_loss(
+    q: th.Tensor, actions: th.Tensor, prior_coef: float, prior_actions: th.Tensor | None = None
+) -> th.Tensor:
     """``-mean(q) / mean(|q|).detach() + prior_coef * mean((actions - prior_actions)^2)`` (the module's formulas).
 
     ``prior_actions`` ``None``: the zero action.

@@ -165,7 +165,7 @@ class RunSpec:
 
 
 def command_prefix(cfg: TrainConfig) -> list[str]:
-    """What runs ``cfg``: ``uvdms train`` when it composes controllers or has a teacher, else ``python -m agents.train``."""
+    """What runs ``cfg``: ``uvdms train`` with controllers or a teacher to compose, else ``python -m agents.train``."""
     plain = cfg.composition.is_plain and cfg.algo != "dagger"
     return ["python", "-m", "agents.train"] if plain else ["uvdms", "train"]
 

@@ -81,7 +81,9 @@ def test_the_wrapper_refuses_a_teacher_in_the_other_action_mode():
     class _Torque(_Scripted):
         action_mode = "torque"
 
-    with pytest.raises(ValueError, match=r"'teacher _Torque' needs action_mode='torque' but the environment has action_mode='velocity'"):
+    with pytest.raises(
+        ValueError, match=r"'teacher _Torque' needs action_mode='torque' but the environment has action_mode='velocity'"
+    ):
         TeacherLabel(gym.make(CIRCLE, case=2), lambda env: _Torque())
 
 

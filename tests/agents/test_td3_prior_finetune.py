@@ -36,7 +36,10 @@ def _export(tmp_path, net_arch=(16,), normalizer=None, name="prior"):
 
 
 def test_the_export_file_names_agree():
-    assert (prior_module.AGENT_JSON, prior_module.WEIGHTS_FILE) == (weights_module.AGENT_JSON, weights_module.WEIGHTS_FILE)
+    assert (prior_module.AGENT_JSON, prior_module.WEIGHTS_FILE) == (
+        weights_module.AGENT_JSON,
+        weights_module.WEIGHTS_FILE,
+    )
 
 
 def test_actor_loss_with_a_prior_is_the_normalised_q_plus_the_deviation_term():
@@ -90,4 +93,6 @@ def test_a_prior_with_action_init_scale_is_a_config_error(tmp_path):
     config.write_text("default:\n  n_timesteps: 100\n  action_init_scale: 0.01\n")
     with pytest.raises(ConfigError, match="would shrink the actor that prior_policy starts from"):
         load_config(config, "td3_prior", "Pendulum-v1", overrides={"prior_policy": str(folder)})
-    assert load_config(config, "td3_prior", "Pendulum-v1", overrides={"prior_policy": str(folder), "action_init_scale": None})
+    assert load_config(
+        config, "td3_prior", "Pendulum-v1", overrides={"prior_policy": str(folder), "action_init_scale": None}
+    )

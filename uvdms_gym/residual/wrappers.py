@@ -1,8 +1,8 @@
 """The residual and the filter as a training wrapper and as an evaluation controller.
 
 :class:`ResidualAction` (training) and :class:`ResidualController` (evaluation) apply the same formula to the same
-inputs, bit for bit; :class:`FilteredAction` filters every action in training; :class:`TeacherLabel` labels the steps of a policy with no
-base for imitation learning (package docstring:
+inputs, bit for bit; :class:`FilteredAction` filters every action in training; :class:`TeacherLabel` labels the
+steps of a policy with no base for imitation learning (package docstring:
 :mod:`uvdms_gym.residual`).
 """
 
