@@ -67,8 +67,21 @@ RESIDUAL_DAGGER="--residual mpc --residual-scale 0.5 --residual-observation clea
 # obstacles the CAMPC baselines add them); the network sees the obstacle slots of the observation.
 OBSTACLES="obstacles=random current=random"
 RESIDUAL_DAGGER_OBSTACLES="--residual mpc --residual-scale 0.5 --hyperparams teacher=campc"
+# Distilled controllers (docs/LEARNED_CONTROLLERS.md): DAgger with no base (--residual none), the network outputs the
+# whole command and acts alone at evaluation (no MPC, no QP). Circles: CAMPC with a 2 cm margin as the teacher, on
+# case=mix. Transport: the shipped residual entry residual-mpc-sac-transport-v1 (seed 0) as the teacher, which
+# reaches random goals where CAMPC reaches half of them (committed leaderboard: 1.00 against 0.50). The learning
+# rate decays linearly to zero (a constant 1e-3 left the imitation loss at its noise floor in a 60k-step pilot).
+DISTILLED="--residual none --hyperparams learning_rate=lin_1e-3"
+DISTILLED_CIRCLE="$DISTILLED teacher=campc teacher_margin=0.02"
+DISTILLED_TRANSPORT="$DISTILLED teacher=residual-mpc-sac-transport-v1/seed_0"
+# Fine-tuning a distilled controller with RL (agents/algos/td3_prior.py, prior_policy): TD3-prior starts its actor at
+# the distilled network of the same seed ({seed} below) and holds it near that network's action instead of zero,
+# on the v1 reward (default track_scale 5 cm). The actor waits 10k steps while the critic learns (a critic that has
+# not seen the prior's returns would pull it anywhere); exploration noise 0.05 of the command range.
+FINETUNE_CIRCLE="--hyperparams prior_policy=trained_agents/distilled-dagger-campc-circle-v1/seed_{seed} action_init_scale=null learning_starts=0 actor_warmup_steps=10000 noise_std=0.05"
 
-# entry | algo | env id | env kwargs | extra training arguments | budget (env steps)
+# entry | algo | env id | env kwargs | extra training arguments ({seed}: the run's seed) | budget (env steps)
 ENTRIES=(
   "sac-circle-v1|sac|uvdms/CircleTrack-v1|$CIRCLE $E2E||150000"
   "sac-transport-v1|sac|uvdms/Transport-v1|$TRANSPORT $E2E||150000"
@@ -78,6 +91,9 @@ ENTRIES=(
   "residual-mpc-dagger-campc-circle-v1|dagger|uvdms/CircleTrack-v1|$CIRCLE_MIX|$RESIDUAL_DAGGER|100000"
   "residual-mpc-dagger-campc-obstacles-v1|dagger|uvdms/TransportObstacles-v1|$OBSTACLES|$RESIDUAL_DAGGER_OBSTACLES|150000"
   "residual-mpc-sac-transport-v1|sac|uvdms/Transport-v1|$TRANSPORT|$RESIDUAL_TRANSPORT|150000"
+  "distilled-dagger-campc-circle-v1|dagger|uvdms/CircleTrack-v1|$CIRCLE_MIX|$DISTILLED_CIRCLE|150000"
+  "distilled-dagger-residual-transport-v1|dagger|uvdms/Transport-v1|$TRANSPORT|$DISTILLED_TRANSPORT|150000"
+  "finetuned-td3prior-distilled-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE_MIX|$FINETUNE_CIRCLE|40000"
   "ppo-lagrangian-circle-v1|ppo_lagrangian|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PPO_LAGRANGIAN|1000000"
   "ppo-lagrangian-transport-v1|ppo_lagrangian|uvdms/Transport-v1|$TRANSPORT $E2E|$PPO_LAGRANGIAN|1000000"
 )
@@ -100,7 +116,7 @@ run_dir() {  # the run directory of seed $3 of algo $2 under $1 (uvdms train --o
 }
 
 train_one() {
-  local entry=$1 algo=$2 env=$3 kwargs=$4 extra=$5 budget=$6 seed=$7 dir status
+  local entry=$1 algo=$2 env=$3 kwargs=$4 extra=${5//\{seed\}/$7} budget=$6 seed=$7 dir status
   mkdir -p "$OUT/logs"
   dir=$(run_dir "$OUT/$entry" "$algo" "$seed" || true)
   if [[ -n "$dir" ]]; then

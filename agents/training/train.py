@@ -82,6 +82,7 @@ from agents.common.envs import (
     import_gym_packages,
     train_env_seed,
 )
+from agents.common.names import NO_BASE
 from agents.common.wrappers import AliveBonus, ScaledAction
 from agents.config import ConfigError, TrainConfig, parse_entry
 from agents.training.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
@@ -406,6 +407,8 @@ def _resumed_config(run_dir: Path, request: ResumeRequest) -> tuple[dict[str, An
     if request.n_envs is not None and request.n_envs != cfg.n_envs:
         raise ConfigError(f"--resume: n_envs cannot change ({cfg.n_envs} in {config_file}, got {request.n_envs})")
     for name, value in request.given.items():
+        if name == "residual_base" and value == NO_BASE:
+            value = None if cfg.residual_base is None else value  # --residual none agrees with a run without a base
         if value is not None and value != getattr(cfg, name):
             raise ConfigError(
                 f"--resume: {name} cannot change ({getattr(cfg, name)!r} in {config_file}, got {value!r}); "

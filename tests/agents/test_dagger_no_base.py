@@ -150,3 +150,15 @@ def test_bad_no_base_configurations_are_one_line_errors(flags, message, tmp_path
     assert err.startswith("uvdms: error: ") and len(err.strip().splitlines()) == 1, err
     assert re.search(message, err), err
     assert not (tmp_path / "runs").exists()
+
+
+def test_resume_accepts_residual_none_for_a_run_without_a_base(tmp_path, capsys):
+    argv = ["train", "--algo", "dagger", "--env", CIRCLE, "--env-kwargs", "case=2", "max_episode_steps=20"]
+    argv += ["--residual", "none", "--total-timesteps", "40", "--seed", "1", "--hyperparams", "batch_size=16"]
+    argv += ["eval_freq=0", "checkpoint_freq=0", "policy_kwargs={net_arch: [8]}", "--out", str(tmp_path / "runs")]
+    assert uvdms([*argv, "--no-progress"]) == 0, capsys.readouterr().err
+    run_dir = run_dir_for(tmp_path / "runs", CIRCLE, "dagger", 1)
+    resume = ["train", "--resume", str(run_dir), "--total-timesteps", "20", "--no-progress"]
+    assert uvdms([*resume, "--residual", "none"]) == 0, capsys.readouterr().err
+    assert uvdms([*resume, "--residual", "mpc"]) == 2
+    assert "residual_base cannot change (None" in capsys.readouterr().err
