@@ -60,7 +60,7 @@ def composition_factories(
         if imitation:
             parts.append(f"the teacher {teacher_name(cfg.hyperparams)!r}")
         raise ConfigError(
-            f"this configuration trains {' with '.join(parts)}, whose controllers live in the baselines package, "
+            f"this configuration needs {' with '.join(parts)}, whose controllers live in the baselines package, "
             "which agents does not import: train it with `uvdms train` (python -m agents.train cannot), or pass "
             "components= to agents.train.train"
         )

@@ -162,3 +162,12 @@ def test_resume_accepts_residual_none_for_a_run_without_a_base(tmp_path, capsys)
     assert uvdms([*resume, "--residual", "none"]) == 0, capsys.readouterr().err
     assert uvdms([*resume, "--residual", "mpc"]) == 2
     assert "residual_base cannot change (None" in capsys.readouterr().err
+
+
+def test_without_the_composition_layer_a_teacher_is_refused_by_name(tmp_path):
+    from agents.config import ConfigError
+    from agents.training.train import train
+
+    with pytest.raises(ConfigError, match=r"needs the teacher 'campc', whose controllers live in the baselines"):
+        train("dagger", CIRCLE, out_dir=tmp_path / "runs", progress=False)
+    assert not (tmp_path / "runs").exists()
