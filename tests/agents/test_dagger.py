@@ -189,6 +189,18 @@ RESIDUAL = ["--residual", "mpc", "--residual-scale", "0.5"]
         ([*RESIDUAL, "--hyperparams", "teacher=3"], r"key 'teacher': expected str, got int"),
         ([*RESIDUAL, "--hyperparams", "teacher_margin=-0.01"], r"teacher_margin must be a finite number >= 0"),
         ([*RESIDUAL, "--hyperparams", "teacher=mpc", "teacher_margin=0.01"], r"'mpc' has none \(use campc\)"),
+        # with no base (a distilled controller, tests/agents/test_dagger_no_base.py)
+        (["--residual", "none", "--residual-scale", "0.5"], r"residual_scale 0.5 is given without a residual_base"),
+        (
+            ["--env-kwargs", "action_mode=torque"],
+            r"teacher 'campc' commands action_mode='velocity', but the training env has action_mode='torque'",
+        ),
+        (
+            [*RESIDUAL, "--hyperparams", "teacher=campc-nndi"],
+            r"teacher 'campc-nndi' commands joint torques, but a residual corrects a velocity command",
+        ),
+        (["--safety-filter"], r"the safety filter but no residual base"),
+        (["--hyperparams", "teacher=nope"], r"dagger's teacher or base: unknown teacher 'nope'"),
     ],
 )
 def test_bad_dagger_configurations_are_one_line_errors(flags, message, tmp_path, capsys):

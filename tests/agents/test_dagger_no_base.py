@@ -5,13 +5,12 @@
   trajectory equals the bare environment's under the same actions).
 * ``TeacherFactory`` builds a baseline of either action mode, or a trained agent composed as it was trained.
 * ``uvdms train --algo dagger --residual none`` -> ``export-agent`` -> ``evaluate``: the export is the network
-  alone (no base, no filter, no teacher); misconfigurations are one-line errors before a run directory exists.
+  alone (no base, no filter, no teacher); its misconfigurations are among tests/agents/test_dagger.py's one-line errors.
 """
 
 from __future__ import annotations
 
 import json
-import re
 
 import gymnasium as gym
 import numpy as np
@@ -125,31 +124,6 @@ def test_uvdms_train_dagger_with_no_base_export_and_evaluate(tmp_path, capsys):
     result = json.loads(out.read_text())
     assert result["meta"]["controller_settings"]["class"] == "AgentController"  # the network alone
     assert 1 <= result["summary"]["steps"] <= 20
-
-
-@pytest.mark.parametrize(
-    ("flags", "message"),
-    [
-        (["--residual", "none", "--residual-scale", "0.5"], r"residual_scale 0.5 is given without a residual_base"),
-        (
-            ["--env-kwargs", "action_mode=torque"],
-            r"teacher 'campc' commands action_mode='velocity', but the training env has action_mode='torque'",
-        ),
-        (
-            ["--residual", "mpc", "--residual-scale", "0.5", "--hyperparams", "teacher=campc-nndi"],
-            r"teacher 'campc-nndi' commands joint torques, but a residual corrects a velocity command",
-        ),
-        (["--safety-filter"], r"the safety filter but no residual base"),
-        (["--hyperparams", "teacher=nope"], r"dagger's teacher or base: unknown teacher 'nope'"),
-    ],
-)
-def test_bad_no_base_configurations_are_one_line_errors(flags, message, tmp_path, capsys):
-    argv = ["train", "--algo", "dagger", "--env", CIRCLE, "--out", str(tmp_path / "runs"), "--no-progress", *flags]
-    assert uvdms(argv) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("uvdms: error: ") and len(err.strip().splitlines()) == 1, err
-    assert re.search(message, err), err
-    assert not (tmp_path / "runs").exists()
 
 
 def test_resume_accepts_residual_none_for_a_run_without_a_base(tmp_path, capsys):
