@@ -20,3 +20,12 @@ def test_no_address_starts_a_local_instance_beside_a_running_cluster(ray_process
             assert ray.cluster_resources()["CPU"] == 1
     finally:
         cluster.shutdown()
+
+
+def test_a_local_instance_runs_its_workers_at_the_callers_priority(ray_processes, monkeypatch):  # noqa: F811
+    import os
+
+    monkeypatch.delenv("RAY_worker_niceness", raising=False)
+    with ray_session(num_cpus=1) as ray:
+        niceness = ray.get(ray.remote(lambda: os.nice(0)).remote())
+    assert niceness == os.nice(0)  # Ray's default would be 15 above it

@@ -18,6 +18,8 @@ from typing import Any
 
 PROBE_TIMEOUT_S = 5.0
 """Seconds to wait for a TCP connection to a cluster address before giving up (:func:`probe_address`)."""
+WORKER_NICENESS_ENV = "RAY_worker_niceness"
+"""The environment variable the raylet reads its workers' niceness from (Ray's default: 15)."""
 RAY_EXTRA_HINT = 'Ray is not installed: pip install -c constraints.txt -e ".[ray]"'
 
 
@@ -55,6 +57,10 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
     if num_cpus is not None and num_cpus < 1:
         raise ValueError(f"num_cpus must be >= 1, got {num_cpus}")
     if address is None:
+        # Ray starts its workers at nice 15 unless told otherwise: beside anything else busy on this machine (a
+        # training run) a tuning trial then got about 3 % of a core and stood still for minutes; the work here
+        # is the user's foreground job, so the local instance runs its workers at the caller's priority
+        os.environ.setdefault(WORKER_NICENESS_ENV, "0")
         # "local": a new instance even when RAY_ADDRESS is set or a `ray start` cluster runs on this machine
         # (ray.init() without an address would join that one, and refuse num_cpus)
         ray.init(
