@@ -78,8 +78,12 @@ DISTILLED_TRANSPORT="$DISTILLED teacher=residual-mpc-sac-transport-v1/seed_0"
 # Fine-tuning a distilled controller with RL (agents/algos/td3_prior.py, prior_policy): TD3-prior starts its actor at
 # the distilled network of the same seed ({seed} below) and holds it near that network's action instead of zero,
 # on the v1 reward (default track_scale 5 cm). The actor waits 10k steps while the critic learns (a critic that has
-# not seen the prior's returns would pull it anywhere); exploration noise 0.05 of the command range.
-FINETUNE_CIRCLE="--hyperparams prior_policy=trained_agents/distilled-dagger-campc-circle-v1/seed_{seed} action_init_scale=null learning_starts=0 actor_warmup_steps=10000 noise_std=0.05"
+# not seen the prior's returns would pull it anywhere); exploration noise 0.05 of the command range; prior_coef 10
+# (TD3+BC's 0.4 let the actor leave the prior: every evaluation episode in contact after 10k actor updates).
+# Pure RL, no teacher (docs/LEARNED_CONTROLLERS.md): PPO with the configuration `uvdms tune` found on the circles
+# (train_configs/tuned/ppo_end_to_end.yml, its search record beside it), the same settings on transport.
+PURE_RL="--config train_configs/tuned/ppo_end_to_end.yml"
+FINETUNE_CIRCLE="--hyperparams prior_policy=trained_agents/distilled-dagger-campc-circle-v1/seed_{seed} prior_coef=10.0 action_init_scale=null learning_starts=0 actor_warmup_steps=10000 noise_std=0.05"
 
 # entry | algo | env id | env kwargs | extra training arguments ({seed}: the run's seed) | budget (env steps)
 ENTRIES=(
@@ -94,6 +98,8 @@ ENTRIES=(
   "distilled-dagger-campc-circle-v1|dagger|uvdms/CircleTrack-v1|$CIRCLE_MIX|$DISTILLED_CIRCLE|150000"
   "distilled-dagger-residual-transport-v1|dagger|uvdms/Transport-v1|$TRANSPORT|$DISTILLED_TRANSPORT|150000"
   "finetuned-td3prior-distilled-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE_MIX|$FINETUNE_CIRCLE|40000"
+  "ppo-circle-v1|ppo|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PURE_RL|300000"
+  "ppo-transport-v1|ppo|uvdms/Transport-v1|$TRANSPORT $E2E|$PURE_RL|300000"
   "ppo-lagrangian-circle-v1|ppo_lagrangian|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PPO_LAGRANGIAN|1000000"
   "ppo-lagrangian-transport-v1|ppo_lagrangian|uvdms/Transport-v1|$TRANSPORT $E2E|$PPO_LAGRANGIAN|1000000"
 )
