@@ -175,6 +175,10 @@ class TD3Prior(TD3):
         self.actor_target.load_state_dict(weights)
         self.prior_actor = copy.deepcopy(self.actor).requires_grad_(False).eval()
 
+    def _excluded_save_params(self) -> list[str]:
+        """SB3's, and the frozen prior (rebuilt from ``prior_policy`` when a saved model is loaded)."""
+        return [*super()._excluded_save_params(), "prior_actor"]
+
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         """SB3's ``TD3.train`` with the actor loss of :func:`actor_loss`."""
         self.policy.set_training_mode(True)

@@ -19,7 +19,7 @@ from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
 
 from agents.common.wrappers import is_unit_scale
-from agents.export.fast_mlp import FastActor
+from agents.export.fast_actor import FastActor
 from uvdms_gym.evaluation import check_action_mode
 from uvdms_gym.residual import ActionComposition, residual_observation_space
 from uvdms_gym.utils.kwargs import env_family
@@ -90,7 +90,7 @@ class AgentController:
         num_timesteps: Training steps of the loaded model (``None`` if unknown).
         source: Where the agent was loaded from.
         action_scale: The network's output is multiplied by this (``TrainConfig.action_scale``).
-        fast_actor: The policy's actor called directly (:class:`agents.export.fast_mlp.FastActor`; ``None`` for a
+        fast_actor: The policy's actor called directly (:class:`agents.export.fast_actor.FastActor`; ``None`` for a
             policy it cannot call, which ``policy.predict`` evaluates): the same actions, without SB3's per-call
             overhead.
         composition: The residual base and safety filter the agent was trained with

@@ -65,6 +65,12 @@ def test_fine_tuning_starts_at_the_prior_and_holds_near_it(tmp_path):
     for key, value in _state(model.prior_actor).items():
         np.testing.assert_array_equal(value, exported[key])  # the prior is frozen
     assert any(np.any(v != exported[k]) for k, v in _state(model.actor).items())  # the actor trained
+    model.save(tmp_path / "tuned.zip")  # a saved model keeps its trained actor, and rebuilds the prior from the file
+    loaded = TD3Prior.load(tmp_path / "tuned.zip", env=gym.make("Pendulum-v1"))
+    for key, value in _state(loaded.actor).items():
+        np.testing.assert_array_equal(value, _state(model.actor)[key])
+    for key, value in _state(loaded.prior_actor).items():
+        np.testing.assert_array_equal(value, exported[key])
     obs = torch.as_tensor(np.random.default_rng(2).uniform(-1, 1, (256, 3)).astype(np.float32))
     deviation = {}
     for coef in (0.0, 50.0):

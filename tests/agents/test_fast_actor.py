@@ -1,4 +1,4 @@
-"""The direct actor call (agents/export/fast_mlp.py) gives SB3's ``policy.predict`` action, to the bit.
+"""The direct actor call (agents/export/fast_actor.py) gives SB3's ``policy.predict`` action, to the bit.
 
 Checked on a TD3 actor with ReLU and with Tanh hidden layers and on an asymmetric action box, on batches and on
 single observations; a policy it cannot call directly (SAC's Gaussian actor) is left to ``policy.predict``.
@@ -14,7 +14,7 @@ from gymnasium import spaces
 from stable_baselines3 import SAC, TD3
 
 from agents.export.controller import AgentController
-from agents.export.fast_mlp import FastActor
+from agents.export.fast_actor import FastActor
 
 
 class _BoxEnv(gym.Env):
