@@ -15,9 +15,8 @@ controller is one line in :data:`CONTROLLERS`.
 
 ``uvdms evaluate`` (:func:`evaluate`) and the leaderboard (:mod:`leaderboard.runner`) resolve through here.
 Training gets the same pieces injected (``agents`` does not import ``baselines``): :func:`action_components`
-returns the picklable factories :class:`BaselineFactory`, :class:`SafetyFilterFactory` and :class:`TeacherFactory` that
-``uvdms train``
-passes to :func:`agents.training.train.train`.
+returns the picklable factories :class:`BaselineFactory`, :class:`SafetyFilterFactory` and :class:`TeacherFactory`
+that ``uvdms train`` passes to :func:`agents.training.train.train`.
 """
 
 from __future__ import annotations

@@ -189,12 +189,12 @@ def teacher_residual(teacher_action: np.ndarray, base_action: np.ndarray, scale:
     return np.clip(raw, ACTION_LOW, ACTION_HIGH).astype(np.float32)
 
 
-def teacher_action(teacher_action: np.ndarray) -> np.ndarray:
-    """The label of imitation learning with no base: the teacher's command clipped to the action box, float32.
+def teacher_action(command: np.ndarray) -> np.ndarray:
+    """The label of imitation learning with no base: the teacher's ``command`` clipped to the action box, float32.
 
     :func:`teacher_residual` over a zero base with scale 1 (a policy that outputs the whole command).
     """
-    return teacher_residual(teacher_action, np.zeros(np.shape(teacher_action)), 1.0)
+    return teacher_residual(command, np.zeros(np.shape(command)), 1.0)
 
 
 TEACHER_KEY = "teacher_residual"
