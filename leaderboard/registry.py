@@ -40,7 +40,9 @@ TRACK_OF: dict[str, str] = {name: spec["action_mode"] for name, spec in BASELINE
 """The action mode (leaderboard track) each named controller needs."""
 BASELINE_ENV: dict[str, str | None] = {name: spec.get("env_id") for name, spec in BASELINES.items()}
 """The environment a named baseline's leaderboard entry runs on (``None``: every task)."""
-AGENT_FILES: tuple[str, ...] = ("agent.json", "model.zip", "final_model.zip", "best_model.zip")
+WEIGHTS_ONLY_RECORD = "agent.json"
+"""The record that makes a folder a weights-only export (``agents.export``)."""
+AGENT_FILES: tuple[str, ...] = (WEIGHTS_ONLY_RECORD, "model.zip", "final_model.zip", "best_model.zip")
 """Files that make a folder an agent: a weights-only export, a shipped agent, or a run directory."""
 
 
@@ -158,10 +160,8 @@ class TeacherFactory:
         _check_collision_margin(self.collision_margin, self.name)
         if self.name in CONTROLLERS:
             return
-        from leaderboard.entries import is_weights_only
-
         path = Path(resolve_controller(self.name))
-        if not (path.is_dir() and is_weights_only(path)):
+        if not (path / WEIGHTS_ONLY_RECORD).is_file():
             raise ValueError(
                 f"unknown teacher {self.name!r}: name a baseline ({', '.join(CONTROLLERS)}) or the folder of a "
                 "weights-only agent export (holding agent.json)"
