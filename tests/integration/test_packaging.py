@@ -115,7 +115,7 @@ from leaderboard import find_agent_folders, resolve_entries
 cfg = load_config(default_config_path("ppo"), "ppo", "uvdms/CircleTrack-v0")
 space = load_search_space(default_search_space_path("ppo"))
 folders = find_agent_folders(TRUSTED_DIR)
-agent = load_agent(folders[0])
+agent = load_agent(next(f for f in folders if not any(f.glob("seed_*"))))  # a single agent (not a seed folder)
 entries = resolve_entries(["agents"])
 print(json.dumps({
     "agents": agents.__file__, "uvdms_gym": uvdms_gym.__file__, "config": str(default_config_path("ppo")),
