@@ -3,9 +3,9 @@
 Library entry point: :func:`train`; command line: ``python -m agents.train`` (:func:`main`). The parts live in
 :mod:`agents.training.spec` (the run specification), :mod:`agents.training.segment` (one training segment),
 :mod:`agents.common.envs` (env construction, seeds), :mod:`agents.training.callbacks`, :mod:`agents.training.models`
-(replay buffer, action-layer scaling) and :mod:`agents.training.rundir` (run directories, checkpoints); their public
-names are re-exported here. The same ``train_configs/<algo>.yml`` also train with ``python -m rl_zoo3.train``
-(:mod:`agents.config.zoo`).
+(replay buffer, action-layer scaling), :mod:`agents.training.rundir` (run directories, checkpoints) and
+:mod:`agents.training.resume` (``--resume``); their public names are re-exported here. The same
+``train_configs/<algo>.yml`` also train with ``python -m rl_zoo3.train`` (:mod:`agents.config.zoo`).
 
 Run directory ``<out>/<env id, '/' and ':' replaced by '_'>/<algo>_<seed>/``::
 
@@ -61,14 +61,12 @@ the files of DIR (SB3 zips and VecNormalize pickles): only resume runs you trust
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import torch
-import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 
 from agents.common.envs import (
@@ -82,9 +80,8 @@ from agents.common.envs import (
     import_gym_packages,
     train_env_seed,
 )
-from agents.common.names import NO_BASE
 from agents.common.wrappers import AliveBonus, ScaledAction
-from agents.config import ConfigError, TrainConfig, parse_entry
+from agents.config import ConfigError
 from agents.training.args import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES, build_parser
 from agents.training.composition import check_vec_env, composition_factories
 from agents.training.models import (
@@ -92,6 +89,7 @@ from agents.training.models import (
     replay_buffer_size,
     scale_action_layer,
 )
+from agents.training.resume import ResumeRequest, resume_run
 from agents.training.rundir import (
     CHECKPOINT_PREFIX,
     Checkpoint,
@@ -103,7 +101,7 @@ from agents.training.rundir import (
     zip_num_timesteps,
 )
 from agents.training.segment import TrainingSegment
-from agents.training.spec import RunSpec, command_prefix, resolve_config
+from agents.training.spec import RunSpec, resolve_config
 from uvdms_gym.utils.kwargs import check_make_kwargs
 from uvdms_gym.utils.kwargs import parse_kv as _parse_key_values
 from uvdms_gym.utils.provenance import git_info, package_versions
@@ -318,123 +316,6 @@ def train_run(
     return run_dir
 
 
-@dataclasses.dataclass(frozen=True)
-class ResumeRequest:
-    """What a ``--resume`` may state about the run (each must agree with its ``config.yml``) and how it runs.
-
-    Attributes:
-        algo: ``--algo`` (``None``: the run's).
-        env_id: ``--env`` (``None``: the run's).
-        total_timesteps: Additional steps (``None``: the steps missing to the configured ``n_timesteps``).
-        n_envs: ``--n-envs`` (cannot change).
-        vec_env: Vectorised env type of this segment.
-        given: The composition options given (``None`` values: not given).
-    """
-
-    algo: str | None
-    env_id: str | None
-    total_timesteps: int | None
-    n_envs: int | None
-    vec_env: str
-    given: Mapping[str, Any]
-
-
-def resume_run(
-    run_dir: Path,
-    request: ResumeRequest,
-    progress: bool,
-    verbose: int,
-    callbacks: Sequence[BaseCallback] = (),
-    after_eval: Sequence[BaseCallback] = (),
-    components: ActionComponents | None = None,
-) -> Path:
-    """Continue the run in ``run_dir`` from its newest checkpoint (``--resume``; module docstring).
-
-    Raises:
-        ConfigError: The request disagrees with the run, or there are no steps left to train.
-        RunDirError: ``run_dir`` is not a resumable run directory.
-    """
-    resolved, cfg = _resumed_config(run_dir, request)
-    env_id, seed = resolved["env_id"], int(resolved["seed"])
-    check_vec_env(cfg, request.vec_env)
-    factories = composition_factories(cfg, components)
-    gym_packages = tuple(resolved.get("gym_packages", DEFAULT_GYM_PACKAGES))
-    check_env_id(env_id, gym_packages)
-
-    checkpoint = latest_checkpoint(run_dir)
-    if checkpoint is None:
-        raise RunDirError(f"{run_dir}: no final_model.zip or checkpoints/{CHECKPOINT_PREFIX}_<N>_steps.zip")
-    if cfg.normalize is not False and checkpoint.vecnormalize is None:
-        raise RunDirError(f"{run_dir}: normalize is on but no VecNormalize statistics for {checkpoint.model}")
-    total_timesteps = _resume_steps(run_dir, cfg, checkpoint, request.total_timesteps)
-    command = [
-        *command_prefix(cfg),
-        "--resume",
-        str(run_dir),
-        "--total-timesteps",
-        str(total_timesteps),
-        "--vec-env",
-        request.vec_env,
-    ]
-    segment = TrainingSegment(
-        run_dir,
-        cfg,
-        env_id,
-        seed,
-        gym_packages,
-        total_timesteps,
-        command,
-        checkpoint,
-        request.vec_env,
-        verbose,
-        factories,
-    )
-    segment.run(progress, callbacks, after_eval)
-    return run_dir
-
-
-def _resumed_config(run_dir: Path, request: ResumeRequest) -> tuple[dict[str, Any], TrainConfig]:
-    """The run's recorded ``config.yml`` and its configuration; what the request states must agree with it."""
-    config_file = run_dir / "config.yml"
-    if not config_file.is_file() or not (run_dir / "meta.json").is_file():
-        raise RunDirError(f"{run_dir} is not a run directory (config.yml / meta.json missing)")
-    resolved = yaml.safe_load(config_file.read_text(encoding="utf-8"))
-    for name, value in (("algo", request.algo), ("env_id", request.env_id)):
-        if value is not None and value != resolved[name]:
-            raise ConfigError(f"--resume {run_dir}: {name} {value!r} differs from the run's {resolved[name]!r}")
-    algo, env_id = resolved["algo"], resolved["env_id"]
-    cfg = parse_entry(resolved["config"], algo, source=str(config_file), entry_name=env_id)
-    if request.n_envs is not None and request.n_envs != cfg.n_envs:
-        raise ConfigError(f"--resume: n_envs cannot change ({cfg.n_envs} in {config_file}, got {request.n_envs})")
-    for name, value in request.given.items():
-        if name == "residual_base" and value == NO_BASE:
-            value = None if cfg.residual_base is None else value  # --residual none agrees with a run without a base
-        if value is not None and value != getattr(cfg, name):
-            raise ConfigError(
-                f"--resume: {name} cannot change ({getattr(cfg, name)!r} in {config_file}, got {value!r}); "
-                "the run keeps its composition"
-            )
-    return resolved, cfg
-
-
-def _resume_steps(run_dir: Path, cfg: TrainConfig, checkpoint: Checkpoint, requested: int | None) -> int:
-    """The steps a resume trains: those requested, or those missing to the configured ``n_timesteps``."""
-    total_timesteps = requested
-    if total_timesteps is None:
-        total_timesteps = cfg.n_timesteps - checkpoint.num_timesteps
-        if total_timesteps <= 0:
-            raise ConfigError(
-                f"{run_dir} already has {checkpoint.num_timesteps} of {cfg.n_timesteps} steps; "
-                "pass --total-timesteps N to train N more steps"
-            )
-    if total_timesteps <= 0:
-        raise ConfigError(f"total_timesteps must be positive, got {total_timesteps}")
-    return total_timesteps
-
-
-# ------------------------------------------------------------------------------------------------------
-# Command line
-# ------------------------------------------------------------------------------------------------------
 def parse_key_values(items: Sequence[str] | None, option: str = "--env-kwargs") -> dict[str, Any]:
     """Parse ``key=value`` strings (:func:`uvdms_gym.utils.kwargs.parse_kv`), raising :class:`ConfigError`.
 
