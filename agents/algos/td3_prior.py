@@ -64,6 +64,12 @@ def actor_loss(
     return -q.mean() / scale + prior_coef * deviation.pow(2).mean()
 
 
+def _check_prior_name(prior: Any) -> None:
+    """``prior_policy`` is ``None`` or a non-empty string (a folder; its files are checked when they are read)."""
+    if prior is not None and (not isinstance(prior, str) or not prior):
+        raise ValueError(f"prior_policy must be the folder of a weights-only agent export, got {prior!r}")
+
+
 class TD3Prior(TD3):
     """SB3's TD3 whose actor is regularised toward the zero action (see the module).
 
@@ -110,7 +116,9 @@ class TD3Prior(TD3):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ) -> None:
-        self.check_hyperparams({"prior_coef": prior_coef, "prior_policy": prior_policy})
+        # the prior's files are read once, by _setup_model (check_hyperparams reads them when a config is checked)
+        self.check_hyperparams({"prior_coef": prior_coef})
+        _check_prior_name(prior_policy)
         self.prior_coef = float(prior_coef)
         self.prior_policy = prior_policy
         self.prior_actor: th.nn.Module | None = None
@@ -153,9 +161,8 @@ class TD3Prior(TD3):
         if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
             raise ValueError(f"prior_coef must be a finite number >= 0, got {value!r}")
         prior = hyperparams.get("prior_policy")
+        _check_prior_name(prior)
         if prior is not None:
-            if not isinstance(prior, str) or not prior:
-                raise ValueError(f"prior_policy must be the folder of a weights-only agent export, got {prior!r}")
             load_prior_actor(prior)
 
     def _setup_model(self) -> None:
