@@ -60,6 +60,29 @@ def test_v1_has_v0_dynamics_and_costs_and_a_reward_that_is_the_sum_of_its_bounde
             env.close()
 
 
+def test_the_optional_precision_term_is_a_narrow_exp_of_the_tracking_error_and_off_by_default():
+    default = gym.make("uvdms/CircleTrack-v1", case=2)
+    shaped = gym.make("uvdms/CircleTrack-v1", case=2, precision_weight=0.7, precision_scale=0.02)
+    rng = np.random.default_rng(5)
+    try:
+        default.reset(seed=1)
+        shaped.reset(seed=1)
+        for _ in range(30):
+            action = rng.uniform(-0.3, 0.3, 18).astype(np.float32)
+            (_, r0, *_, info0), (_, r1, *_, info1) = default.step(action), shaped.step(action)
+            assert info0["reward_precision"] == 0.0
+            assert info1["tracking_error"] == info0["tracking_error"]  # a reward option, not a dynamics one
+            expected = 0.7 * math.exp(-info1["tracking_error"] / 0.02)
+            assert info1["reward_precision"] == pytest.approx(expected, rel=1e-12)
+            assert r1 == pytest.approx(r0 + expected, abs=1e-12)
+    finally:
+        default.close()
+        shaped.close()
+    for bad in ({"precision_weight": -1.0}, {"precision_scale": 0.0}, {"precision_weight": float("nan")}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            gym.make("uvdms/CircleTrack-v1", **bad)
+
+
 def _episode_return(env_id: str, action: np.ndarray, **kwargs) -> tuple[float, int, dict]:
     env = gym.make(env_id, case=1, **kwargs)
     try:

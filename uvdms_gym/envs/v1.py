@@ -17,6 +17,11 @@ error in rad, ``a``: the clipped action, ``S``: the velocity-damper shape of the
     reward_effort      = effort_weight      * (1 - |a|^2 / 18)                   in [0, effort_weight]
     reward_proximity   = proximity_weight   * mean_i S(d_i)                      in [0, proximity_weight]
     reward_contact     = -contact_weight    on a step with physical contact      (the episode then ends)
+    reward_precision   = precision_weight   * exp(-e_p / precision_scale)        in [0, precision_weight]
+
+``reward_precision`` is off by default (``precision_weight = 0``). It is a training-side option: a second,
+narrow tracking term for learners that train with a wide ``track_scale`` (whose term is nearly linear, and so
+nearly flat in the last centimetres) and must still be rewarded for millimetres.
 
 A step on which the physics blows up keeps v0's ``PHYSICS_ERROR_REWARD``.
 """
@@ -46,6 +51,8 @@ TRACK_SCALE = 0.05
 """Default ``track_scale`` (m): the tracking term is 1/e of its maximum at a 5 cm error."""
 ORIENTATION_SCALE = math.radians(5.0)
 """Default ``orientation_scale`` (rad)."""
+PRECISION_SCALE = 0.01
+"""Default ``precision_scale`` (m) of the optional narrow tracking term (off unless ``precision_weight > 0``)."""
 
 
 class _BoundedReward(UVDMSEnv):
@@ -58,14 +65,25 @@ class _BoundedReward(UVDMSEnv):
         *,
         track_scale: float = TRACK_SCALE,
         orientation_scale: float = ORIENTATION_SCALE,
+        precision_weight: float = 0.0,
+        precision_scale: float = PRECISION_SCALE,
         **kwargs: Any,
     ) -> None:
-        for name, value in (("track_scale", track_scale), ("orientation_scale", orientation_scale)):
+        for name, value in (
+            ("track_scale", track_scale),
+            ("orientation_scale", orientation_scale),
+            ("precision_scale", precision_scale),
+        ):
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be a finite positive number, got {value}")
+        if not (math.isfinite(precision_weight) and precision_weight >= 0.0):
+            raise ValueError(f"precision_weight must be a finite non-negative number, got {precision_weight}")
         super().__init__(**{**V1_WEIGHTS, **kwargs})
         self.track_scale = float(track_scale)
         self.orientation_scale = float(orientation_scale)
+        self.precision_scale = float(precision_scale)
+        self.weights["precision"] = float(precision_weight)
+        self._reward_keys = {k: f"reward_{k}" for k in self.weights}
 
     def _reward_terms(self, a: np.ndarray, info: dict[str, Any]) -> dict[str, float]:
         w = self.weights
@@ -80,6 +98,7 @@ class _BoundedReward(UVDMSEnv):
             "effort": w["effort"] * (1.0 - float(a @ a) / ACTION_DIM),
             "proximity": w["proximity"] * clear,
             "contact": -w["contact"] * info["cost_contact"],
+            "precision": w["precision"] * math.exp(-info["tracking_error"] / self.precision_scale),
         }
 
 
@@ -93,7 +112,9 @@ class CircleTrackV1Env(_BoundedReward, CircleTrackEnv):
     ``reward_proximity = proximity_weight * mean_i S(d_i)`` (velocity-damper shape: 1 beyond 0.12 m, 0 inside
     0.05 m) and ``reward_contact = -contact_weight`` on a step with physical contact (which ends the episode).
     Every term but the contact penalty lies in ``[0, weight]``, so at equal tracking running to the time limit
-    always beats ending the episode early. Defaults: :data:`V1_WEIGHTS`, ``track_scale = 0.05 m``.
+    always beats ending the episode early. Defaults: :data:`V1_WEIGHTS`, ``track_scale = 0.05 m``. The optional
+    ``reward_precision = precision_weight * exp(-e / precision_scale)`` (default weight 0, scale 0.01 m) is a
+    narrow second tracking term for training with a wide ``track_scale``.
 
     Everything else (dynamics, task, observation, costs, episode end, ``max_episode_steps = 500``) is v0's.
 
