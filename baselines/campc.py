@@ -290,7 +290,9 @@ def _govern(e0: np.ndarray, max_error: float, two_points: bool) -> None:
     e0 *= np.minimum(1.0, max_error / np.maximum(norm, 1e-12))[:, None]
 
 
-def resample_reference(t_grid: np.ndarray, y_grid: np.ndarray, times: np.ndarray, angle_cols=()) -> np.ndarray:
+def resample_reference(
+    t_grid: np.ndarray, y_grid: np.ndarray, times: np.ndarray, angle_cols: tuple[int, ...] = ()
+) -> np.ndarray:
     """Linear interpolation of a reference given on a time grid (held beyond its ends).
 
     Args:

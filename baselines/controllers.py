@@ -47,6 +47,7 @@ import numpy as np
 
 from baselines.campc import MPCController, task_config
 from baselines.di import DIConfig, DynamicInversionController, UVDMSNominalModel
+from baselines.mpc import MPCConfig
 from uvdms_gym.evaluation import Controller, check_action_mode
 
 BASELINES: dict[str, dict[str, Any]] = {
@@ -100,7 +101,7 @@ def task_of(env: Any) -> str:
     return "transport" if getattr(env.unwrapped, "with_object", False) else "circle"
 
 
-def controller_config(task: str, collision: bool, control_dt: float, **overrides: Any):
+def controller_config(task: str, collision: bool, control_dt: float, **overrides: Any) -> MPCConfig:
     """The MPC settings of a baseline on a task, with ``T_c`` equal to the environment's control period.
 
     Args:

@@ -1,11 +1,12 @@
-"""Copy the committed leaderboard's tables into the README (a subset of their columns).
+"""Copy the top rows of the committed leaderboard's tables into the README (a subset of their columns).
 
     python scripts/readme_leaderboard_tables.py [--leaderboard docs/leaderboard/leaderboard.md] [--readme README.md]
 
 The README's "#### Velocity track" and "#### Torque track" sections each hold one markdown table with the columns
-below; this replaces those tables by the same columns of the tables under "### Velocity track" and
-"### Torque track" of ``leaderboard.md`` (written by ``uvdms leaderboard --out docs/leaderboard``), so that
-the README never shows figures the committed run did not produce. Run it after regenerating the leaderboard.
+below and the first :data:`TOP_ROWS` rows of every task; this replaces those tables by the same columns and rows
+of the tables under "### Velocity track" and "### Torque track" of ``leaderboard.md`` (written by
+``uvdms leaderboard --out docs/leaderboard``), so that the README never shows figures the committed run did not
+produce. Run it after regenerating the leaderboard.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from pathlib import Path
 
 COLUMNS = ("Task", "Rank", "Entry", "Contact-free success", "RMSE pos (mm)", "Min distance (m)", "Ctrl ms", "n")
 TRACKS = ("Velocity track", "Torque track")
+TOP_ROWS: dict[str, int] = {"Velocity track": 3, "Torque track": 1}
+"""Rows shown per task (the leaderboard's ranking order) in each track's README table."""
 
 
 def _cells(line: str) -> list[str]:
@@ -37,7 +40,7 @@ def _table_after(text: str, heading: str) -> tuple[int, int]:
 
 
 def readme_table(leaderboard_md: str, track: str) -> str:
-    """The README form of one track's table: :data:`COLUMNS` of the leaderboard's table, in its row order."""
+    """The README form of one track's table: :data:`COLUMNS` and each task's first :data:`TOP_ROWS` rows."""
     start, end = _table_after(leaderboard_md, f"### {track}")
     lines = leaderboard_md[start:end].splitlines()
     header = _cells(lines[0])
@@ -47,9 +50,13 @@ def readme_table(leaderboard_md: str, track: str) -> str:
     index = [header.index(c) for c in COLUMNS]
     align = ["---" if c in ("Task", "Rank", "Entry") else "--:" for c in COLUMNS]
     out = ["| " + " | ".join(COLUMNS) + " |", "|" + "|".join(align) + "|"]
+    shown: dict[str, int] = {}
     for line in lines[2:]:
         cells = _cells(line)
-        out.append("| " + " | ".join(cells[i] for i in index) + " |")
+        task = cells[header.index("Task")]
+        shown[task] = shown.get(task, 0) + 1
+        if shown[task] <= TOP_ROWS[track]:
+            out.append("| " + " | ".join(cells[i] for i in index) + " |")
     return "\n".join(out) + "\n"
 
 

@@ -11,7 +11,7 @@ here ``a = 0`` and ``prior_coef = 1 / alpha``, so TD3+BC's default ``alpha = 2.5
 normalisation makes the trade-off independent of the reward's scale. Why: an actor that follows an untrained
 critic's gradient goes to the action bounds within a few thousand updates, since the critic has only seen
 actions near the behaviour's and extrapolates beyond them; for a residual over ``mpc`` on the circle tasks that
-drove the arms into contacts that the base alone avoids (TD3 and SAC runs, ``README.md``, "Learned entries").
+drove the arms into contacts that the base alone avoids (TD3 and SAC runs, ``docs/training/learned-entries.md``).
 The penalty keeps the actor where the data is, while a consistent gain in Q still moves it.
 
 Everything else (critics, target smoothing, delayed updates, exploration noise) is SB3's ``TD3``; with

@@ -1,6 +1,6 @@
 """Torch threads of a training run: how many CPUs a run holds, and the update's thread count.
 
-The rule (documented in ``docs/CLUSTER_TRAINING.md`` and the README's Performance section):
+The rule (documented in ``docs/CLUSTER_TRAINING.md`` and docs/performance.md):
 
 - A run *holds* :func:`run_cpus` CPUs: 1 with ``--vec-env dummy`` (the trainer steps every env itself),
   ``n_envs`` with ``subproc``, ``hybrid`` or ``rollout`` (one process per env is busy while the envs step). Sweeps and

@@ -1,12 +1,14 @@
-"""Every ``uvdms`` command in README.md's ```bash blocks runs, at a tiny budget, through the real console script.
+"""Every ``uvdms`` command in the ```bash blocks of README.md and of the documentation site's pages (``docs/``, but
+the generated ``docs/leaderboard/``) runs, at a tiny budget, through the real console script.
 
 :data:`SHRUNK` lists, per README command, the command actually run: the same arguments with a smaller budget
 (``--episodes 1``, ``--total-timesteps`` of a few hundred, ``max_episode_steps`` of a few dozen, ``--quick``,
 ``--max-episode-steps`` for the leaderboard, cheaper training hyper-parameters), placeholders such as
-``path/to/agent_export`` replaced by a real agent, and ``--no-progress``. :func:`test_the_table_covers_the_readme`
-fails when the README has a ``uvdms`` command the table does not list (or the table one the README lost), so the
-two cannot drift apart; :func:`test_shrunk_commands_keep_the_readme_arguments` checks that each shrunk command
-still contains every README argument except the budget values.
+``path/to/agent_export`` replaced by a real agent, and ``--no-progress``.
+:func:`test_the_table_covers_the_readme_and_the_docs` fails when the README or a docs page has a ``uvdms`` command
+the table does not list (or the table one they all lost), so they cannot drift apart;
+:func:`test_shrunk_commands_keep_the_readme_arguments` checks that each shrunk command still contains every
+documented argument except the budget values.
 
 The commands run in a temporary working directory (``trained_agents`` links to the repository's, so that
 relative paths and the trusted-agents rule work as in a checkout), in :data:`CHAINS`: commands that depend on
@@ -29,6 +31,14 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 README = REPO / "README.md"
+DOCS = REPO / "docs"
+
+
+def documented_text() -> str:
+    """README.md and every hand-written page of the documentation site, concatenated."""
+    pages = sorted(p for p in DOCS.rglob("*.md") if not p.is_relative_to(DOCS / "leaderboard"))
+    return "\n".join(page.read_text(encoding="utf-8") for page in [README, *pages])
+
 UVDMS = Path(sys.executable).parent / "uvdms"
 
 BUDGET_OPTIONS = ("--episodes", "--total-timesteps")
@@ -83,6 +93,20 @@ SHRUNK: dict[str, Shrunk] = {
         "uvdms leaderboard --entries baselines agents my_export --quick --episodes 1 --max-episode-steps 20 "
         "--no-progress",
         creates=("leaderboard_out/entries/my_export.json",),
+    ),
+    "uvdms export-agent trained_agents/ppo-circle-case1-v0 path/to/my_export": Shrunk(
+        "leaderboard",
+        "uvdms export-agent trained_agents/ppo-circle-case1-v0 my_export",
+        creates=("my_export/agent.json", "my_export/policy.pt"),
+    ),
+    # docs/OBSTACLES.md: a scripted obstacle through --env-kwargs
+    "uvdms evaluate --controller campc --env uvdms/TransportObstacles-v1 --episodes 1 --env-kwargs "
+    "'obstacles=[{shape: sphere, radius: 0.08, position: [3.5, 1.5, 29.0], velocity: [-0.05, 0.02, 0.01]}]'": Shrunk(
+        "evaluate",
+        "uvdms evaluate --controller campc --env uvdms/TransportObstacles-v1 --episodes 1 --env-kwargs "
+        "'obstacles=[{shape: sphere, radius: 0.08, position: [3.5, 1.5, 29.0], velocity: [-0.05, 0.02, 0.01]}]' "
+        "max_episode_steps=20 --no-progress",
+        stdout_json=True,
     ),
     # reference controller section
     "uvdms evaluate --controller campc --env uvdms/CircleTrack-v0 --env-kwargs case=2 --episodes 5 --out campc.json": (
@@ -196,10 +220,6 @@ SHRUNK: dict[str, Shrunk] = {
 }
 """README command (normalised: see :func:`readme_commands`) -> how it is run."""
 
-SETUP: dict[str, tuple[str, ...]] = {
-    "leaderboard": ("uvdms export-agent trained_agents/ppo-circle-case1-v0 my_export",),  # the submission placeholder
-}
-"""Commands (not from the README) a chain runs first."""
 ORDER: tuple[str, ...] = (
     # train: the later commands use the run, the resume and the export of the earlier ones
     "uvdms train --algo sac --env uvdms/CircleTrack-v0 --env-kwargs case=1 --seed 0 --total-timesteps 60000",
@@ -211,7 +231,8 @@ ORDER: tuple[str, ...] = (
     "--residual-scale 0.2 --total-timesteps 60000",
     "uvdms export-agent runs/uvdms_CircleTrack-v0/sac_1 exported/residual-mpc-sac --trust",
     "uvdms evaluate --controller exported/residual-mpc-sac --env uvdms/CircleTrack-v0 --env-kwargs case=1 --episodes 5",
-    # leaderboard: the full suite and the submission reuse the quick run's cache
+    # leaderboard: the submission is exported first; the full suite and the submission reuse the quick run's cache
+    "uvdms export-agent trained_agents/ppo-circle-case1-v0 path/to/my_export",
     "uvdms leaderboard --quick",
     "uvdms leaderboard --out docs/leaderboard",
 )
@@ -262,13 +283,14 @@ def test_readme_parser_handles_prefixes_chains_continuations_and_comments():
     assert readme_commands(text) == ["uvdms leaderboard --quick", "uvdms evaluate --controller campc --episodes 5"]
 
 
-def test_the_table_covers_the_readme():
-    commands = readme_commands(README.read_text(encoding="utf-8"))
-    assert commands, "no uvdms command found in README.md's bash blocks"
+def test_the_table_covers_the_readme_and_the_docs():
+    commands = readme_commands(documented_text())
+    assert commands, "no uvdms command found in the bash blocks of README.md and docs/"
+    assert readme_commands(README.read_text(encoding="utf-8")), "no uvdms command in README.md's bash blocks"
     missing = [c for c in commands if c not in SHRUNK]
-    assert not missing, f"README commands without a tiny-budget version in SHRUNK: {missing}"
+    assert not missing, f"README/docs commands without a tiny-budget version in SHRUNK: {missing}"
     stale = [c for c in SHRUNK if c not in commands]
-    assert not stale, f"SHRUNK lists commands the README no longer has: {stale}"
+    assert not stale, f"SHRUNK lists commands neither the README nor the docs have: {stale}"
     assert all(c in SHRUNK for c in ORDER)
 
 
@@ -298,9 +320,6 @@ def _run(command: str, cwd: Path) -> subprocess.CompletedProcess:
 @pytest.mark.parametrize("chain", sorted(CHAINS))
 def test_readme_commands_run(chain, tmp_path):
     (tmp_path / "trained_agents").symlink_to(REPO / "trained_agents", target_is_directory=True)
-    for command in SETUP.get(chain, ()):
-        proc = _run(command, tmp_path)
-        assert proc.returncode == 0, f"setup {command}\n{proc.stderr[-3000:]}"
     for readme_command in CHAINS[chain]:
         shrunk = SHRUNK[readme_command]
         proc = _run(shrunk.run, tmp_path)

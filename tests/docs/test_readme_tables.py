@@ -27,3 +27,16 @@ def test_a_changed_cell_is_rewritten_and_missing_columns_are_named():
     assert stale != readme and tables.update_readme(stale, board) == readme
     with pytest.raises(ValueError, match=r"no column\(s\) \['Ctrl ms'\]"):
         tables.readme_table(board.replace("| Ctrl ms |", "| Ctrl |"), "Velocity track")
+
+
+def test_the_readme_shows_each_tasks_first_rows_in_the_leaderboards_order():
+    board = (REPO / "docs" / "leaderboard" / "leaderboard.md").read_text(encoding="utf-8")
+    for track, top in tables.TOP_ROWS.items():
+        start, end = tables._table_after(board, f"### {track}")
+        rows = [tables._cells(line) for line in board[start:end].splitlines()[2:]]
+        shown = [tables._cells(line) for line in tables.readme_table(board, track).splitlines()[2:]]
+        expected: list[tuple[str, str]] = []
+        for task in dict.fromkeys(r[0] for r in rows):
+            expected += [(r[0], r[2]) for r in rows if r[0] == task][:top]
+        assert [(r[0], r[2]) for r in shown] == expected
+        assert len(shown) < len(rows)  # a cut, not the whole table

@@ -25,6 +25,7 @@ All geometry helpers broadcast over leading dimensions (points and vectors are `
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -49,7 +50,10 @@ from uvdms_gym.distances.geometry import (
 from uvdms_gym.distances.geometry import (
     segment_segment as segment_segment,
 )
-from uvdms_gym.physics.params import D1, D2
+from uvdms_gym.physics.params import D1, D2, UVDMSParams
+
+if TYPE_CHECKING:
+    from uvdms_gym.physics.kinematics import KinematicModel
 
 N_ROWS = 18
 SIDES = ("left", "right")
@@ -117,7 +121,7 @@ _LEFT_FRAMES = tuple(f"left_link{j}" for j in range(7))
 _PLATE_ROWS_FRAMES = ("vehicle",) * 12
 
 
-def contact_thresholds(params, obstacle_index: np.ndarray | None = None) -> np.ndarray:
+def contact_thresholds(params: UVDMSParams, obstacle_index: np.ndarray | None = None) -> np.ndarray:
     """Distance ``d`` (18,) at which the physical surfaces touch, per row.
 
     ``2 r`` for link-link rows, ``r + t/2`` for link-plate rows (``t`` the thickness of the row's plate,
@@ -245,7 +249,7 @@ class _PlateData:
 _PLATE_CACHE: dict = {}
 
 
-def _plate_data(params) -> _PlateData:
+def _plate_data(params: UVDMSParams) -> _PlateData:
     key = params.plates
     pd = _PLATE_CACHE.get(key)
     if pd is None:
@@ -349,7 +353,7 @@ _PLATE_TABLE_CACHE: dict = {}
 _OBSTACLE_FRAMES_CACHE: dict[bytes, tuple[str, ...]] = {}
 
 
-def _plate_table(params) -> np.ndarray:
+def _plate_table(params: UVDMSParams) -> np.ndarray:
     """:func:`uvdms_gym.distances.kernels.plate_table` of ``params.plates``, cached per plates object.
 
     Keyed by identity (hashing the frozen plate dataclasses costs ~2 µs per call); the cached entry keeps
@@ -371,7 +375,7 @@ def _obstacle_frames(idx: np.ndarray) -> tuple[str, ...]:
     return out
 
 
-def compute_distances(kin, method: str = "exact", n: int = 20) -> DistanceResult:
+def compute_distances(kin: KinematicModel, method: str = "exact", n: int = 20) -> DistanceResult:
     """The 18 distances of the current state of ``kin`` (a :class:`uvdms_gym.physics.kinematics.KinematicModel`).
 
     The link axes come from ``kin.link_segments()``. The plates are ``kin.params.plates`` placed with the
@@ -406,7 +410,7 @@ def compute_distances(kin, method: str = "exact", n: int = 20) -> DistanceResult
     return DistanceResult(d, p, e, _obstacle_frames(idx), LINK_FRAMES, idx, method)
 
 
-def compute_distances_reference(kin) -> DistanceResult:
+def compute_distances_reference(kin: KinematicModel) -> DistanceResult:
     """``compute_distances(kin, "exact")`` by the vectorized numpy implementation (the reference).
 
     The same analytic method as the default ``"exact"`` path (see :func:`_link_link_exact` and
@@ -455,7 +459,7 @@ def _row_masks(model, res: DistanceResult) -> np.ndarray:
     return out
 
 
-def distance_jacobian(kin, res: DistanceResult) -> np.ndarray:
+def distance_jacobian(kin: KinematicModel, res: DistanceResult) -> np.ndarray:
     """``J_dis`` (18, 18): row ``i`` is ``n_i^T (J_P,i - J_E,i)``, so ``v_dis = J_dis zeta`` and ``d_dot = -v_dis``.
 
     ``J_P,i`` (``J_E,i``) is the Jacobian of the material point at ``P_i`` (``E_i``) rigidly attached to the
@@ -482,7 +486,7 @@ def distance_jacobian(kin, res: DistanceResult) -> np.ndarray:
     return _distkernels.jdis_rows(_row_masks(kin.model, res), kin.data.J, res.p, res.e)
 
 
-def distance_jacobian_reference(kin, res: DistanceResult) -> np.ndarray:
+def distance_jacobian_reference(kin: KinematicModel, res: DistanceResult) -> np.ndarray:
     """:func:`distance_jacobian` in numpy (the reference the compiled kernel is tested against).
 
     Args:

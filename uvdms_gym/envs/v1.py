@@ -29,7 +29,7 @@ A step on which the physics blows up keeps v0's ``PHYSICS_ERROR_REWARD``.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -59,6 +59,8 @@ class _BoundedReward(UVDMSEnv):
     """The v1 reward over any v0 task (a mixin placed before the task class)."""
 
     rewards_orientation = True
+    default_weights: ClassVar[dict[str, float]] = V1_WEIGHTS
+    """The reward weights' defaults, overriding :class:`~uvdms_gym.envs.base.UVDMSEnv`'s."""
 
     def __init__(
         self,
@@ -78,7 +80,7 @@ class _BoundedReward(UVDMSEnv):
                 raise ValueError(f"{name} must be a finite positive number, got {value}")
         if not (math.isfinite(precision_weight) and precision_weight >= 0.0):
             raise ValueError(f"precision_weight must be a finite non-negative number, got {precision_weight}")
-        super().__init__(**{**V1_WEIGHTS, **kwargs})
+        super().__init__(**{**self.default_weights, **kwargs})
         self.track_scale = float(track_scale)
         self.orientation_scale = float(orientation_scale)
         self.precision_scale = float(precision_scale)
