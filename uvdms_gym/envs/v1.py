@@ -121,7 +121,9 @@ class CircleTrackV1Env(_BoundedReward, CircleTrackEnv):
     Everything else (dynamics, task, observation, costs, episode end, ``max_episode_steps = 500``) is v0's.
 
     ## Version History
-    * v1: bounded non-negative per-step reward and a contact penalty (v0: every term <= 0).
+    * v1: bounded non-negative per-step reward and a contact penalty (v0: every term <= 0). Release 0.3.0 adds
+      the optional keywords ``precision_weight`` and ``precision_scale`` (a narrow tracking term, off by
+      default: the default reward is unchanged).
     * v0: initial release.
     """
 
@@ -139,6 +141,8 @@ class TransportV1Env(_BoundedReward, TransportEnv):
     Everything else (dynamics, task, observation, costs, episode end, ``max_episode_steps = 600``) is v0's.
 
     ## Version History
-    * v1: bounded non-negative per-step reward and a contact penalty (v0: every term <= 0).
+    * v1: bounded non-negative per-step reward and a contact penalty (v0: every term <= 0). Release 0.3.0 adds
+      the optional keywords ``precision_weight`` and ``precision_scale`` (a narrow tracking term, off by
+      default: the default reward is unchanged).
     * v0: initial release.
     """
