@@ -4,7 +4,8 @@
 ``campc-nndi``, every agent folder (one agent, or one per training seed) in the shipped-agents directory, and
 any agent checkpoint given by path) on a **task suite** (:data:`TASKS`: the paper's Case 1, Case 2 and
 transport, plus held-out randomised variants with ``hydro_randomization=0.3``) and writes ``leaderboard.md``,
-``leaderboard.csv``, one JSON per entry and PNG plots (learning curves too, for the agents that recorded them).
+``leaderboard.csv``, one JSON per entry, PNG plots (learning curves too, for the agents that recorded them) and
+``index.html``, all of it as one self-contained web page (:mod:`~leaderboard.webpage`).
 The ``uvdms leaderboard`` command (:mod:`leaderboard.cli`) wraps it. Modules: :mod:`~leaderboard.tasks` (task
 suite, tracks, seeds), :mod:`~leaderboard.entries`, :mod:`~leaderboard.registry` (name or path -> controller),
 :mod:`~leaderboard.stats` (bootstrap CIs, multi-seed IQMs, ranking), :mod:`~leaderboard.cache`,
@@ -190,6 +191,7 @@ from leaderboard.tasks import (
     evaluation_seeds,
     select_tasks,
 )
+from leaderboard.webpage import PAGE_NAME, PageError, write_index_html
 
 __all__ = [
     "BASELINES",
@@ -207,6 +209,7 @@ __all__ = [
     "N_RESAMPLES",
     "OVERLOAD_MARK",
     "PACKAGE_VERSION",
+    "PAGE_NAME",
     "PLOT_METRICS",
     "QUICK_EPISODES",
     "RATE_METRICS",
@@ -225,6 +228,7 @@ __all__ = [
     "Entry",
     "Job",
     "LeaderboardResult",
+    "PageError",
     "RankedRow",
     "Stat",
     "Task",
@@ -264,6 +268,7 @@ __all__ = [
     "timing_summary",
     "timing_text",
     "training_seeds",
+    "write_index_html",
     "write_learning_curves",
     "write_outputs",
     "write_plots",

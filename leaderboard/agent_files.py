@@ -154,3 +154,74 @@ def agent_checksum(path: str | Path) -> str:
         digest.update(file.name.encode() + b"\0")
         digest.update(hashlib.sha256(file.read_bytes()).digest())
     return digest.hexdigest()
+
+
+def _record(folder: Path, name: str) -> dict[str, Any]:
+    """The mapping a run file holds (``{}``: absent, unreadable or not a mapping)."""
+    file = folder / name
+    if not file.is_file():
+        return {}
+    try:
+        doc = read_structured(file)
+    except (OSError, ValueError, yaml.YAMLError) as exc:
+        log.warning("cannot read %s: %s", file, exc)
+        return {}
+    return doc if isinstance(doc, dict) else {}
+
+
+def _segments(meta: Mapping[str, Any]) -> list[dict[str, Any]]:
+    segments = meta.get("segments")
+    return [s for s in segments if isinstance(s, dict)] if isinstance(segments, list) else []
+
+
+def _budget(meta: Mapping[str, Any], config: Mapping[str, Any]) -> dict[str, Any]:
+    """Steps and wall time of the training (``scripts.ship_agent``'s ``shipped`` record, else the segments').
+
+    ``budget_timesteps``: the steps asked for (the segments' ``requested_timesteps`` summed, else the config's
+    ``n_timesteps``); ``trained_timesteps``: the last segment's step count; ``wall_time_s``: the segments' wall
+    times summed (``None`` unless every segment recorded one).
+    """
+    shipped = meta.get("shipped") if isinstance(meta.get("shipped"), dict) else {}
+    segments = _segments(meta)
+    requested = [s.get("requested_timesteps") for s in segments]
+    walls = [s.get("wall_time_s") for s in segments]
+    budget = shipped.get("budget_timesteps")
+    if budget is None and segments and all(isinstance(r, int) for r in requested):
+        budget = sum(requested)
+    if budget is None:
+        budget = config.get("n_timesteps")
+    wall = shipped.get("wall_time_s")
+    if wall is None and segments and all(isinstance(w, int | float) for w in walls):
+        wall = round(float(sum(walls)), 1)
+    trained = shipped.get("trained_timesteps")
+    if trained is None and segments:
+        trained = segments[-1].get("end_num_timesteps")
+    return {"budget_timesteps": budget, "trained_timesteps": trained, "wall_time_s": wall, "segments": len(segments)}
+
+
+def training_record(path: str | Path) -> dict[str, Any]:
+    """What an agent's plain-text run files record of its training (``None`` where a file does not say).
+
+    Read from ``agent.json``, ``config.yml`` and ``meta.json`` of the agent's folder (nothing is loaded).
+
+    Returns:
+        ``algo``, ``policy`` (the SB3 policy name), ``net_arch``, ``activation_fn``, ``budget_timesteps``,
+        ``trained_timesteps``, ``model_timesteps`` (the steps of the saved model), ``wall_time_s``, ``segments``
+        (training segments, ``--resume`` adds one) and ``teacher`` (a distilled policy's teacher, as recorded).
+    """
+    folder = Path(path) if Path(path).is_dir() else Path(path).parent
+    agent, meta = _record(folder, "agent.json"), _record(folder, "meta.json")
+    run_config = _record(folder, "config.yml") or _record(folder, "config.yaml")
+    config = run_config.get("config") if isinstance(run_config.get("config"), dict) else {}
+    policy_kwargs = agent.get("policy_kwargs") or config.get("policy_kwargs") or {}
+    shipped = meta.get("shipped") if isinstance(meta.get("shipped"), dict) else {}
+    composition = next((s.get("action_composition") for s in reversed(_segments(meta))), None) or {}
+    return {
+        "algo": agent.get("algo") or meta.get("algo") or run_config.get("algo"),
+        "policy": agent.get("policy") or config.get("policy"),
+        "net_arch": policy_kwargs.get("net_arch") if isinstance(policy_kwargs, dict) else None,
+        "activation_fn": policy_kwargs.get("activation_fn") if isinstance(policy_kwargs, dict) else None,
+        **_budget(meta, config),
+        "model_timesteps": agent.get("num_timesteps", shipped.get("model_num_timesteps")),
+        "teacher": composition.get("teacher_factory") if isinstance(composition, dict) else None,
+    }

@@ -14,10 +14,12 @@ Evaluate the named baselines (mpc, campc: velocity track; campc-di, campc-nndi: 
 folder in --agents-dir and any agent given by path on the task suite (paper Case 1, Case 2, transport, and
 held-out randomised variants with hydro_randomization=0.3), on evaluation seeds disjoint from every training
 seed. Rank each track per task by contact-free success rate, then position RMSE (ties when the 95% bootstrap
-intervals overlap), print the tables and write leaderboard.md, leaderboard.csv, entries/*.json and plots/*.png
-to --out. Every episode is cached under --cache-dir and reused on re-runs. Episodes run in this process, in
---jobs local processes, or with --backend ray as Ray tasks on a local instance or the cluster at --address
-(the driver keeps the cache; agents travel to the workers as weights-only exports)."""
+intervals overlap), print the tables and write leaderboard.md, leaderboard.csv, entries/*.json, plots/*.png
+and index.html (the same tables as one self-contained web page: sortable, filterable, a detail view per entry)
+to --out; --page-only DIR only rewrites DIR/index.html from the files already in DIR. Every episode is cached
+under --cache-dir and reused on re-runs. Episodes run in this process, in --jobs local processes, or with
+--backend ray as Ray tasks on a local instance or the cluster at --address (the driver keeps the cache; agents
+travel to the workers as weights-only exports)."""
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -88,10 +90,31 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument(
+        "--page-only",
+        default=None,
+        metavar="DIR",
+        help="evaluate nothing: (re)write DIR/index.html from DIR's leaderboard.csv, entries/*.json and plots/ "
+        "(entry documents that do not record their composition and training take them from the agent folders "
+        "in --agents-dir whose files have the recorded checksums)",
+    )
     p.set_defaults(func=_cmd_leaderboard)
 
 
+def _cmd_page_only(args: argparse.Namespace) -> int:
+    """``--page-only DIR``: write ``DIR/index.html`` from the folder's files (no evaluation)."""
+    from leaderboard.entries import default_agents_dir
+    from leaderboard.webpage import write_index_html
+
+    agents_dir = args.agents_dir if args.agents_dir is not None else default_agents_dir()
+    path = write_index_html(args.page_only, agents_dir=agents_dir)
+    log.info("wrote %s (%.1f MB)", path, path.stat().st_size / 1e6)
+    return 0
+
+
 def _cmd_leaderboard(args: argparse.Namespace) -> int:
+    if args.page_only is not None:
+        return _cmd_page_only(args)
     from dataclasses import replace
 
     import torch

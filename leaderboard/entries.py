@@ -173,9 +173,7 @@ def resolve_entries(
         ValueError: A token that is neither a baseline name, a keyword nor an existing path.
     """
     if agents_dir is None:
-        from agents.export import TRUSTED_DIR
-
-        agents_dir = Path("trained_agents") if Path("trained_agents").is_dir() else TRUSTED_DIR
+        agents_dir = default_agents_dir()
     entries: list[Entry] = []
     seen_specs: set[str] = set()
     for raw_token in tokens or DEFAULT_ENTRIES:
@@ -188,6 +186,13 @@ def resolve_entries(
             seen_specs.add(keyed[0])
             entries.append(keyed[1])
     return _unique_names(entries)
+
+
+def default_agents_dir() -> Path:
+    """The shipped-agents folder: ``trained_agents`` in the working directory if it exists, else the repository's."""
+    from agents.export import TRUSTED_DIR
+
+    return Path("trained_agents") if Path("trained_agents").is_dir() else Path(TRUSTED_DIR)
 
 
 def _token_specs(token: str, agents_dir: str | Path) -> list[str]:

@@ -12,28 +12,23 @@ from typing import TYPE_CHECKING, Any
 
 from leaderboard.cache import PACKAGE_VERSION
 from leaderboard.entries import Entry
+from leaderboard.entry_info import entry_details
 from leaderboard.plots import write_plots
-from leaderboard.stats import METRICS, RATE_METRICS, RankedRow, timing_summary
+from leaderboard.stats import (  # (the table constants live in stats: the page, leaderboard.webpage, reads them too)
+    METRICS,
+    OVERLOAD_MARK,
+    RATE_METRICS,
+    TABLE_METRICS,
+    TIMING_METRICS,
+    RankedRow,
+    timing_summary,
+)
 from leaderboard.tasks import TRACKS, env_version
+from leaderboard.webpage import write_index_html
 from uvdms_gym.utils.io import write_json_atomic
 
 if TYPE_CHECKING:
     from leaderboard.result import LeaderboardResult
-
-OVERLOAD_MARK = "†"
-"""Marks a controller timing taken with a 1-minute load average above the core count (tables)."""
-TABLE_METRICS: tuple[str, ...] = (
-    "contact_free_success",
-    "success",
-    "contact_free",
-    "rmse_pos",
-    "rmse_ori",
-    "min_distance",
-    "return",
-    "controller_ms_median",
-)
-TIMING_METRICS: tuple[str, ...] = ("controller_ms_median",)
-"""Metrics that are wall-clock timings (marked when taken under overload)."""
 
 
 def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_METRICS) -> str:
@@ -203,6 +198,7 @@ def _entry_document(entry: Entry, rows: Sequence[RankedRow]) -> dict[str, Any]:
         "checksum": entry.checksum,
         "weights_only": entry.weights_only,
         "package_version": PACKAGE_VERSION,
+        **entry_details(entry),
         "tasks": {
             row.task.name: {
                 "rank": row.rank,
@@ -228,7 +224,10 @@ def _entry_document(entry: Entry, rows: Sequence[RankedRow]) -> dict[str, Any]:
 
 
 def write_outputs(result: LeaderboardResult, *, command: str | None = None, plots: bool = True) -> None:
-    """Write ``leaderboard.md``, ``leaderboard.csv``, ``entries/<entry>.json`` and (optionally) the plots."""
+    """Write ``leaderboard.md``, ``leaderboard.csv``, ``entries/<entry>.json``, (optionally) the plots, ``index.html``.
+
+    ``index.html`` (:func:`leaderboard.webpage.write_index_html`) is made from the other files, written first.
+    """
     out = result.out_dir
     out.mkdir(parents=True, exist_ok=True)
     plot_files = write_plots(result, out / "plots") if plots else []
@@ -241,3 +240,4 @@ def write_outputs(result: LeaderboardResult, *, command: str | None = None, plot
     for entry in result.entries:
         rows = [r for r in result.rows if r.entry is entry]
         write_json_atomic(entries_dir / f"{entry.slug}.json", _entry_document(entry, rows), indent=None)
+    write_index_html(out)

@@ -48,6 +48,21 @@ METRICS: dict[str, dict[str, Any]] = {
 }
 """Aggregated metrics (per-episode keys of ``run_episode`` plus the derived 0/1 indicators). Values are SI
 (m, rad) everywhere but in the tables and plots, which multiply by ``scale`` (mm, degrees)."""
+TABLE_METRICS: tuple[str, ...] = (
+    "contact_free_success",
+    "success",
+    "contact_free",
+    "rmse_pos",
+    "rmse_ori",
+    "min_distance",
+    "return",
+    "controller_ms_median",
+)
+"""The metrics of the tables of ``leaderboard.md`` (and the columns the page shows by default)."""
+TIMING_METRICS: tuple[str, ...] = ("controller_ms_median",)
+"""Metrics that are wall-clock timings (marked when taken under overload)."""
+OVERLOAD_MARK = "†"
+"""Marks a controller timing taken with a 1-minute load average above the core count (tables)."""
 TIE_TOLERANCE: dict[str, float] = {"contact_free_success": 0.0, "rmse_pos": 1e-4}
 """Two intervals of a ranking metric closer than this count as overlapping (RMSE: 0.1 mm, the tables'
 printed resolution; without it two deterministic controllers with zero-width intervals that print the same
