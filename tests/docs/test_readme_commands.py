@@ -75,7 +75,12 @@ SHRUNK: dict[str, Shrunk] = {
     "uvdms leaderboard --quick": Shrunk(
         "leaderboard",
         "uvdms leaderboard --quick --episodes 1 --max-episode-steps 20 --no-progress",
-        creates=("leaderboard_out/leaderboard.md", "leaderboard_out/leaderboard.csv", "leaderboard_out/plots"),
+        creates=(
+            "leaderboard_out/leaderboard.md",
+            "leaderboard_out/leaderboard.csv",
+            "leaderboard_out/index.html",
+            "leaderboard_out/plots",
+        ),
         contains=(
             ("-", "### Velocity track"),
             ("leaderboard_out/leaderboard.md", "1-minute load average"),
