@@ -42,6 +42,7 @@ from uvdms_gym.physics.hydro import HydroScale
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.nominal import NominalDynamics
 from uvdms_gym.physics.params import D1, D2, UVDMSParams
+from uvdms_gym.physics.render import CAMERA_YAW_OFFSET_DEG, ReferenceScene
 from uvdms_gym.physics.sim import PhysicsError, UVDMSSim
 from uvdms_gym.utils.display import gui_available, require_display
 
@@ -75,6 +76,8 @@ class UVDMSEnv(gym.Env, EzPickle):
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
     with_object: ClassVar[bool] = False
+    camera_yaw_deg: ClassVar[float] = CAMERA_YAW_OFFSET_DEG
+    """Yaw of the ``rgb_array`` camera relative to the vehicle's heading, degrees (:mod:`uvdms_gym.physics.render`)."""
 
     def __new__(cls, *args: Any, **kwargs: Any) -> UVDMSEnv:
         """Record the most-derived constructor's arguments for pickling (each subclass takes its own keywords)."""
@@ -277,10 +280,22 @@ class UVDMSEnv(gym.Env, EzPickle):
         return obs, reward, bool(terminated), False, info
 
     def render(self):
-        """``rgb_array``: an HxWx3 uint8 image from a camera beside the vehicle; ``human``: the GUI window."""
+        """``rgb_array``: an HxWx3 uint8 image from a camera beside the vehicle; ``human``: the GUI window.
+
+        An ``rgb_array`` frame draws the task's reference (:meth:`_reference_scene`, e.g. the two circles and the
+        current reference points, or the object's path and goal) with visual-only bodies, created in the
+        simulator at the first frame of an episode that is rendered; they change neither the physics nor the
+        observations (:mod:`uvdms_gym.physics.render`).
+        """
         if self.render_mode == "rgb_array":
-            return self._sim.render_rgb(self.render_width, self.render_height)
+            if self.task is not None:
+                self._sim.show_reference(self._reference_scene())
+            return self._sim.render_rgb(self.render_width, self.render_height, camera_yaw_deg=self.camera_yaw_deg)
         return None
+
+    def _reference_scene(self) -> ReferenceScene:
+        """What a frame draws of the task's reference at the current time (default: nothing)."""
+        return ReferenceScene()
 
     def close(self) -> None:
         """Disconnect the simulator (idempotent)."""

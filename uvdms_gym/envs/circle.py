@@ -9,10 +9,13 @@ import numpy as np
 from uvdms_gym.envs.base import UVDMSEnv
 from uvdms_gym.envs.errors import errors_positions
 from uvdms_gym.envs.tasks import CircleTask, make_circle_task
+from uvdms_gym.physics.render import FRONT_CAMERA_YAW_OFFSET_DEG, ReferenceScene
 
 TRACKING_TRANSIENT = 5.0
 """Tracking metrics exclude the first seconds of a run (the end effectors start ~0.6 m from their circles,
 docs/MODEL.md section 5); collision metrics cover the whole run."""
+CIRCLE_MARKER_SAMPLES = 96
+"""Points per period of a drawn reference circle (``rgb_array`` frames; the drawing resamples them by arc length)."""
 
 
 class CircleTrackEnv(UVDMSEnv):
@@ -79,6 +82,7 @@ class CircleTrackEnv(UVDMSEnv):
 
     with_object = False
     tracking_transient = TRACKING_TRANSIENT
+    camera_yaw_deg = FRONT_CAMERA_YAW_OFFSET_DEG  # the circles face forward
 
     def __init__(
         self,
@@ -116,3 +120,9 @@ class CircleTrackEnv(UVDMSEnv):
 
     def _errors(self, y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
         return errors_positions(y, refs, r_nb)
+
+    def _reference_scene(self) -> ReferenceScene:
+        """Both reference circles (closed polylines over one period) and the current reference points."""
+        grid = np.linspace(0.0, self.task.period, CIRCLE_MARKER_SAMPLES + 1)  # the last point closes the circle
+        ref = self.task.reference(grid)
+        return ReferenceScene(paths=(ref[:, :3], ref[:, 3:]), points=self.task.reference(self.t).reshape(2, 3))

@@ -11,6 +11,7 @@ from uvdms_gym.envs.errors import errors_pose
 from uvdms_gym.envs.tasks import TransportTask, make_transport_task
 from uvdms_gym.physics.frames import euler_to_rot
 from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.render import ReferenceScene
 
 SUCCESS_POSITION = 0.02
 """Success: object position error below this (m) ..."""
@@ -18,6 +19,8 @@ SUCCESS_ORIENTATION = np.radians(2.0)
 """... and orientation error below this (rad), once the reference holds (t >= move_time)."""
 TRACKING_TRANSIENT = 0.0
 """The transport run starts on its reference: no transient is excluded from its tracking metrics."""
+PATH_MARKER_SAMPLES = 96
+"""Points of the drawn object path over the move (``rgb_array`` frames; the drawing resamples them by arc length)."""
 
 
 def vehicle_pose_for_object(kin: KinematicModel, object_pose: np.ndarray) -> np.ndarray:
@@ -113,3 +116,10 @@ class TransportEnv(UVDMSEnv):
 
     def _success(self, pos_err: float, ori_err: float) -> bool:
         return self.t >= self.task.move_time and pos_err < SUCCESS_POSITION and ori_err < SUCCESS_ORIENTATION
+
+    def _reference_scene(self) -> ReferenceScene:
+        """The object's reference path (its centre over the move), the current reference centre and the goal."""
+        task = self.task
+        path = task.reference(np.linspace(0.0, task.move_time, PATH_MARKER_SAMPLES))[:, :3]
+        goal = (task.goal[:3], euler_to_rot(task.goal[3:]))
+        return ReferenceScene(paths=(path,), points=task.reference(self.t)[None, :3], goal=goal)

@@ -67,7 +67,7 @@ import numpy as np
 import pybullet as pb
 from pybullet_utils import bullet_client
 
-from uvdms_gym.physics import frames, model
+from uvdms_gym.physics import frames, model, render
 from uvdms_gym.physics.hydro import (
     HydroCoefficients,
     HydroScale,
@@ -291,6 +291,7 @@ class UVDMSSim:
                 c.setCollisionFilterGroupMask(self._body, link, ROBOT_GROUP, ROBOT_GROUP | OBSTACLE_GROUP)
         self._obj: int | None = None
         self._obstacle_bodies = ObstacleBodies(c)
+        self._markers: render.ReferenceMarkers | None = None  # created by show_reference (rendering only)
         self._has_obstacles = False
         self._grasp_constraints: list[int] = []
         self._contact_pairs: set[tuple[int, int]] = set()
@@ -795,17 +796,40 @@ class UVDMSSim:
         touching = {(cp[3], cp[4]) for cp in _contact_points(b, b, physicsClientId=cid) if cp[8] <= 0.0} & both
         return len({tuple(sorted(pair)) for pair in touching})
 
-    def render_rgb(self, width: int = 320, height: int = 240) -> np.ndarray:
-        """An ``(height, width, 3)`` uint8 image from a camera beside and above the vehicle (headless)."""
+    def render_rgb(
+        self, width: int = 320, height: int = 240, *, camera_yaw_deg: float = render.CAMERA_YAW_OFFSET_DEG
+    ) -> np.ndarray:
+        """An ``(height, width, 3)`` uint8 image from a camera beside and above the vehicle (headless).
+
+        Translucent visuals (the hull) are composed over what lies behind them, and the reference of
+        :meth:`show_reference` is drawn and kept in view when one was given (:mod:`uvdms_gym.physics.render`).
+
+        Args:
+            width: image width, pixels.
+            height: image height, pixels.
+            camera_yaw_deg: the camera's yaw relative to the vehicle's heading, degrees.
+        """
         self._check_open()
-        c = self._client
-        st = self.state()
-        target = frames.ned_to_world(st.eta[:3]).tolist()
-        view = c.computeViewMatrixFromYawPitchRoll(target, 2.5, 45.0 + math.degrees(-st.eta[5]), -25.0, 0.0, 2)
-        proj = c.computeProjectionMatrixFOV(60.0, width / height, 0.05, 50.0)
-        img = c.getCameraImage(int(width), int(height), view, proj, renderer=pb.ER_TINY_RENDERER)
-        rgba = np.reshape(np.asarray(img[2], dtype=np.uint8), (int(height), int(width), 4))
-        return np.ascontiguousarray(rgba[:, :, :3])
+        keep = None if self._markers is None else self._markers.keep_in_view
+        eta = self.state().eta
+        view, proj = render.camera_matrices(self._client, eta, int(width), int(height), keep, camera_yaw_deg)
+        return render.render_frame(self._client, view, proj, int(width), int(height))
+
+    def show_reference(self, scene: render.ReferenceScene) -> None:
+        """Draw a task's reference in the frames of :meth:`render_rgb` (NED paths, points and goal pose).
+
+        The markers are visual-only bodies (no collision shape, mass 0), created at the first call: they change no
+        contact, distance or state. They stay across :meth:`reset`; a new scene replaces them.
+        """
+        self._check_open()
+        if self._markers is None:
+            self._markers = render.ReferenceMarkers(self._client, self._params.obj)
+        self._markers.show(scene)
+
+    @property
+    def marker_ids(self) -> tuple[int, ...]:
+        """PyBullet ids of the reference markers' bodies (empty until :meth:`show_reference`)."""
+        return () if self._markers is None else self._markers.body_ids
 
     # ------------------------------------------------------------------ outer obstacles
     def set_obstacles(self, obstacles: Sequence[Obstacle]) -> None:
