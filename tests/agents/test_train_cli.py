@@ -1,6 +1,6 @@
-"""``uvdms train`` exactly as the README shows it, and what a failed or short run leaves behind.
+"""``uvdms train`` exactly as the Training page of the docs shows it, and what a failed or short run leaves behind.
 
-The first test runs the README's ``uvdms train`` lines with the ``uvdms`` console script of the suite's
+The first test runs the ``uvdms train`` lines of ``docs/training/index.md``'s first ``bash`` block with the ``uvdms`` console script of the suite's
 environment (the one next to ``sys.executable``), progress bar on, from a temporary working directory, with
 ``--total-timesteps`` lowered to a few hundred steps (the only change to the lines). The other tests call
 :func:`agents.training.train.train` in-process.
@@ -40,15 +40,14 @@ RESUME_STEPS = 200
 
 
 def readme_train_lines() -> list[str]:
-    """The ``uvdms train`` command lines of the README's "Train an agent" code block (comments removed)."""
-    text = (REPO / "README.md").read_text(encoding="utf-8")
-    section = text.split("## Train an agent", 1)[1].split("\n## ", 1)[0]
-    block = section.split("```bash", 1)[1].split("```", 1)[0]
+    """The ``uvdms train`` command lines of the first code block of the docs' Training page (comments removed)."""
+    text = (REPO / "docs" / "training" / "index.md").read_text(encoding="utf-8")
+    block = text.split("```bash", 1)[1].split("```", 1)[0]
     return [line.split("#", 1)[0].strip() for line in block.splitlines() if line.startswith("uvdms train ")]
 
 
 def with_steps(line: str, steps: int) -> list[str]:
-    """The command line with ``--total-timesteps steps`` (replacing the README's value or appended)."""
+    """The command line with ``--total-timesteps steps`` (replacing the documented value or appended)."""
     argv = shlex.split(line)
     if "--total-timesteps" in argv:
         argv[argv.index("--total-timesteps") + 1] = str(steps)
@@ -81,7 +80,7 @@ def test_readme_train_commands_run_as_written(tmp_path):
     sac_dir = run_dir_for(tmp_path / "runs", "uvdms/CircleTrack-v0", "sac", 0)
     assert not sac_dir.exists()
 
-    # ... so the README's SAC line with the same seed then runs (progress bar on: rich must be installed).
+    # ... so the documented SAC line with the same seed then runs (progress bar on: rich must be installed).
     done = run_uvdms(with_steps(sac, STEPS), tmp_path)
     assert done.returncode == 0, done.stderr
     assert Path(done.stdout.strip().splitlines()[-1]) == Path("runs/uvdms_CircleTrack-v0/sac_0")
@@ -105,7 +104,7 @@ def test_readme_train_commands_run_as_written(tmp_path):
     assert json.loads((ppo_dir / "meta.json").read_text())["segments"][0]["planned_timesteps"] == rollout
     assert cfg["learning_rate"] == 1.0e-4 and cfg["env_kwargs"]["goal"] == "paper"
 
-    # The README's resume line continues the SAC run; its replay buffer grows to the new total.
+    # The documented resume line continues the SAC run; its replay buffer grows to the new total.
     done = run_uvdms(with_steps(resume, RESUME_STEPS), tmp_path)
     assert done.returncode == 0, done.stderr
     assert zip_num_timesteps(sac_dir / "final_model.zip") == STEPS + RESUME_STEPS
