@@ -83,6 +83,13 @@ DISTILLED_TRANSPORT="$DISTILLED teacher=residual-mpc-sac-transport-v1/seed_0"
 # Pure RL, no teacher (docs/LEARNED_CONTROLLERS.md): PPO with the configuration `uvdms tune` found on the circles
 # (train_configs/tuned/ppo_end_to_end.yml, its search record beside it), the same settings on transport.
 PURE_RL="--config train_configs/tuned/ppo_end_to_end.yml"
+# Pure RL over the full action range (docs/LEARNED_CONTROLLERS.md, "What holds the circle precision"): the
+# earlier end-to-end entries trained with action_scale 0.3, below what tracking needs (CAMPC commands more than 0.3
+# of zeta_max on some axis in 28 % of the circles' tracking steps, benchmarks/command_range.py). PPO-Lagrangian
+# with no cap and a smaller initial log-std (train_configs/variants/ppo_lagrangian_full_range.yml); the circles
+# also get the narrow tracking term (precision_weight, a v1 keyword off by default).
+FULL_RANGE="--vec-env rollout --config train_configs/variants/ppo_lagrangian_full_range.yml"
+PRECISION="precision_weight=1.0 precision_scale=0.03"
 FINETUNE_CIRCLE="--hyperparams prior_policy=trained_agents/distilled-dagger-campc-circle-v1/seed_{seed} prior_coef=10.0 action_init_scale=null learning_starts=0 actor_warmup_steps=10000 noise_std=0.05"
 
 # entry | algo | env id | env kwargs | extra training arguments ({seed}: the run's seed) | budget (env steps)
@@ -102,6 +109,8 @@ ENTRIES=(
   "ppo-transport-v1|ppo|uvdms/Transport-v1|$TRANSPORT $E2E|$PURE_RL|300000"
   "ppo-lagrangian-circle-v1|ppo_lagrangian|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PPO_LAGRANGIAN|1000000"
   "ppo-lagrangian-transport-v1|ppo_lagrangian|uvdms/Transport-v1|$TRANSPORT $E2E|$PPO_LAGRANGIAN|1000000"
+  "ppo-lagrangian-fullrange-circle-v1|ppo_lagrangian|uvdms/CircleTrack-v1|$CIRCLE $E2E $PRECISION|$FULL_RANGE|1200000"
+  "ppo-lagrangian-fullrange-transport-v1|ppo_lagrangian|uvdms/Transport-v1|$TRANSPORT $E2E|$FULL_RANGE|1200000"
 )
 
 lookup() {

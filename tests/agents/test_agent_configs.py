@@ -143,3 +143,17 @@ def test_residual_observation_choices_of_the_light_parser_match_the_composition(
     from uvdms_gym.residual import RESIDUAL_OBSERVATIONS
 
     assert RESIDUAL_OBSERVATION_NAMES == RESIDUAL_OBSERVATIONS
+
+
+def test_the_full_range_variant_differs_from_ppo_lagrangian_only_where_it_says():
+    """``variants/ppo_lagrangian_full_range.yml``: no action cap, a smaller initial log-std, 1.2M steps."""
+    for env_id in ("uvdms/CircleTrack-v1", "uvdms/Transport-v1"):
+        base = load_config(REPO / "train_configs" / "ppo_lagrangian.yml", "ppo_lagrangian", env_id)
+        variant_file = REPO / "train_configs" / "variants" / "ppo_lagrangian_full_range.yml"
+        variant = load_config(variant_file, "ppo_lagrangian", env_id)
+        a, b = base.to_entry(), variant.to_entry()
+        assert variant.action_scale == 1.0  # the capped entries pass --hyperparams action_scale=0.3
+        assert b["policy_kwargs"]["log_std_init"] == -2.0 and a["policy_kwargs"]["log_std_init"] == -1.0
+        assert b["n_timesteps"] == 1_200_000
+        changed = {k for k in set(a) | set(b) if a.get(k) != b.get(k)}
+        assert changed == {"policy_kwargs", "n_timesteps"}, changed
