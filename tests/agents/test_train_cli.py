@@ -1,8 +1,9 @@
 """``uvdms train`` exactly as the Training page of the docs shows it, and what a failed or short run leaves behind.
 
-The first test runs the ``uvdms train`` lines of ``docs/training/index.md``'s first ``bash`` block with the ``uvdms`` console script of the suite's
-environment (the one next to ``sys.executable``), progress bar on, from a temporary working directory, with
-``--total-timesteps`` lowered to a few hundred steps (the only change to the lines). The other tests call
+The first test runs the ``uvdms train`` lines of ``docs/training/index.md``'s first ``bash`` block with the
+``uvdms`` console script of the suite's environment (the one next to ``sys.executable``), progress bar on, from a
+temporary working directory, with ``--total-timesteps`` lowered to a few hundred steps (the only change to the
+lines). The other tests call
 :func:`agents.training.train.train` in-process.
 """
 
