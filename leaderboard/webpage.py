@@ -1,14 +1,14 @@
 """``index.html``: the leaderboard as one self-contained web page, made from the files of an output folder.
 
-:func:`write_index_html` reads what :func:`leaderboard.report.write_outputs` wrote (``leaderboard.csv``, the rows
-and figures; ``entries/<entry>.json``, each entry's composition, seeds and training; ``leaderboard.md``, the command
-line and the list of plots; ``plots/*.png``) and writes ``index.html`` beside them, so the page says exactly what
-``leaderboard.csv`` says and can be made again for an existing folder (``uvdms leaderboard --page-only DIR``)
-without evaluating anything. The page loads nothing: style sheet and script are inline
-(:mod:`leaderboard.page_assets`), the plots are ``data:`` URIs (palette PNGs), and a Content-Security-Policy
-forbids every other source. It shows one ranked table per track and task (each cell ``mean [low, high]``, the
-95 % interval of the CSV; sortable by any column; filterable by task, track, kind and safety filter) and a detail
-view per entry (composition, seeds, training budget and wall time where recorded, learning curve).
+:func:`write_index_html` reads (:mod:`leaderboard.page_data`) what :func:`leaderboard.report.write_outputs` wrote
+(``leaderboard.csv``, the rows and figures; ``entries/<entry>.json``, each entry's composition, seeds and training;
+``leaderboard.md``, the command line and the list of plots; ``plots/*.png``) and writes ``index.html`` beside them,
+so the page says exactly what ``leaderboard.csv`` says and can be made again for an existing folder (``uvdms
+leaderboard --page-only DIR``) without evaluating anything. The page loads nothing: style sheet and script are
+inline (:mod:`leaderboard.page_assets`), the plots are ``data:`` URIs (palette PNGs), and a Content-Security-Policy
+forbids every other source. It shows one ranked table per track and task (each cell ``mean [low, high]``, the 95 %
+interval of the CSV; sortable by any column; filterable by task, track, kind and safety filter) and a detail view
+per entry (composition, seeds, training budget and wall time where recorded, learning curve).
 
 Every text from the folder is HTML-escaped (:func:`html.escape`); the embedded plot data is JSON with ``<``, ``>``
 and ``&`` escaped, so no value can close its ``<script>`` element.
@@ -16,34 +16,23 @@ and ``&`` escaped, so no value can close its ``<script>`` element.
 
 from __future__ import annotations
 
-import base64
-import csv
 import html
-import io
 import json
-import logging
 import math
-import re
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from leaderboard.entries import FILTER_SUFFIX, slugify
-from leaderboard.entry_info import KINDS, details_from_agents_dir, entry_kind
+from leaderboard.entry_info import KINDS, entry_kind
 from leaderboard.page_assets import CSS, JS
+from leaderboard.page_data import PageData, plot_data_uri, read_page_data
+from leaderboard.page_data import PageError as PageError  # re-exported: raised by write_index_html
 from leaderboard.stats import METRICS, OVERLOAD_MARK, TABLE_METRICS, TIMING_METRICS
 from leaderboard.tasks import TASKS, TRACKS
 
-log = logging.getLogger("uvdms.leaderboard")
-
 PAGE_NAME = "index.html"
 """The page's file name in the output folder (beside ``leaderboard.md``)."""
-MAX_PLOT_PIXELS = 4_000_000
-"""Plots larger than this (width x height) are scaled down before they are embedded (the wide bar charts of a
-full velocity track, 8368 x 440, stay as they are)."""
-REQUIRED_COLUMNS: tuple[str, ...] = ("track", "task", "rank", "tied", "entry", "kind", "episodes")
-"""The columns of ``leaderboard.csv`` the page cannot do without."""
 EXTRA_COLUMNS: tuple[tuple[str, str], ...] = (
     ("timing_episodes_overloaded", "Overloaded episodes"),
     ("timing_episodes_unknown_load", "Episodes without load record"),
@@ -54,150 +43,6 @@ EXTRA_COLUMNS: tuple[tuple[str, str], ...] = (
 """Columns of ``leaderboard.csv`` besides the metrics, shown with "all columns" (CSV name, header)."""
 CSP = "default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-src 'unsafe-inline'"
 """The page's Content-Security-Policy: nothing but its own inline style, script and ``data:`` images."""
-_PLOT_LINK = re.compile(r"!\[[^\]]*\]\((plots/[^)\s]+\.png)\)")
-
-
-class PageError(ValueError):
-    """The folder is not a readable leaderboard output (missing or corrupt files); the message names the file."""
-
-
-@dataclass
-class PageData:
-    """What the page is made of, read from an output folder (:func:`read_page_data`).
-
-    Attributes:
-        out_dir: The output folder.
-        columns: The header of ``leaderboard.csv``.
-        rows: Its rows (column -> text, as written).
-        documents: Each entry's document by entry name (``entries/<slug>.json`` without its episodes; ``{}``
-            when the file is missing), with ``details`` (composition and training records) and
-            ``details_source`` (where they were read) added.
-        plots: The plot files (relative to ``out_dir``) that ``leaderboard.md`` lists (all of ``plots/`` without
-            a ``leaderboard.md``).
-        generated: The paragraph of ``leaderboard.md`` that names the command and the evaluation seeds.
-    """
-
-    out_dir: Path
-    columns: list[str]
-    rows: list[dict[str, str]]
-    documents: dict[str, dict[str, Any]] = field(default_factory=dict)
-    plots: list[str] = field(default_factory=list)
-    generated: str = ""
-
-
-# ------------------------------------------------------------------------------------------------------
-# Reading the folder
-# ------------------------------------------------------------------------------------------------------
-def read_page_data(out_dir: str | Path, *, agents_dir: str | Path | None = None) -> PageData:
-    """Read an output folder's ``leaderboard.csv``, ``entries/*.json`` and ``leaderboard.md``.
-
-    Args:
-        out_dir: The folder ``uvdms leaderboard --out`` wrote.
-        agents_dir: Where to look for the agent folders of entry documents that do not record their composition
-            and training (written before these keys existed); used only for a folder whose files have the
-            checksums the document recorded. ``None``: no look-up.
-
-    Raises:
-        PageError: No such folder, no or a malformed ``leaderboard.csv``, or an entry document that is not JSON.
-    """
-    out = Path(out_dir)
-    if not out.is_dir():
-        raise PageError(f"{out}: no such leaderboard output folder")
-    columns, rows = _read_csv(out / "leaderboard.csv")
-    data = PageData(out_dir=out, columns=columns, rows=rows)
-    for name in dict.fromkeys(row["entry"] for row in rows):
-        data.documents[name] = _read_document(out / "entries" / f"{slugify(name)}.json", agents_dir)
-    markdown = out / "leaderboard.md"
-    text = markdown.read_text(encoding="utf-8") if markdown.is_file() else None
-    data.plots = _listed_plots(out, text)
-    data.generated = next((p for p in (text or "").split("\n\n") if p.startswith("Generated by")), "")
-    return data
-
-
-def _read_csv(path: Path) -> tuple[list[str], list[dict[str, str]]]:
-    """Header and rows of ``leaderboard.csv`` (checked: the required columns, one value per column)."""
-    if not path.is_file():
-        raise PageError(f"{path.parent}: not a leaderboard output folder (no leaderboard.csv)")
-    try:
-        with path.open(encoding="utf-8", newline="") as file:
-            reader = csv.DictReader(file)
-            rows = list(reader)
-            columns = list(reader.fieldnames or [])
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise PageError(f"{path}: not a readable CSV file ({exc})") from None
-    missing = [c for c in REQUIRED_COLUMNS if c not in columns]
-    if missing:
-        raise PageError(f"{path}: not a leaderboard CSV (missing columns: {', '.join(missing)})")
-    ragged = next((i for i, row in enumerate(rows, 2) if None in row or None in row.values()), None)
-    if ragged is not None:
-        raise PageError(f"{path}: line {ragged} does not have one value per column (corrupt or truncated)")
-    return columns, rows
-
-
-def _read_document(path: Path, agents_dir: str | Path | None) -> dict[str, Any]:
-    """An entry document without its episodes, with its ``details`` and their ``details_source``."""
-    if not path.is_file():
-        log.warning("%s is missing: the page shows no details for its entry", path)
-        return {}
-    try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise PageError(f"{path}: not a valid entry document (corrupt or truncated JSON: {exc})") from None
-    if not isinstance(document, dict):
-        raise PageError(f"{path}: not a valid entry document (not a JSON object)")
-    tasks = document.get("tasks") if isinstance(document.get("tasks"), dict) else {}
-    document["tasks"] = {k: {f: v for f, v in t.items() if f != "episodes"} for k, t in tasks.items()}
-    _add_details(document, path, agents_dir)
-    return document
-
-
-def _add_details(document: dict[str, Any], path: Path, agents_dir: str | Path | None) -> None:
-    """``details`` and ``details_source``: recorded in the document, else its verified agent folder, else none."""
-    document["details"], document["details_source"] = None, ""
-    if isinstance(document.get("composition"), dict):
-        training = document.get("training") if isinstance(document.get("training"), list) else []
-        document["details"] = {"composition": document["composition"], "training": training}
-        document["details_source"] = f"recorded in entries/{path.name} when the entry was evaluated"
-    elif agents_dir is not None:
-        details = details_from_agents_dir(document, agents_dir)
-        if details is not None:
-            document["details"] = details
-            document["composition"] = details["composition"]
-            document["details_source"] = (
-                f"read from {Path(agents_dir).name}/{document.get('spec')} (its model files have the checksums "
-                f"recorded in entries/{path.name}, so they are the evaluated ones)"
-            )
-
-
-def _listed_plots(out: Path, markdown: str | None) -> list[str]:
-    """The plots ``leaderboard.md`` links (that exist), or every ``plots/*.png`` without a ``leaderboard.md``."""
-    if markdown is None:
-        return sorted(str(p.relative_to(out)) for p in (out / "plots").glob("*.png"))
-    listed = dict.fromkeys(_PLOT_LINK.findall(markdown))
-    return [p for p in listed if (out / p).is_file()]
-
-
-def plot_data_uri(path: Path) -> str:
-    """A PNG as a ``data:`` URI: palette colours (256), scaled down beyond :data:`MAX_PLOT_PIXELS`.
-
-    Raises:
-        PageError: The file is not a readable image.
-    """
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as image:
-            image.load()
-            rgb = image.convert("RGB")
-    except (OSError, UnidentifiedImageError) as exc:
-        raise PageError(f"{path}: not a readable PNG image ({exc})") from None
-    pixels = rgb.width * rgb.height
-    if pixels > MAX_PLOT_PIXELS:
-        factor = math.sqrt(MAX_PLOT_PIXELS / pixels)
-        rgb = rgb.resize((max(1, int(rgb.width * factor)), max(1, int(rgb.height * factor))), Image.Resampling.LANCZOS)
-    buffer = io.BytesIO()
-    rgb.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(buffer, format="PNG", optimize=True)
-    return "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
 
 
 # ------------------------------------------------------------------------------------------------------

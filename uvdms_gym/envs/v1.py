@@ -100,7 +100,9 @@ class _BoundedReward(UVDMSEnv):
             "effort": w["effort"] * (1.0 - float(a @ a) / ACTION_DIM),
             "proximity": w["proximity"] * clear,
             "contact": -w["contact"] * info["cost_contact"],
-            "precision": w["precision"] * math.exp(-info["tracking_error"] / self.precision_scale),
+            "precision": (
+                w["precision"] * math.exp(-info["tracking_error"] / self.precision_scale) if w["precision"] else 0.0
+            ),
         }
 
 
