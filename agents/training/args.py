@@ -62,8 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--vec-env",
         choices=VEC_ENV_TYPES,
-        default="dummy",
-        help="vectorised env type: dummy (all envs in the trainer's process), subproc (each in a worker), "
+        default=None,
+        help="vectorised env type (default: dummy; a resume: the type of the run's last segment): dummy (all envs in "
+        "the trainer's process), subproc (each in a worker), "
         "hybrid (env 0 in the trainer's process, the others in workers, all stepping at once; same results as "
         "dummy), rollout (PPO, PPO-Lagrangian: as hybrid, each env collects its part of every rollout with its own "
         "policy copy: PPO's fastest with n_envs free cores; reproducible, not identical to dummy)",

@@ -7,6 +7,7 @@ its module docstring for what a resume reloads and where it writes.
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -15,7 +16,7 @@ import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 
 from agents.common.envs import ActionComponents, check_env_id
-from agents.common.names import DEFAULT_GYM_PACKAGES, NO_BASE
+from agents.common.names import DEFAULT_GYM_PACKAGES, NO_BASE, VEC_ENV_TYPES
 from agents.config import ConfigError, TrainConfig, parse_entry
 from agents.training.composition import check_vec_env, composition_factories
 from agents.training.rundir import CHECKPOINT_PREFIX, Checkpoint, RunDirError, latest_checkpoint
@@ -32,7 +33,7 @@ class ResumeRequest:
         env_id: ``--env`` (``None``: the run's).
         total_timesteps: Additional steps (``None``: the steps missing to the configured ``n_timesteps``).
         n_envs: ``--n-envs`` (cannot change).
-        vec_env: Vectorised env type of this segment.
+        vec_env: Vectorised env type of this segment (``None``: the type of the run's last segment in ``meta.json``).
         given: The composition options given (``None`` values: not given).
     """
 
@@ -40,7 +41,7 @@ class ResumeRequest:
     env_id: str | None
     total_timesteps: int | None
     n_envs: int | None
-    vec_env: str
+    vec_env: str | None
     given: Mapping[str, Any]
 
 
@@ -61,7 +62,8 @@ def resume_run(
     """
     resolved, cfg = _resumed_config(run_dir, request)
     env_id, seed = resolved["env_id"], int(resolved["seed"])
-    check_vec_env(cfg, request.vec_env)
+    vec_env = request.vec_env or _last_vec_env(run_dir)
+    check_vec_env(cfg, vec_env)
     factories = composition_factories(cfg, components)
     gym_packages = tuple(resolved.get("gym_packages", DEFAULT_GYM_PACKAGES))
     check_env_id(env_id, gym_packages)
@@ -79,7 +81,7 @@ def resume_run(
         "--total-timesteps",
         str(total_timesteps),
         "--vec-env",
-        request.vec_env,
+        vec_env,
     ]
     segment = TrainingSegment(
         run_dir,
@@ -90,7 +92,7 @@ def resume_run(
         total_timesteps,
         command,
         checkpoint,
-        request.vec_env,
+        vec_env,
         verbose,
         factories,
     )
@@ -120,6 +122,20 @@ def _resumed_config(run_dir: Path, request: ResumeRequest) -> tuple[dict[str, An
                 "the run keeps its composition"
             )
     return resolved, cfg
+
+
+def _last_vec_env(run_dir: Path) -> str:
+    """The vectorised env type of the run's last segment (``dummy`` for a run with no segment recorded)."""
+    try:
+        segments = json.loads((run_dir / "meta.json").read_text(encoding="utf-8"))["segments"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise RunDirError(f"{run_dir}/meta.json is unreadable or has no segments list: {exc}") from exc
+    if not segments:
+        return "dummy"
+    vec_env = segments[-1].get("vec_env", "dummy")
+    if vec_env not in VEC_ENV_TYPES:
+        raise RunDirError(f"{run_dir}/meta.json: last segment's vec_env {vec_env!r} is not one of {VEC_ENV_TYPES}")
+    return vec_env
 
 
 def _resume_steps(run_dir: Path, cfg: TrainConfig, checkpoint: Checkpoint, requested: int | None) -> int:

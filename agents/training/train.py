@@ -150,7 +150,7 @@ def train(
     progress: bool = True,
     *,
     hyperparams: Mapping[str, Any] | None = None,
-    vec_env: str = "dummy",
+    vec_env: str | None = None,
     gym_packages: Sequence[str] = DEFAULT_GYM_PACKAGES,
     verbose: int = 0,
     callbacks: Sequence[BaseCallback] = (),
@@ -179,7 +179,9 @@ def train(
         progress: Show a progress bar (tqdm + rich).
         hyperparams: Extra config keys (algorithm hyperparameters or TrainConfig fields) overriding the
             file, validated like the file. Not allowed when resuming.
-        vec_env: ``dummy`` (default: every env in the trainer's process), ``subproc`` (every env in a worker
+        vec_env: ``None`` (default): ``dummy`` for a fresh run, the type of the last segment for a resume (a
+            ``rollout`` run resumed as ``dummy`` would change how it samples halfway). ``dummy``: every env in
+            the trainer's process; ``subproc`` (every env in a worker
             process), ``hybrid`` (env 0 in the trainer's process, the others in workers, stepped at the same
             time; identical results to ``dummy``) or ``rollout`` (PPO and PPO-Lagrangian: as ``hybrid``, and each
             env collects its part of every rollout with its own copy of the policy, :mod:`agents.common.rollouts`; the
@@ -210,7 +212,7 @@ def train(
         EnvironmentNotFoundError: The env id is not registered.
         RunDirError: The run directory exists (fresh run) or is not resumable.
     """
-    if vec_env not in VEC_ENV_TYPES:
+    if vec_env is not None and vec_env not in VEC_ENV_TYPES:
         raise ConfigError(f"vec_env must be one of {VEC_ENV_TYPES}, got {vec_env!r}")
     torch.set_num_threads(1)
     if resume_dir is not None:
@@ -239,7 +241,7 @@ def train(
         total_timesteps=total_timesteps,
         n_envs=n_envs,
         hyperparams=hyperparams or {},
-        vec_env=vec_env,
+        vec_env=vec_env or "dummy",
         gym_packages=tuple(gym_packages),
         residual_base=residual_base,
         residual_scale=residual_scale,

@@ -354,6 +354,21 @@ def test_lambda_survives_checkpoints_and_resume(tmp_path):
     assert latest_checkpoint(run_dir).num_timesteps == 896
 
 
+def test_resume_keeps_the_vec_env_of_the_last_segment_unless_told(tmp_path):
+    # a registered id: the rollout worker is a fresh process, which knows only the ids of gym_packages
+    run_dir = train(
+        "ppo_lagrangian", "uvdms/CircleTrack-v1", None, _toy_config(tmp_path), seed=1, out_dir=tmp_path, progress=False,
+        vec_env="rollout", total_timesteps=256,
+    )  # fmt: skip
+    train(resume_dir=run_dir, total_timesteps=128, progress=False)
+    train(resume_dir=run_dir, total_timesteps=128, progress=False, vec_env="dummy")
+    train(resume_dir=run_dir, total_timesteps=128, progress=False)
+    segments = json.loads((run_dir / "meta.json").read_text())["segments"]
+    assert [s["vec_env"] for s in segments] == ["rollout", "rollout", "dummy", "dummy"]
+    commands = (run_dir / "command.txt").read_text().splitlines()
+    assert [c.split("--vec-env ")[1].split()[0] for c in commands] == ["rollout", "rollout", "dummy", "dummy"]
+
+
 # ------------------------------------------------------------------------------------------------------
 # Configuration
 # ------------------------------------------------------------------------------------------------------
