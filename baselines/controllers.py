@@ -16,6 +16,7 @@ name            action_mode   what
 ``campc-di``    torque        CAMPC + dynamic inversion without the RBF network (``a = tau / tau_max``)
 ``campc-nndi``  torque        CAMPC + dynamic inversion with the RBF network: the paper's full stack
 ``campc-inner`` velocity      CAMPC without outer-obstacle rows (the ablation on ``TransportObstacles-v1``)
+``hold``        velocity      the zero command: vehicle and arms hold still (the floor a controller must beat)
 ==============  ============  ===========================================================================
 
 In an environment with outer obstacles (``uvdms/TransportObstacles-v1``) the CAMPC baselines add
@@ -61,11 +62,13 @@ BASELINES: dict[str, dict[str, Any]] = {
         "outer": False,
         "env_id": "uvdms/TransportObstacles-v1",
     },
+    "hold": {"action_mode": "velocity", "collision": False, "hold": True, "default": False},
 }
 """The named baselines: required action mode, collision rows, RBF network, outer-obstacle rows (default: with
 the collision rows, when the environment has obstacles; ``campc-inner`` is CAMPC without them, the ablation), and
 ``env_id``, the one environment a baseline is meant for (``campc-inner`` is ``campc`` wherever there are no
-obstacles, so the leaderboard runs it on the obstacle task only; it works on any)."""
+obstacles, so the leaderboard runs it on the obstacle task only; it works on any). ``hold`` is no MPC
+(:class:`HoldStill`); ``default: False`` keeps it out of the leaderboard's ``baselines`` token (name it)."""
 
 OUTER_ROWS = 8
 """[D] Outer-obstacle rows of the CAMPC baselines in an environment with obstacles: the nearest robot-obstacle
@@ -279,6 +282,25 @@ class CascadeTorqueController(_MPCBase):
         return action.astype(np.float32)
 
 
+class HoldStill:
+    """The zero velocity command at every step: the vehicle and both arms hold still (baseline ``hold``).
+
+    The floor a controller must beat: on the circles the hands stay where they start, on transport the object
+    does (until the reference has left it 2 m behind and the episode ends). It needs no model and no QP.
+    """
+
+    def __init__(self, env: Any) -> None:
+        self.action = np.zeros(env.action_space.shape, dtype=np.float32)
+        self.last_record: dict[str, Any] = {}
+
+    def reset(self, seed: int | None = None) -> None:
+        """Nothing to reset: the command does not depend on the episode."""
+
+    def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        """The zero action (a copy, so a caller may modify it)."""
+        return self.action.copy()
+
+
 def make_baseline(name: str, env: Any, **kwargs: Any) -> Controller:
     """A named baseline for ``env``.
 
@@ -297,6 +319,8 @@ def make_baseline(name: str, env: Any, **kwargs: Any) -> Controller:
         raise ValueError(f"unknown baseline {name!r}; choose one of {sorted(BASELINES)} or give a path to an agent")
     spec = BASELINES[name]
     check_action_mode(name, env, spec["action_mode"])
+    if spec.get("hold", False):
+        return HoldStill(env)
     outer = spec.get("outer", True)
     if spec["action_mode"] == "velocity":
         return MPCVelocityController(env, collision=spec["collision"], outer=outer, **kwargs)

@@ -3,10 +3,10 @@
     python benchmarks/hold_still.py [--entry docs/leaderboard/entries/ppo-lagrangian-transport-v1.json]
                                     [--tasks transport transport-random]
 
-Holding still (the zero velocity command every step) is the floor a transport controller must beat: the object
-stays where it starts, and the episode ends when the reference has left it 2 m behind. For each task the script
-runs holding still on every evaluation seed the entry's leaderboard document recorded (the same environment
-keywords, so the same goals and hydrodynamics), and compares the final object position error
+Holding still (the zero velocity command every step, the baseline ``hold``) is the floor a transport controller
+must beat: the object stays where it starts, and the episode ends when the reference has left it 2 m behind. For
+each task the script runs holding still on every evaluation seed the entry's leaderboard document recorded (the
+same environment keywords, so the same goals and hydrodynamics), and compares the final object position error
 (``final_pos_error`` of :func:`uvdms_gym.evaluation.run_episode`) episode by episode with the entry's, every
 training seed's episode against the hold of the same evaluation seed. It prints, per task, the two means and how
 many of the entry's episodes end closer (``docs/LEARNED_CONTROLLERS.md``, pure RL).
@@ -23,21 +23,11 @@ import gymnasium as gym
 import numpy as np
 
 import uvdms_gym  # noqa: F401  (registers the ids)
+from baselines.controllers import HoldStill
 from leaderboard.tasks import select_tasks
 from uvdms_gym.evaluation import run_episode
 
 DEFAULT_ENTRY = Path("docs/leaderboard/entries/ppo-lagrangian-transport-v1.json")
-
-
-class HoldStill:
-    """The zero command: the vehicle and both arms hold still (velocity mode)."""
-
-    def reset(self, seed: int | None = None) -> None:
-        """Nothing to reset."""
-
-    def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
-        """The zero action."""
-        return np.zeros(18, dtype=np.float32)
 
 
 def compare(entry_doc: dict[str, Any], task_name: str) -> dict[str, Any]:
@@ -46,7 +36,8 @@ def compare(entry_doc: dict[str, Any], task_name: str) -> dict[str, Any]:
     episodes = entry_doc["tasks"][task_name]["episodes"]
     env = gym.make(entry_doc["env_id"], **task.spec("velocity")["env_kwargs"])
     try:
-        hold = {s: run_episode(env, HoldStill(), s)["final_pos_error"] for s in sorted({e["seed"] for e in episodes})}
+        seeds = sorted({e["seed"] for e in episodes})
+        hold = {s: run_episode(env, HoldStill(env), s)["final_pos_error"] for s in seeds}
     finally:
         env.close()
     closer = [e["final_pos_error"] < hold[e["seed"]] for e in episodes]

@@ -42,7 +42,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         nargs="+",
         metavar="NAME|PATH",
         default=None,
-        help="entries to rank: baseline names (mpc campc campc-di campc-nndi), agent folders or SB3 zips, "
+        help="entries to rank: baseline names (mpc campc campc-di campc-nndi; campc-inner, the obstacle ablation; "
+        "hold, the zero command), agent folders or SB3 zips, "
         "'baselines' (all four) and 'agents' (every folder in --agents-dir); a '+filter' suffix (mpc+filter, "
         "agents+filter, PATH+filter) adds the same entries with the safety filter; default: baselines agents",
     )

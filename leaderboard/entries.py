@@ -37,7 +37,7 @@ from leaderboard.agent_files import (
     run_seed,
     training_seeds,
 )
-from leaderboard.registry import BASELINE_ENV, TRACK_OF, resolve_controller
+from leaderboard.registry import BASELINE_ENV, DEFAULT_BASELINES, TRACK_OF, resolve_controller
 from leaderboard.tasks import TRACKS, Task, env_family
 
 log = logging.getLogger("uvdms.leaderboard")
@@ -197,8 +197,8 @@ def default_agents_dir() -> Path:
 
 def _token_specs(token: str, agents_dir: str | Path) -> list[str]:
     """The controller specs a token stands for: the baselines, the agent folders, or the token itself."""
-    if token == "baselines":  # the four of every task; a one-task ablation (campc-inner) is named explicitly
-        return [name for name in BASELINES if BASELINE_ENV[name] is None]
+    if token == "baselines":  # the four of every task; campc-inner (one task) and hold are named explicitly
+        return list(DEFAULT_BASELINES)
     if token == "agents":
         return [str(p) for p in find_agent_folders(agents_dir)]
     return [token]

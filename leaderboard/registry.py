@@ -40,6 +40,10 @@ TRACK_OF: dict[str, str] = {name: spec["action_mode"] for name, spec in BASELINE
 """The action mode (leaderboard track) each named controller needs."""
 BASELINE_ENV: dict[str, str | None] = {name: spec.get("env_id") for name, spec in BASELINES.items()}
 """The environment a named baseline's leaderboard entry runs on (``None``: every task)."""
+DEFAULT_BASELINES: tuple[str, ...] = tuple(
+    name for name, spec in BASELINES.items() if spec.get("env_id") is None and spec.get("default", True)
+)
+"""The baselines the leaderboard's ``baselines`` token stands for: those of every task but ``hold`` (named)."""
 WEIGHTS_ONLY_RECORD = "agent.json"
 """The record that makes a folder a weights-only export (``agents.export``)."""
 AGENT_FILES: tuple[str, ...] = (WEIGHTS_ONLY_RECORD, "model.zip", "final_model.zip", "best_model.zip")
@@ -73,9 +77,7 @@ def load_agent(path: str | Path, trust: bool = False) -> Any:
         raise ValueError(f"{path}: a model file is not a valid zip archive, corrupt or truncated ({exc})") from None
 
 
-RESIDUAL_BASES: tuple[str, ...] = tuple(
-    name for name, mode in TRACK_OF.items() if mode == "velocity" and BASELINE_ENV[name] is None
-)
+RESIDUAL_BASES: tuple[str, ...] = tuple(name for name in DEFAULT_BASELINES if TRACK_OF[name] == "velocity")
 """The baselines a residual agent can be trained on: those whose action is a velocity command."""
 
 

@@ -162,7 +162,7 @@ def page(env_id: str) -> str:
         "",
         "| | |",
         "|---|---|",
-        f"| Make | `gymnasium.make(\"{env_id}\")` (after `import uvdms_gym`) |",
+        f'| Make | `gymnasium.make("{env_id}")` (after `import uvdms_gym`) |',
         f"| Class | `{cls.__module__}.{cls.__name__}` |",
         f"| Action space | `Box({act_space.low.min():g}, {act_space.high.max():g}, {act_space.shape}, "
         f"{act_space.dtype})` |",

@@ -20,8 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     ev.add_argument(
         "--controller",
         required=True,
-        help="mpc | campc | campc-di | campc-nndi | campc-inner, a path to an agent (weights-only export, run dir "
-        "or SB3 zip) or to a folder of seed_<k> agents; trained_agents/NAME also resolves from any directory",
+        help="mpc | campc | campc-di | campc-nndi | campc-inner | hold, a path to an agent (weights-only export, "
+        "run dir or SB3 zip) or to a folder of seed_<k> agents; trained_agents/NAME also resolves from any directory",
     )
     ev.add_argument("--env", required=True, help="environment id, e.g. uvdms/CircleTrack-v0")
     ev.add_argument(

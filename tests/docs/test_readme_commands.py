@@ -39,6 +39,7 @@ def documented_text() -> str:
     pages = sorted(p for p in DOCS.rglob("*.md") if not p.is_relative_to(DOCS / "leaderboard"))
     return "\n".join(page.read_text(encoding="utf-8") for page in [README, *pages])
 
+
 UVDMS = Path(sys.executable).parent / "uvdms"
 
 BUDGET_OPTIONS = ("--episodes", "--total-timesteps")
