@@ -86,7 +86,7 @@ _TRAIN_OPTIONS: tuple[tuple[str, str, Callable[[Any], list[str]] | None], ...] =
     ("verbose", "--verbose", lambda v: [str(v)]),
 )
 """How ``uvdms train``'s namespace maps back to ``python -m agents.train``'s options (:func:`_train_argv`)."""
-_ALWAYS = ("seed", "out", "vec_env", "gym_packages", "verbose")
+_ALWAYS = ("seed", "out", "gym_packages", "verbose")
 """Options written even at their defaults (the others only when given: ``None``, empty and ``False`` are not)."""
 
 

@@ -42,6 +42,7 @@ from agents.common.rollouts import RolloutVecEnv
 from agents.config import ConfigError, load_config, validate_config_file
 from agents.export import export_agent, load_agent, load_weights_only
 from agents.training.train import latest_checkpoint, run_dir_for, train
+from uvdms_cli.main import main as uvdms
 
 REPO = Path(__file__).resolve().parents[2]
 UVDMS = Path(sys.executable).with_name("uvdms")
@@ -360,7 +361,8 @@ def test_resume_keeps_the_vec_env_of_the_last_segment_unless_told(tmp_path):
         "ppo_lagrangian", "uvdms/CircleTrack-v1", None, _toy_config(tmp_path), seed=1, out_dir=tmp_path, progress=False,
         vec_env="rollout", total_timesteps=256,
     )  # fmt: skip
-    train(resume_dir=run_dir, total_timesteps=128, progress=False)
+    # through `uvdms train --resume` as scripts/train_v1_entries.sh does (that CLI used to pass --vec-env dummy)
+    assert uvdms(["train", "--resume", str(run_dir), "--total-timesteps", "128", "--no-progress"]) == 0
     train(resume_dir=run_dir, total_timesteps=128, progress=False, vec_env="dummy")
     train(resume_dir=run_dir, total_timesteps=128, progress=False)
     segments = json.loads((run_dir / "meta.json").read_text())["segments"]
