@@ -16,7 +16,8 @@
 #                          (no collision rows: whatever avoidance it shows, it learned)
 #   residual-mpc-dagger-*  the residual over `mpc` fitted by DAgger to CAMPC's correction (agents/algos/dagger.py)
 #   ppo-lagrangian-*       PPO-Lagrangian on info["cost"] (train_configs/ppo_lagrangian.yml), 2 envs (--vec-env rollout:
-#                          each env collects its part of every rollout, agents/common/rollouts.py)
+#                          each env collects its part of every rollout, agents/common/rollouts.py); the -fullrange-
+#                          entries without the action_scale cap (train_configs/variants/ppo_lagrangian_full_range.yml)
 # All train on the randomised tasks with hydro_randomization=0.3 (the leaderboard's held-out variants use other
 # seeds); the leaderboard also runs them on the paper's fixed tasks.
 set -euo pipefail
