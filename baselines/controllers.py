@@ -1,9 +1,10 @@
 """The named baselines built from an environment, as controllers of the benchmark's protocol.
 
 Every baseline follows :class:`uvdms_gym.evaluation.Controller` (``reset(seed)``, ``predict(obs, info) -> action``,
-the action in the environment's normalised space ``[-1, 1]^18``; re-exported here) and exposes ``last_record``
-(a dict with ``status``, ``iterations``, ``max_slack``, ``wall_us`` and more) after each ``predict``. Trained
-agents follow the same protocol (:class:`agents.export.AgentController`); resolving a name *or* an agent path
+the action in the environment's normalised space ``[-1, 1]^18``; re-exported here); the MPC baselines expose
+``last_record`` (a dict with ``status``, ``iterations``, ``max_slack``, ``wall_us`` and more) after each
+``predict`` (``hold``, with no QP, an empty one). Trained agents follow the same protocol
+(:class:`agents.export.AgentController`); resolving a name *or* an agent path
 to a controller is the composition layer's job (:mod:`leaderboard.registry`).
 
 Named baselines (:data:`BASELINES`; :func:`make_controller`):
