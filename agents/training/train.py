@@ -179,13 +179,12 @@ def train(
         progress: Show a progress bar (tqdm + rich).
         hyperparams: Extra config keys (algorithm hyperparameters or TrainConfig fields) overriding the
             file, validated like the file. Not allowed when resuming.
-        vec_env: ``None`` (default): ``dummy`` for a fresh run, the type of the last segment for a resume (a
-            ``rollout`` run resumed as ``dummy`` would change how it samples halfway). ``dummy``: every env in
-            the trainer's process; ``subproc`` (every env in a worker
-            process), ``hybrid`` (env 0 in the trainer's process, the others in workers, stepped at the same
-            time; identical results to ``dummy``) or ``rollout`` (PPO and PPO-Lagrangian: as ``hybrid``, and each
-            env collects its part of every rollout with its own copy of the policy, :mod:`agents.common.rollouts`; the
-            fastest PPO setting with 2 envs on 2 free cores, reproducible from the seed but not identical to ``dummy``).
+        vec_env: ``None`` (default: ``dummy``, or for a resume the last segment's type), ``dummy`` (every env in
+            the trainer's process), ``subproc`` (every env in a worker process), ``hybrid`` (env 0 in the trainer's
+            process, the others in workers, stepped at the same time; identical results to ``dummy``) or
+            ``rollout`` (PPO and PPO-Lagrangian: as ``hybrid``, and each env collects its part of every rollout with
+            its own copy of the policy, :mod:`agents.common.rollouts`; the fastest PPO setting with 2 envs on 2 free
+            cores, reproducible from the seed but not identical to ``dummy``).
         gym_packages: Packages to import so that the env id is registered.
         verbose: SB3 verbosity (1: print the training table to stdout).
         callbacks: Extra SB3 callbacks, called on every step after the checkpoint and evaluation callbacks
