@@ -43,6 +43,7 @@ def plate_table(plates) -> np.ndarray:
     return out
 
 
+# hot path: a line-by-line transcription of the numpy reference, one kernel so that numba compiles it whole
 @jit
 def exact_rows(seg, rot, pos, plates, d, p, e, idx):  # noqa: C901  # pragma: no cover - compiled kernel (below)
     """Fill the 18 exact rows ``d (18,)``, ``p (18, 3)``, ``e (18, 3)``, ``idx (18,)`` (int64) in place.
