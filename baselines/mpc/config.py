@@ -68,10 +68,10 @@ class MPCConfig:
         warm_mu_in: if set, the proximal parameter ``mu_in`` is reset to this value at every warm update [D] 1e-2
             (``None``: ProxSuite keeps the previous step's value).
         attitude_weight: weight of the vehicle roll/pitch regulation outputs added by
-            :class:`baselines.campc.MPCController` (0 disables them) [D] 100 /rad^2 (the task settings of
-            :func:`baselines.campc.task_config` use 0 for the circles and 10 for transport).
+            :class:`baselines.mpc.campc.MPCController` (0 disables them) [D] 100 /rad^2 (the task settings of
+            :func:`baselines.mpc.campc.task_config` use 0 for the circles and 10 for transport).
         posture_weight: weight of joint-posture outputs ``q -> q_nominal`` (the joint angles at the episode's
-            first step) added by :class:`baselines.campc.MPCController` (0 disables them) [D] 0; a small value
+            first step) added by :class:`baselines.mpc.campc.MPCController` (0 disables them) [D] 0; a small value
             keeps the redundant arms near their initial posture (used for transport).
         outer_rows: number of velocity-damper rows for outer obstacles (CAMPC only; 0: none, the default). The
             problem's outer rows (the robot-obstacle gaps of :mod:`uvdms_gym.distances.outer`, nearest first) fill
@@ -89,7 +89,7 @@ class MPCConfig:
             set 0.1 m in environments with outer obstacles).
         outer_escape: evasion bias, m: with outer rows, each obstacle inside the outer damper's zone adds
             ``outer_escape (1 - S(gap))`` times the unit direction out of its swept path to the object's position
-            error (:meth:`baselines.campc.MPCController.make_problem`) [D] 0 (off).
+            error (:meth:`baselines.mpc.campc.MPCController.make_problem`) [D] 0 (off).
     """
 
     n_c: int = 5
