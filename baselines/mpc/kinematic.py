@@ -1,6 +1,8 @@
 """Kinematic model predictive control (MPC / CAMPC) of the UVDMS, docs/MODEL.md section 6 (paper Section 3.1).
 
-The controller is split into four parts, each usable on its own:
+:class:`KinematicMPC` is the QP; its settings and one step's data are in :mod:`baselines.mpc.config`, the damper of
+the collision rows in :mod:`baselines.mpc.damper`, the ProxSuite build in :mod:`baselines.mpc.solver`. The controller
+is split into four parts, each usable on its own:
 
 * **model** — the frozen-Jacobian prediction ``ybar(j) = y(k) + T_c J_y sum_{i<j} zeta_i`` (``j = 1..N_p``) with
   the decision ``U = [zeta_0 .. zeta_{N_c-1}]`` (``18 N_c``) and ``zeta_i = zeta_{N_c-1}`` for ``i >= N_c``. In
