@@ -1,20 +1,27 @@
-"""Reference controllers of the UVDMS benchmark (the paper's method and its ablations).
+"""Reference controllers of the UVDMS benchmark (the paper's method and its ablations), grouped by family.
 
-* :mod:`baselines.mpc` — the kinematic MPC / CAMPC QP core (:class:`KinematicMPC`, :class:`MPCConfig`);
-* :mod:`baselines.campc` — its model-based front end (:class:`MPCController`, :func:`make_mpc_controller`);
-* :mod:`baselines.di` — dynamic inversion with RBF compensation (:class:`DynamicInversionController`);
-* :mod:`baselines.cascade` — MPC outer loop + DI inner loop (:class:`CascadeController`);
+* :mod:`baselines.mpc` — the kinematic MPC / CAMPC: the QP core (:class:`KinematicMPC` in
+  :mod:`baselines.mpc.kinematic`, :class:`MPCConfig` in :mod:`baselines.mpc.config`), the damper rows, the ProxSuite
+  build, and the model-based front end (:class:`MPCController`, :func:`make_mpc_controller` in
+  :mod:`baselines.mpc.campc`);
+* :mod:`baselines.inner_loop` — dynamic inversion with RBF compensation (:class:`DynamicInversionController` in
+  :mod:`baselines.inner_loop.di`) and the MPC outer loop + DI inner loop (:class:`CascadeController` in
+  :mod:`baselines.inner_loop.cascade`);
+* :mod:`baselines.safety` — the safety filter (:mod:`baselines.safety.filter`);
 * :mod:`baselines.controllers` — the controller interface shared with agents and the named baselines ``mpc``,
-  ``campc``, ``campc-di``, ``campc-nndi`` (:func:`make_controller`);
-* :mod:`baselines.evaluate` — deprecated aliases (0.2) of :mod:`uvdms_gym.evaluation` (episodes -> JSON metrics);
-* :mod:`baselines.reproduce` — the paper's experiments, figures and acceptance checks (``uvdms reproduce``);
-* :mod:`baselines.bench` — timings (:func:`benchmark_all`: ``uvdms bench mpc``) and the OSQP replay.
+  ``campc``, ``campc-di``, ``campc-nndi``, ``campc-inner``, ``hold`` (:func:`~baselines.controllers.make_baseline`);
+* :mod:`baselines.paper` — the paper's experiments, figures and acceptance checks (``uvdms reproduce``);
+* :mod:`baselines.bench` — timings (:func:`~baselines.bench.benchmark_all`: ``uvdms bench mpc``) and the OSQP replay;
+* :mod:`baselines.cli` — registers ``uvdms reproduce``.
+
+The names below are re-exported here (``from baselines import KinematicMPC``).
 """
 
-from baselines.campc import MPCController, make_mpc_controller, task_config
-from baselines.cascade import CascadeController, CascadeOutput
-from baselines.di import DIConfig, DIOutput, DynamicInversionController, UVDMSNominalModel
-from baselines.mpc import KinematicMPC, MPCConfig, MPCProblem, MPCStepRecord, QPMatrices
+from baselines.inner_loop.cascade import CascadeController, CascadeOutput
+from baselines.inner_loop.di import DIConfig, DIOutput, DynamicInversionController, UVDMSNominalModel
+from baselines.mpc.campc import MPCController, make_mpc_controller, task_config
+from baselines.mpc.config import MPCConfig, MPCProblem, MPCStepRecord, QPMatrices
+from baselines.mpc.kinematic import KinematicMPC
 
 __all__ = [
     "CascadeController",

@@ -2,7 +2,7 @@
 
 * :func:`benchmark_env_campc` runs the ``campc`` baseline on the simulator (``uvdms/CircleTrack-v0``, Case 1),
   times every control step (kinematics + distances + ``J_dis`` + QP build + warm-started ProxSuite solve, as
-  :meth:`~baselines.campc.MPCController.step` measures it) and replays the recorded QP sequence with OSQP (set up
+  :meth:`~baselines.mpc.campc.MPCController.step` measures it) and replays the recorded QP sequence with OSQP (set up
   once, warm-started, matrices updated in place) at the same absolute tolerance;
 * :func:`benchmark_mpc` does the same on the *kinematic* model alone (the command integrated exactly with
   ``pin.integrate``, no simulator);
@@ -15,13 +15,13 @@
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from baselines.mpc import INF, KinematicMPC, MPCConfig, MPCProblem, QPMatrices
+from baselines.mpc.config import INF, MPCConfig, MPCProblem, QPMatrices
+from baselines.mpc.kinematic import KinematicMPC
 
 _OSQP_INF = 1e30
 
@@ -184,7 +184,7 @@ def benchmark_mpc(
     """
     import pinocchio as pin
 
-    from baselines.campc import MPCController, task_config
+    from baselines.mpc.campc import MPCController, task_config
     from uvdms_gym.envs.tasks import make_circle_task
     from uvdms_gym.physics.frames import quat_xyzw_to_rot, rot_to_euler
 
@@ -222,17 +222,6 @@ def benchmark_mpc(
     return out
 
 
-def benchmark_configs() -> dict[str, MPCConfig]:
-    """Named configurations for comparison runs (defaults, rows instead of box, plain MPC)."""
-    base = MPCConfig()
-    return {
-        "campc": base,
-        "campc_rows": replace(base, box_constraints=False),
-        "campc_j0": replace(base, collision_steps=1),
-        "mpc": replace(base, collision=False),
-    }
-
-
 def benchmark_di(n_steps: int = 500, use_nn: bool = True) -> dict[str, float | int]:
     """Median cost of one dynamic-inversion tick on the UVDMS nominal model (model + network + update).
 
@@ -243,7 +232,7 @@ def benchmark_di(n_steps: int = 500, use_nn: bool = True) -> dict[str, float | i
     Returns:
         ``{"di_us_median", "di_us_p90", "n_steps"}``.
     """
-    from baselines.di import DIConfig, DynamicInversionController
+    from baselines.inner_loop.di import DIConfig, DynamicInversionController
     from uvdms_gym.physics.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG
 
     ctl = DynamicInversionController(DIConfig(use_nn=use_nn))
@@ -300,11 +289,11 @@ def benchmark_env_campc(n_steps: int = 500, case: int = 1, warmup: int = 10, osq
     import gymnasium as gym
 
     import uvdms_gym  # noqa: F401
-    from baselines.controllers import make_controller
+    from baselines.controllers import make_baseline
 
     env = gym.make("uvdms/CircleTrack-v0", case=case, action_mode="velocity", terminate_on_contact=False)
     try:
-        ctl = make_controller("campc", env)
+        ctl = make_baseline("campc", env)
         obs, info = env.reset(seed=0)
         ctl.reset(0)
         mpc = ctl.mpc
@@ -355,11 +344,11 @@ def real_time_factor(controller: str = "campc-nndi", env_id: str = "uvdms/Transp
     import gymnasium as gym
 
     import uvdms_gym  # noqa: F401
-    from baselines.controllers import BASELINES, make_controller
+    from baselines.controllers import BASELINES, make_baseline
 
     env = gym.make(env_id, action_mode=BASELINES[controller]["action_mode"])
     try:
-        ctl = make_controller(controller, env)
+        ctl = make_baseline(controller, env)
         obs, info = env.reset(seed=0)
         ctl.reset(0)
         c_ms, e_ms, d_us = [], [], []

@@ -11,7 +11,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "reproduce",
         help="run the paper's experiments: figures, summary.md and acceptance checks",
         description="Case 1/2 circle tracking (MPC vs CAMPC), transport with campc-nndi and the NN ablation; "
-        "writes PNG figures, summary.md and results.json into --out (see baselines.reproduce).",
+        "writes PNG figures, summary.md and results.json into --out (see baselines.paper.reproduce).",
     )
     rp.add_argument("--out", required=True, help="output folder")
     rp.add_argument("--check", action="store_true", help="exit non-zero if an acceptance criterion fails")
@@ -20,6 +20,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
-    from baselines.reproduce import reproduce
+    from baselines.paper.reproduce import reproduce
 
     return reproduce(args.out, check=args.check, quick=args.quick)

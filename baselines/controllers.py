@@ -7,7 +7,7 @@ the action in the environment's normalised space ``[-1, 1]^18``; re-exported her
 (:class:`agents.export.AgentController`); resolving a name *or* an agent path
 to a controller is the composition layer's job (:mod:`leaderboard.registry`).
 
-Named baselines (:data:`BASELINES`; :func:`make_controller`):
+Named baselines (:data:`BASELINES`; :func:`make_baseline`):
 
 ==============  ============  ===========================================================================
 name            action_mode   what
@@ -29,7 +29,7 @@ reference window ``env.unwrapped.reference(t + j T_c)``, ``j = 1..N_p``. [D] In 
 inversion also runs once per environment step (``dt = control_dt``): the torque is held over the
 environment's physics substeps, exactly as an RL agent's torque action is, so the two compete on equal
 terms and the registered episode lengths (in steps) stay valid. The defaults of
-:class:`~baselines.di.DIConfig` were chosen for that 25 Hz rate on the simulator; ``dt`` is set to the
+:class:`~baselines.inner_loop.di.DIConfig` were chosen for that 25 Hz rate on the simulator; ``dt`` is set to the
 environment's ``control_dt``.
 
 Information used. A controller sees ``obs``/``info`` (``t``, ``eta``, ``nu``, ``q``, ``qdot``), the task's
@@ -47,9 +47,9 @@ from typing import Any
 
 import numpy as np
 
-from baselines.campc import MPCController, task_config
-from baselines.di import DIConfig, DynamicInversionController, UVDMSNominalModel
-from baselines.mpc import MPCConfig
+from baselines.inner_loop.di import DIConfig, DynamicInversionController, UVDMSNominalModel
+from baselines.mpc.campc import MPCController, task_config
+from baselines.mpc.config import MPCConfig
 from uvdms_gym.evaluation import Controller, check_action_mode
 
 BASELINES: dict[str, dict[str, Any]] = {
@@ -92,7 +92,7 @@ this task was trained on)."""
 
 ESCAPE = 0.1
 """[D] ``outer_escape`` (m) of the MPC baselines in an environment with obstacles (see
-:attr:`baselines.mpc.MPCConfig.outer_escape`)."""
+:attr:`baselines.mpc.config.MPCConfig.outer_escape`)."""
 
 GOVERNOR = 0.1
 """[D] ``max_position_error`` (m) of the MPC baselines in an environment with obstacles: after an evasion the
@@ -112,10 +112,10 @@ def controller_config(task: str, collision: bool, control_dt: float, **overrides
         task: ``"circle"`` or ``"transport"``.
         collision: CAMPC (``True``) or plain MPC.
         control_dt: the environment's control period (``T_c``).
-        **overrides: further :class:`~baselines.mpc.MPCConfig` fields.
+        **overrides: further :class:`~baselines.mpc.config.MPCConfig` fields.
 
     Returns:
-        The :class:`~baselines.mpc.MPCConfig`.
+        The :class:`~baselines.mpc.config.MPCConfig`.
     """
     return task_config(task, collision, t_c=float(control_dt), **overrides)  # type: ignore[arg-type]
 
@@ -189,7 +189,7 @@ class MPCVelocityController(_MPCBase):
         Args:
             env: the environment (wrapped or not).
             collision: CAMPC (``True``) or plain MPC.
-            mpc_overrides: :class:`~baselines.mpc.MPCConfig` fields replacing the task's defaults.
+            mpc_overrides: :class:`~baselines.mpc.config.MPCConfig` fields replacing the task's defaults.
             outer: with collision rows, add :data:`OUTER_ROWS` outer-obstacle rows when the environment has
                 obstacles (``False``: the inner rows only).
         """
@@ -215,7 +215,7 @@ class CascadeTorqueController(_MPCBase):
     """``campc-di`` / ``campc-nndi``: CAMPC command tracked by dynamic inversion, ``a = tau / tau_max``.
 
     Both loops run once per environment step (module docstring). The nominal model is
-    :class:`~baselines.di.UVDMSNominalModel` of the environment's parameters (with the gripped object as a
+    :class:`~baselines.inner_loop.di.UVDMSNominalModel` of the environment's parameters (with the gripped object as a
     payload for transport): the simulator's link drag, object hydrodynamics and any hydrodynamic randomisation
     are the model error the network compensates.
     """
@@ -237,8 +237,8 @@ class CascadeTorqueController(_MPCBase):
             env: the environment (wrapped or not).
             use_nn: with the RBF network (``campc-nndi``) or without (``campc-di``).
             collision: collision rows in the MPC.
-            mpc_overrides: :class:`~baselines.mpc.MPCConfig` fields replacing the task's defaults.
-            di_overrides: :class:`~baselines.di.DIConfig` fields replacing the defaults.
+            mpc_overrides: :class:`~baselines.mpc.config.MPCConfig` fields replacing the task's defaults.
+            di_overrides: :class:`~baselines.inner_loop.di.DIConfig` fields replacing the defaults.
             outer: outer-obstacle rows when the environment has obstacles (see :class:`MPCVelocityController`).
         """
         super().__init__(env, collision, mpc_overrides, outer)
@@ -328,23 +328,6 @@ def make_baseline(name: str, env: Any, **kwargs: Any) -> Controller:
     return CascadeTorqueController(env, use_nn=spec["use_nn"], collision=spec["collision"], outer=outer, **kwargs)
 
 
-def required_action_mode(spec: str) -> str | None:
-    """The action mode a baseline needs (``None`` for an agent path: the agent's own env kwargs decide)."""
-    return BASELINES[spec]["action_mode"] if spec in BASELINES else None
-
-
-def make_controller(spec: str, env: Any, **kwargs: Any) -> Controller:
-    """A named baseline for ``env`` (:func:`make_baseline`).
-
-    Deprecated for agent paths since 0.2: ``baselines`` does not import ``agents``; resolve a name *or* a path
-    with :func:`leaderboard.registry.make_controller`.
-
-    Raises:
-        ValueError: ``spec`` is not a baseline name (the message names the registry), or an action-mode mismatch.
-    """
-    if spec not in BASELINES:
-        raise ValueError(
-            f"unknown baseline {spec!r}; choose one of {sorted(BASELINES)}, or load an agent path with "
-            "leaderboard.registry.make_controller"
-        )
-    return make_baseline(spec, env, **kwargs)
+def baseline_action_mode(name: str) -> str | None:
+    """The action mode a baseline needs (``None`` for a name that is not a baseline, such as an agent path)."""
+    return BASELINES[name]["action_mode"] if name in BASELINES else None

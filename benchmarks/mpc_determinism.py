@@ -8,7 +8,7 @@ Two probes:
   the leaderboard's process holds). Each controller prints the SHA-256 of its actions (float64 bytes) and
   ``qp_slack_max``; bit-repeatable means one hash in every process.
 * ``replay``: records the ProxSuite QPs of one ``campc`` transport episode, then solves the same sequence on
-  fresh QP objects (cold init, then warm ``update`` + ``solve`` like :class:`baselines.mpc.KinematicMPC`) with
+  fresh QP objects (cold init, then warm ``update`` + ``solve`` like :class:`baselines.mpc.kinematic.KinematicMPC`) with
   some heap allocated in between, and prints the hash of every trial's solutions. ``--build`` forces ProxSuite's
   ``avx512``, ``avx2`` or portable (``none``) Python module (the package otherwise picks the widest the CPU has).
 
@@ -80,7 +80,7 @@ def record(path: Path, steps: int) -> None:
 
     import uvdms_gym  # noqa: F401
     from baselines.controllers import make_baseline
-    from baselines.mpc import KinematicMPC
+    from baselines.mpc.kinematic import KinematicMPC
 
     seq: list[dict] = []
     solve = KinematicMPC.solve

@@ -102,7 +102,7 @@ Cache
     Every (entry, task, seed) result is a JSON file under the cache directory, keyed by the SHA-256 of the
     entry identity (name and kind; for agents the SHA-256 of their model files), the task spec (env id,
     keyword arguments incl. the action mode, step limit, whether a trajectory is stored), the seed, the
-    package version and, for baselines, the ProxSuite build (``baselines.mpc.PROXSUITE_BUILD``). Files are
+    package version and, for baselines, the ProxSuite build (``baselines.mpc.solver.PROXSUITE_BUILD``). Files are
     written atomically (temporary file + ``os.replace``) and reused on re-runs; ``force=True`` recomputes. A
     file that cannot be parsed or does not match its key is reported with ``logging.warning`` (by path) and
     recomputed.

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 import uvdms_gym
-from baselines.mpc import PROXSUITE_BUILD
+from baselines.mpc.solver import PROXSUITE_BUILD
 from leaderboard.entries import Entry
 from leaderboard.tasks import Task
 from uvdms_gym.utils.io import to_jsonable
@@ -30,7 +30,7 @@ class CorruptCacheError(ValueError):
 def cache_material(entry: Entry, task: Task, seed: int, save_trajectory: bool) -> dict[str, Any]:
     """Everything the cache key hashes (see the module docstring).
 
-    Baselines also hash the ProxSuite build their QPs are solved with (:data:`baselines.mpc.PROXSUITE_BUILD`):
+    Baselines also hash the ProxSuite build their QPs are solved with (:data:`baselines.mpc.solver.PROXSUITE_BUILD`):
     results of another build differ in the last bits and are not reused.
     """
     material = {

@@ -45,7 +45,7 @@ log = logging.getLogger("uvdms.leaderboard")
 BASELINES: dict[str, str] = TRACK_OF
 """Named baselines and their tracks (:data:`leaderboard.registry.TRACK_OF`)."""
 FILTER_SUFFIX = "+filter"
-"""Entry-token suffix: the entry's actions go through the safety filter (:mod:`baselines.safety`)."""
+"""Entry-token suffix: the entry's actions go through the safety filter (:mod:`baselines.safety.filter`)."""
 DEFAULT_ENTRIES: tuple[str, ...] = ("baselines", "agents")
 """``baselines`` stands for the four named baselines, ``agents`` for every agent folder in ``agents_dir``."""
 SEED_FOLDER_PREFIX = "seed_"
@@ -70,7 +70,7 @@ class Entry:
         checksum: SHA-256 over the agent's model files (``None`` for baselines).
         training_seeds: Every seed recorded in the agent's run files.
         weights_only: The agent is a weights-only export (never unpickled).
-        safety_filter: The controller's actions go through :class:`baselines.safety.SafetyFilter` (an entry of
+        safety_filter: The controller's actions go through :class:`baselines.safety.filter.SafetyFilter` (an entry of
             its own, named ``<name>+filter``; always for an agent trained with the filter).
         residual_base: The base controller of a residual agent (``None``: not a residual agent).
         members: A multi-seed entry's per-seed agent entries (empty otherwise); the runner evaluates these.

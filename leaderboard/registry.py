@@ -205,12 +205,12 @@ def action_components() -> ActionComponents:
 
 
 def with_safety_filter(controller: Any, env: Any) -> Any:
-    """``controller`` with its velocity commands projected onto the collision rows (:mod:`baselines.safety`).
+    """``controller`` with its velocity commands projected onto the collision rows (:mod:`baselines.safety.filter`).
 
-    A controller that already is a :class:`~baselines.safety.SafetyFilter` (an agent trained with the filter,
+    A controller that already is a :class:`~baselines.safety.filter.SafetyFilter` (an agent trained with the filter,
     composed by :func:`compose_agent`) is returned as it is: the filter is applied once.
     """
-    from baselines.safety import SafetyFilter
+    from baselines.safety.filter import SafetyFilter
 
     if isinstance(controller, SafetyFilter):
         return controller
@@ -227,7 +227,7 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
 
     Returns:
         The agent itself when there is nothing to compose, else a
-        :class:`uvdms_gym.residual.ResidualController` and/or a :class:`baselines.safety.SafetyFilter`.
+        :class:`uvdms_gym.residual.ResidualController` and/or a :class:`baselines.safety.filter.SafetyFilter`.
 
     Raises:
         ValueError: The recorded base is not a velocity-mode baseline, or an action-mode mismatch.

@@ -39,7 +39,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     ev.add_argument(
         "--safety-filter",
         action="store_true",
-        help="project every velocity command onto the collision rows (baselines.safety.SafetyFilter)",
+        help="project every velocity command onto the collision rows (baselines.safety.filter.SafetyFilter)",
     )
     ev.add_argument("--no-progress", action="store_true", help="no progress bar")
     ev.set_defaults(func=_cmd_evaluate)

@@ -148,7 +148,8 @@ class TrainConfig:
             stays at zero where the base needs no correction (:class:`uvdms_gym.residual.ResidualAction`).
             Evaluation and the exported agent are unaffected.
         safety_filter: The training envs' velocity command (after the residual, if any) goes through the safety
-            filter (``baselines.safety.SafetyFilter``, injected by ``uvdms train``); evaluation composes the same.
+            filter (``baselines.safety.filter.SafetyFilter``, injected by ``uvdms train``); evaluation composes the
+            same.
         residual_observation: What a residual policy observes besides the environment's observation (only with
             ``residual_base``): ``"base"`` (default), the base's action; ``"clearance"``, the base's action and
             36 clearance features (the direction that opens the clearances below ``d2`` and the clearance rates

@@ -102,8 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--safety-filter",
         action="store_true",
-        help="filter the training envs' velocity command (after the residual) with baselines.safety.SafetyFilter; "
-        "evaluation composes the same (uvdms train only)",
+        help="filter the training envs' velocity command (after the residual) with "
+        "baselines.safety.filter.SafetyFilter; evaluation composes the same (uvdms train only)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity (1 prints training tables)")

@@ -30,7 +30,7 @@ from agents.export.weights import export_controller, load_weights_only
 from agents.training.train import main as agents_train_main
 from agents.training.train import run_dir_for
 from baselines.controllers import make_baseline
-from baselines.safety import SafetyFilter
+from baselines.safety.filter import SafetyFilter
 from leaderboard.entries import resolve_entries
 from leaderboard.registry import (
     BaselineFactory,

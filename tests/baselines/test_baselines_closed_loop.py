@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import uvdms_gym  # noqa: F401
-from baselines.controllers import BASELINES, Controller, make_controller
-from baselines.reproduce import ROW_RIGHT_LINK3_FRAME, ROW_RIGHT_LINK5_LEFT_ARM, transport_numbers
+from baselines.controllers import BASELINES, Controller, make_baseline
+from baselines.paper.reproduce import ROW_RIGHT_LINK3_FRAME, ROW_RIGHT_LINK5_LEFT_ARM, transport_numbers
 from uvdms_gym.evaluation import run_episode
 from uvdms_gym.physics.params import D1
 
@@ -22,7 +22,7 @@ CIRCLE, TRANSPORT = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"
 def episode(spec: str, env_id: str, seed: int = 0, save: bool = False, **env_kwargs) -> dict:
     env = gym.make(env_id, action_mode=BASELINES[spec]["action_mode"], terminate_on_contact=False, **env_kwargs)
     try:
-        return run_episode(env, make_controller(spec, env), seed, save_trajectory=save)
+        return run_episode(env, make_baseline(spec, env), seed, save_trajectory=save)
     finally:
         env.close()
 
@@ -89,7 +89,7 @@ def test_baselines_follow_the_controller_interface(spec):  # the MPC baselines; 
     mode = BASELINES[spec]["action_mode"]
     env = gym.make(CIRCLE, action_mode=mode)
     try:
-        ctl = make_controller(spec, env)
+        ctl = make_baseline(spec, env)
         assert isinstance(ctl, Controller)
         obs, info = env.reset(seed=3)
         ctl.reset(3)
@@ -111,7 +111,7 @@ def test_action_mode_mismatch_names_the_required_mode(spec):
     env = gym.make(TRANSPORT, action_mode=wrong)
     try:
         with pytest.raises(ValueError, match=f"action_mode='{required}'"):
-            make_controller(spec, env)
+            make_baseline(spec, env)
     finally:
         env.close()
 
@@ -119,8 +119,8 @@ def test_action_mode_mismatch_names_the_required_mode(spec):
 def test_unknown_controller_is_rejected():
     env = gym.make(CIRCLE)
     try:
-        with pytest.raises(ValueError, match=r"unknown baseline .no-such-controller.*leaderboard\.registry"):
-            make_controller("no-such-controller", env)
+        with pytest.raises(ValueError, match=r"unknown baseline .no-such-controller.; choose one of"):
+            make_baseline("no-such-controller", env)
     finally:
         env.close()
 
@@ -139,11 +139,12 @@ def test_recorded_qps_match_an_independent_solver(env_id, kwargs):
     from dataclasses import replace
 
     from baselines.bench import OSQPReplay
-    from baselines.mpc import N_DOF, KinematicMPC
+    from baselines.mpc.config import N_DOF
+    from baselines.mpc.kinematic import KinematicMPC
 
     env = gym.make(env_id, action_mode="velocity", **kwargs)
     try:
-        ctl = make_controller("campc", env)
+        ctl = make_baseline("campc", env)
         obs, info = env.reset(seed=0)
         ctl.reset(0)
         recorded = []

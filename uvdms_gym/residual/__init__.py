@@ -23,8 +23,8 @@ at evaluation (around the trained agent's controller), so that for the same inpu
 bit for bit.
 
 Command filter. :class:`FilteredAction` passes every action through a controller-wrapping filter (in this project
-``baselines.safety.SafetyFilter``), the training-time counterpart of wrapping the evaluated controller in the same
-filter. With both, the order is the residual first, then the filter: ``FilteredAction`` is the inner wrapper
+``baselines.safety.filter.SafetyFilter``), the training-time counterpart of wrapping the evaluated controller in the
+same filter. With both, the order is the residual first, then the filter: ``FilteredAction`` is the inner wrapper
 (``env -> FilteredAction -> ResidualAction``), and at evaluation ``filter(ResidualController(...))``.
 
 [D] The base and the filter are *injected* as factories (:data:`ControllerFactory`, :data:`FilterFactory`): this

@@ -328,7 +328,7 @@ class FilteredAction(gym.Wrapper):
     ``filter_active`` and ``filter_change`` from the filter's ``last_record`` (``False`` / 0 when it has none).
 
     Args:
-        env: The environment (velocity mode for ``baselines.safety.SafetyFilter``).
+        env: The environment (velocity mode for ``baselines.safety.filter.SafetyFilter``).
         filter_factory: Wraps a controller in the filter.
 
     Raises:

@@ -4,10 +4,10 @@
 ``zeta_cmd`` in between; the dynamic inversion (with or without the RBF network) turns the held command into
 the generalized force ``tau`` at every tick. The measured velocity goes to the MPC too (collision lookahead), and
 with a closed chain (transport) the MPC's constraint matrix ``J_o,left - J_o,right`` goes to the inversion, which
-then commands no internal force (:meth:`~baselines.di.DynamicInversionController.step`). The environments'
+then commands no internal force (:meth:`~baselines.inner_loop.di.DynamicInversionController.step`). The environments'
 torque baselines run both loops at the same rate (``ratio = 1``, :mod:`baselines.controllers`). This is the
 ``campc-di`` / ``campc-nndi`` baseline; plain ``mpc`` / ``campc`` in the environment's velocity action mode
-use :class:`~baselines.campc.MPCController` alone.
+use :class:`~baselines.mpc.campc.MPCController` alone.
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baselines.campc import MPCController
-from baselines.di import DIOutput, DynamicInversionController
-from baselines.mpc import MPCStepRecord
+from baselines.inner_loop.di import DIOutput, DynamicInversionController
+from baselines.mpc.campc import MPCController
+from baselines.mpc.config import MPCStepRecord
 
 
 @dataclass

@@ -1,8 +1,8 @@
-"""The figures of ``uvdms reproduce`` (:mod:`baselines.reproduce`), numbered like the paper's.
+"""The figures of ``uvdms reproduce`` (:mod:`baselines.paper.reproduce`), numbered like the paper's.
 
 ``fig07``/``fig08`` end effectors against their circles, ``fig09`` the minimum distances, ``fig11``-``fig16`` the
 transport run (object and vehicle pose, joint angles, velocities, torques, the RBF network's output) and the
-ablation; :func:`make_figures` writes them all from the results of :func:`baselines.reproduce.run_experiments`.
+ablation; :func:`make_figures` writes them all from the results of :func:`baselines.paper.reproduce.run_experiments`.
 """
 
 from __future__ import annotations

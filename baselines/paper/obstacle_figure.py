@@ -95,7 +95,7 @@ def obstacle_checks(runs: dict[str, dict[str, Any]]) -> list[tuple[str, bool, st
 
 def fig_obstacles(runs: dict[str, dict[str, Any]], path: Path, dpi: int) -> Path:
     """Object paths and obstacle paths (top and side views), and the smallest gap to each obstacle over time."""
-    from baselines.figures import _plt, _save
+    from baselines.paper.figures import _plt, _save
 
     plt = _plt()
     fig, axes = plt.subplots(1, 3, figsize=(11.0, 3.4))

@@ -1,4 +1,4 @@
-"""The safety filter (baselines/safety.py): a minimal-change projection onto the collision rows."""
+"""The safety filter (baselines/safety/filter.py): a minimal-change projection onto the collision rows."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from scipy.optimize import minimize
 
 import leaderboard as lb
 from baselines.controllers import make_baseline
-from baselines.safety import SafetyFilter, SafetyFilterConfig
+from baselines.safety.filter import SafetyFilter, SafetyFilterConfig
 from uvdms_gym.evaluation import run_episode
 
 

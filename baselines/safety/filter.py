@@ -10,7 +10,7 @@ hold for the command:
 
 ``a`` is the wrapped controller's action (normalised, ``zeta_cmd = a * zeta_max``), ``u`` the filtered one,
 ``J_dis`` the distance Jacobian and ``d`` the 18 distances of the measured state (``info`` and the environment's
-kinematic model), the bound the one of :meth:`baselines.mpc.KinematicMPC.collision_bound` with the same
+kinematic model), the bound the one of :meth:`baselines.mpc.kinematic.KinematicMPC.collision_bound` with the same
 parameters as CAMPC (``vbar``, ``d1``, ``d2``, ``k_escape``, and the measured approach over ``lookahead``),
 and ``alpha`` (:attr:`SafetyFilterConfig.tracking_fraction`) the share of a velocity change the plant completes
 within a step: CAMPC constrains a whole horizon of consistent commands, a one-step filter only the next one,
@@ -35,7 +35,9 @@ from typing import Any
 
 import numpy as np
 
-from baselines.mpc import INF, MPCConfig, damper_bound, proxsuite
+from baselines.mpc.config import INF, MPCConfig
+from baselines.mpc.damper import damper_bound
+from baselines.mpc.solver import proxsuite
 from uvdms_gym.distances import compute_distances, distance_jacobian
 from uvdms_gym.evaluation import Controller, check_action_mode
 
@@ -45,7 +47,7 @@ _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 
 @dataclass(frozen=True)
 class SafetyFilterConfig:
-    """Settings of :class:`SafetyFilter` (the damper's come from :class:`baselines.mpc.MPCConfig`).
+    """Settings of :class:`SafetyFilter` (the damper's come from :class:`baselines.mpc.config.MPCConfig`).
 
     Attributes:
         tracking_fraction: ``alpha``, the share of a velocity change the plant completes within one control step.
@@ -78,7 +80,7 @@ class SafetyFilter:
         controller: The wrapped controller (velocity action mode).
         env: The environment it drives (wrapped or not): its ``zeta_max`` and kinematic model.
         config: Filter settings.
-        damper: The damper's parameters (default :class:`~baselines.mpc.MPCConfig`'s, as CAMPC).
+        damper: The damper's parameters (default :class:`~baselines.mpc.config.MPCConfig`'s, as CAMPC).
     """
 
     action_mode = "velocity"

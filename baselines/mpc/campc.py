@@ -1,7 +1,7 @@
-"""Model-based front end of the kinematic MPC: state + reference window -> :class:`~baselines.mpc.MPCProblem`.
+"""Model-based front end of the kinematic MPC: state + reference window -> :class:`~baselines.mpc.config.MPCProblem`.
 
 :class:`MPCController` owns a :class:`~uvdms_gym.physics.kinematics.KinematicModel` and a
-:class:`~baselines.mpc.KinematicMPC`; each :meth:`MPCController.step` runs kinematics, (CAMPC) distances and
+:class:`~baselines.mpc.kinematic.KinematicMPC`; each :meth:`MPCController.step` runs kinematics, (CAMPC) distances and
 ``J_dis``, builds the QP and solves it. Tracked outputs:
 
 * ``"ee_positions"`` (circle tasks): ``y = [p_left; p_right]`` (6), ``J_y`` = the linear rows of ``J``;
@@ -22,10 +22,12 @@ from typing import Literal
 
 import numpy as np
 
-from baselines.mpc import KinematicMPC, MPCConfig, MPCProblem, MPCStepRecord, damper_shape
+from baselines.mpc.config import MPCConfig, MPCProblem, MPCStepRecord
+from baselines.mpc.damper import damper_shape
+from baselines.mpc.kinematic import KinematicMPC
 from uvdms_gym import distances
 from uvdms_gym.distances.outer import OuterDistances, compute_outer_distances, outer_distance_jacobian
-from uvdms_gym.physics.frames import euler_rate_matrix, euler_to_rot_batch, rot_error_batch, wrap_angle
+from uvdms_gym.physics.frames import euler_rate_matrix, euler_to_rot_batch, rot_error_batch
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.params import UVDMSParams
 
@@ -126,7 +128,7 @@ class MPCController:
             y_ref: reference at ``t + j T_c``, ``j = 1..N_p``, shape ``(N_p, 6)``: ``[p_l; p_r]`` or
                 ``[x y z phi theta psi]`` (ZYX Euler, rad) for ``"object_pose"``.
             zeta: measured velocity (18), optional: gives the measured distance rates for the collision
-                lookahead (:attr:`~baselines.mpc.MPCConfig.lookahead`).
+                lookahead (:attr:`~baselines.mpc.config.MPCConfig.lookahead`).
             obstacles: measured outer obstacles, ``info["obstacles"]`` rows (``(K, 11)``: centre, velocity, radius,
                 half length, axis); used with ``config.outer_rows > 0``.
 
@@ -288,30 +290,6 @@ def _govern(e0: np.ndarray, max_error: float, two_points: bool) -> None:
     else:
         norm = np.linalg.norm(e0[:, :3], axis=1)
     e0 *= np.minimum(1.0, max_error / np.maximum(norm, 1e-12))[:, None]
-
-
-def resample_reference(
-    t_grid: np.ndarray, y_grid: np.ndarray, times: np.ndarray, angle_cols: tuple[int, ...] = ()
-) -> np.ndarray:
-    """Linear interpolation of a reference given on a time grid (held beyond its ends).
-
-    Args:
-        t_grid: increasing times (N,).
-        y_grid: values (N, k).
-        times: query times (M,).
-        angle_cols: columns holding angles (unwrapped before and wrapped after interpolation).
-
-    Returns:
-        Values at ``times`` (M, k).
-    """
-    y = np.array(y_grid, dtype=float)
-    cols = list(angle_cols)
-    if cols:
-        y[:, cols] = np.unwrap(y[:, cols], axis=0)
-    out = np.stack([np.interp(times, t_grid, y[:, i]) for i in range(y.shape[1])], axis=-1)
-    if cols:
-        out[:, cols] = wrap_angle(out[:, cols])
-    return out
 
 
 CIRCLE_R_WEIGHT: tuple[float, ...] = (1.0, 1.0, 1.0, 200.0, 200.0, 200.0) + (0.001, 0.5, 5.0, 0.005, 2.0, 0.005) * 2

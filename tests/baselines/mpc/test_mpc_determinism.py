@@ -27,7 +27,7 @@ import gymnasium as gym
 import numpy as np
 import uvdms_gym  # noqa: F401
 from baselines.controllers import make_baseline
-from baselines.mpc import PROXSUITE_BUILD
+from baselines.mpc.solver import PROXSUITE_BUILD
 from uvdms_gym.evaluation import run_episode
 if heavy:
     np.ones(1 << 21).sum()  # a 16 MiB block mapped and freed: glibc raises its mmap threshold
@@ -75,14 +75,14 @@ def test_portable_proxsuite_build_is_loaded_and_a_prior_simd_import_is_reported(
         "import warnings, proxsuite\n"
         "with warnings.catch_warnings(record=True) as caught:\n"
         "    warnings.simplefilter('always')\n"
-        "    from baselines.mpc import PORTABLE_PROXSUITE_BUILD, PROXSUITE_BUILD\n"
+        "    from baselines.mpc.solver import PORTABLE_PROXSUITE_BUILD, PROXSUITE_BUILD\n"
         "import proxsuite.instructionset as isa\n"
         "simd = isa.has_AVX2() or isa.has_AVX512F()\n"
         "warned = any('bit-repeatable' in str(w.message) for w in caught)\n"
         "print(PROXSUITE_BUILD == PORTABLE_PROXSUITE_BUILD, simd, warned)\n"
     )
     fresh = subprocess.run(
-        [sys.executable, "-c", "from baselines.mpc import PROXSUITE_BUILD; print(PROXSUITE_BUILD)"],
+        [sys.executable, "-c", "from baselines.mpc.solver import PROXSUITE_BUILD; print(PROXSUITE_BUILD)"],
         capture_output=True,
         text=True,
         check=True,
@@ -90,6 +90,6 @@ def test_portable_proxsuite_build_is_loaded_and_a_prior_simd_import_is_reported(
     assert fresh.stdout.split()[-1] == "proxsuite_pywrap"
     prior = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     portable, simd, warned = prior.stdout.split()[-3:]
-    # proxsuite imported first keeps its own choice (the widest build on a SIMD CPU); baselines.mpc warns then
+    # proxsuite imported first keeps its own choice (the widest build on a SIMD CPU); baselines.mpc.solver warns then
     assert portable == str(simd == "False")
     assert warned == str(portable == "False")

@@ -8,7 +8,7 @@ Experiments (all with :func:`uvdms_gym.evaluation.run_episode`, seed 0 unless st
 * ablation: ``campc-di`` vs ``campc-nndi`` with ``hydro_randomization=0.3`` over seeds 0-4, on Case 1 (the checked
   one), Case 2 and transport (the last two skipped with ``quick``);
 * beyond the paper, its stated future work: the transport among moving outer obstacles
-  (``uvdms/TransportObstacles-v1``, the scripted scenario of :mod:`baselines.obstacle_figure`), ``campc`` with and
+  (``uvdms/TransportObstacles-v1``, the scripted scenario of :mod:`baselines.paper.obstacle_figure`), ``campc`` with and
   without its outer-obstacle rows.
 
 Figures (PNG, numbered like the paper's): ``fig07_case1_end_effectors.png``, ``fig08_case2_end_effectors.png``,
@@ -17,7 +17,8 @@ Figures (PNG, numbered like the paper's): ``fig07_case1_end_effectors.png``, ``f
 ``ablation.png``, ``obstacles.png``; ``summary.md`` holds the numbers and the acceptance checks, ``results.json``
 the per-episode metrics (without trajectories).
 
-Acceptance checks (:func:`acceptance`): see ``docs/REPRODUCTION.md``. The figures are drawn by :mod:`baselines.figures`.
+Acceptance checks (:func:`acceptance`): see ``docs/REPRODUCTION.md``. The figures are drawn by
+:mod:`baselines.paper.figures`.
 """
 
 from __future__ import annotations
@@ -29,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from baselines.figures import ABLATION_SEEDS, ROW_RIGHT_LINK3_FRAME, ROW_RIGHT_LINK5_LEFT_ARM, make_figures
-from baselines.obstacle_figure import fig_obstacles, obstacle_checks, run_obstacle_experiment
+from baselines.paper.figures import ABLATION_SEEDS, ROW_RIGHT_LINK3_FRAME, ROW_RIGHT_LINK5_LEFT_ARM, make_figures
+from baselines.paper.obstacle_figure import fig_obstacles, obstacle_checks, run_obstacle_experiment
 from uvdms_gym.evaluation import run_episode
 from uvdms_gym.physics.frames import wrap_angle
 from uvdms_gym.physics.params import D1
@@ -44,12 +45,12 @@ def _episode(spec: str, env_id: str, env_kwargs: dict, seed: int = 0, save: bool
     import gymnasium as gym
 
     import uvdms_gym  # noqa: F401
-    from baselines.controllers import BASELINES, make_controller
+    from baselines.controllers import BASELINES, make_baseline
 
     kwargs = {"action_mode": BASELINES[spec]["action_mode"], **env_kwargs}
     env = gym.make(env_id, **kwargs)
     try:
-        return run_episode(env, make_controller(spec, env), seed, save_trajectory=save)
+        return run_episode(env, make_baseline(spec, env), seed, save_trajectory=save)
     finally:
         env.close()
 

@@ -1,13 +1,13 @@
-"""CAMPC's outer-obstacle rows (baselines.mpc / baselines.campc) and the obstacle experiment of uvdms reproduce."""
+"""CAMPC's outer-obstacle rows (baselines.mpc.kinematic, .campc) and the obstacle experiment of uvdms reproduce."""
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import uvdms_gym  # noqa: F401
-from baselines.campc import make_mpc_controller
 from baselines.controllers import OUTER_ROWS, make_baseline
-from baselines.obstacle_figure import obstacle_checks, run_obstacle_experiment
+from baselines.mpc.campc import make_mpc_controller
+from baselines.paper.obstacle_figure import obstacle_checks, run_obstacle_experiment
 from uvdms_gym.distances.outer import compute_outer_distances, outer_distance_jacobian
 from uvdms_gym.envs.tasks import make_transport_task
 from uvdms_gym.envs.transport import vehicle_pose_for_object

@@ -1,4 +1,4 @@
-"""Dynamic inversion with RBF compensation (baselines.di): Lyapunov matrix, signs, adaptation, bounds."""
+"""Dynamic inversion with RBF compensation (baselines.inner_loop.di): Lyapunov matrix, signs, adaptation, bounds."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from baselines.di import DIConfig, DynamicInversionController, UVDMSNominalModel, lyapunov_matrix
+from baselines.inner_loop.di import DIConfig, DynamicInversionController, UVDMSNominalModel, lyapunov_matrix
 from uvdms_gym.physics.frames import quat_xyzw_to_rot, rot_to_euler
 from uvdms_gym.physics.nominal import NominalScale
 from uvdms_gym.physics.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG, UVDMSParams
@@ -208,8 +208,8 @@ def test_saturation_and_reset():
 
 def test_cascade_campc_nndi_avoids_collision_on_the_nominal_plant():
     """CAMPC (every T_c) + NN-DI (every dt) on the 18-DOF nominal dynamics with perturbed hydrodynamics."""
-    from baselines.campc import make_mpc_controller
-    from baselines.cascade import CascadeController
+    from baselines.inner_loop.cascade import CascadeController
+    from baselines.mpc.campc import make_mpc_controller
     from uvdms_gym import distances
     from uvdms_gym.envs.tasks import make_circle_task
 

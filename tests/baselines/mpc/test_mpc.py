@@ -1,4 +1,4 @@
-"""Kinematic MPC / CAMPC (baselines.mpc, baselines.campc): QP correctness, constraints, slack, warm start."""
+"""Kinematic MPC / CAMPC (baselines.mpc.kinematic, .campc): QP correctness, constraints, slack, warm start."""
 
 from __future__ import annotations
 
@@ -8,13 +8,8 @@ import numpy as np
 import pytest
 
 from baselines.bench import OSQPReplay
-from baselines.mpc import (
-    INF,
-    KinematicMPC,
-    MPCConfig,
-    MPCProblem,
-    hold_matrix,
-)
+from baselines.mpc.config import INF, MPCConfig, MPCProblem
+from baselines.mpc.kinematic import KinematicMPC, hold_matrix
 from uvdms_gym.physics.frames import euler_to_rot, euler_to_rot_batch, rot_error, rot_error_batch
 from uvdms_gym.physics.params import UVDMSParams
 
@@ -361,7 +356,7 @@ def _kinematic_loop(task_name: str, collision: bool, t_end: float):
     """Closed loop on the kinematic model: the command is integrated exactly (no dynamics)."""
     import pinocchio as pin
 
-    from baselines.campc import make_mpc_controller
+    from baselines.mpc.campc import make_mpc_controller
     from uvdms_gym import distances
     from uvdms_gym.envs.tasks import make_circle_task, make_transport_task
     from uvdms_gym.physics.frames import quat_xyzw_to_rot, rot_to_euler
