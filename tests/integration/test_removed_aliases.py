@@ -8,15 +8,18 @@
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import json
 import subprocess
 import sys
 import zipfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import gymnasium as gym
 import pytest
+import yaml
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 import agents  # noqa: F401  (installs the finder of agents' old paths)
@@ -82,20 +85,34 @@ def test_an_existing_module_is_not_shadowed():
     assert sum(isinstance(f, legacy.MovedModuleFinder) and f.table == legacy.MOVED for f in sys.meta_path) == 1
 
 
-def _old_ppo_lagrangian_zip(path: Path) -> Path:
-    """A PPO-Lagrangian zip as 0.2 wrote it: the policy class pickled as ``agents.ppo_lagrangian.*``."""
+@contextlib.contextmanager
+def _pickled_under_the_old_path() -> Iterator[None]:
+    """Within the block, SB3 pickles the PPO-Lagrangian policy class as 0.2 did: ``agents.ppo_lagrangian.*``."""
     import agents.algos.ppo_lagrangian as module
 
-    venv = DummyVecEnv([lambda: gym.make("Pendulum-v1")])
-    model = module.PPOLagrangian("MlpPolicy", venv, n_steps=8, batch_size=8, policy_kwargs={"net_arch": [4]}, seed=0)
     cls = module.CostActorCriticPolicy
     sys.modules["agents.ppo_lagrangian"] = module
     cls.__module__ = "agents.ppo_lagrangian"
     try:
-        model.save(path)
+        yield
     finally:
         cls.__module__ = module.__name__
         del sys.modules["agents.ppo_lagrangian"]
+
+
+def _pickled_module(path: Path) -> str:
+    with zipfile.ZipFile(path) as archive:
+        return json.loads(archive.read("data"))["policy_class"]["__module__"]
+
+
+def _old_ppo_lagrangian_zip(path: Path) -> Path:
+    """A PPO-Lagrangian zip as 0.2 wrote it."""
+    from agents.algos.ppo_lagrangian import PPOLagrangian
+
+    venv = DummyVecEnv([lambda: gym.make("Pendulum-v1")])
+    model = PPOLagrangian("MlpPolicy", venv, n_steps=8, batch_size=8, policy_kwargs={"net_arch": [4]}, seed=0)
+    with _pickled_under_the_old_path():
+        model.save(path)
     venv.close()
     return path
 
@@ -105,11 +122,31 @@ def test_a_zip_pickled_under_the_old_module_path_loads(tmp_path):
     from agents.export import load_sb3_zip, zip_algo
 
     path = _old_ppo_lagrangian_zip(tmp_path / "old.zip")
-    with zipfile.ZipFile(path) as archive:
-        assert json.loads(archive.read("data"))["policy_class"]["__module__"] == "agents.ppo_lagrangian"
+    assert _pickled_module(path) == "agents.ppo_lagrangian"
     with pytest.raises(ModuleNotFoundError, match=r"agents\.ppo_lagrangian was moved to agents\.algos\.ppo_lagrangian"):
         PPOLagrangian.load(path)  # without the legacy route: the one line
     assert zip_algo(path) == "ppo_lagrangian"
     model = load_sb3_zip(path, trust=True)
     assert type(model) is PPOLagrangian and type(model.policy) is CostActorCriticPolicy
     assert "agents.ppo_lagrangian" not in sys.modules  # the alias lived for the load only
+
+
+def test_a_run_whose_checkpoints_were_pickled_under_the_old_module_path_resumes(tmp_path):
+    from agents.algos.ppo_lagrangian import PPOLagrangian
+    from agents.training.train import latest_checkpoint, train
+
+    entry = {"n_timesteps": 128, "n_envs": 1, "n_steps": 64, "batch_size": 64, "n_epochs": 1, "eval_freq": 0}
+    entry |= {"checkpoint_freq": 64, "policy_kwargs": {"net_arch": {"pi": [8], "vf": [8]}}}
+    config = tmp_path / "ppo_lagrangian.yml"
+    config.write_text(yaml.safe_dump({"default": entry}), encoding="utf-8")
+    run_dir = train("ppo_lagrangian", "uvdms/CircleTrack-v1", None, config, seed=0, out_dir=tmp_path, progress=False)
+    zips = sorted(run_dir.rglob("*.zip"))
+    assert zips
+    for path in zips:  # rewritten as 0.2 wrote them
+        model = PPOLagrangian.load(path)
+        with _pickled_under_the_old_path():
+            model.save(path)
+        assert _pickled_module(path) == "agents.ppo_lagrangian"
+    assert train(resume_dir=run_dir, total_timesteps=64, progress=False) == run_dir
+    assert latest_checkpoint(run_dir).num_timesteps == 192
+    assert _pickled_module(run_dir / "final_model.zip") == "agents.algos.ppo_lagrangian"
