@@ -1,4 +1,4 @@
-"""Residual agents and the training-time safety filter (uvdms_gym/residual.py and its wiring).
+"""Residual agents and the training-time safety filter (uvdms_gym/residual/ and its wiring).
 
 * The training wrapper sends ``clip(a_base + s a, -1, 1)`` with ``a_base`` an independently computed MPC action,
   and the policy observes ``[obs; a_base]``.
