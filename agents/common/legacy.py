@@ -28,7 +28,7 @@ PICKLED: dict[str, str] = {"agents.ppo_lagrangian": MOVED["agents.ppo_lagrangian
 """The old module paths that saved files name (the module of a pickled class) -> their homes."""
 
 
-def new_module(module: str) -> str:
+def new_module(module: str | None) -> str | None:
     """The home of a module named by a saved file (``module`` itself unless it is an old name of :data:`PICKLED`)."""
     return PICKLED.get(module, module)
 
