@@ -14,7 +14,12 @@ Subpackages (imported on demand, so ``import agents`` stays light; ``docs/ARCHIT
 * :mod:`agents.distributed`: ``uvdms sweep`` (seeds x grid, locally or as Ray tasks) and ``uvdms tune`` (Ray Tune +
   Optuna TPE over RL-Zoo-style spaces).
 
-Documented paths kept as re-exports: :mod:`agents.train` (``python -m agents.train``), :mod:`agents.policy`
-(``load_agent``), :mod:`agents.wrappers` and :mod:`agents.callbacks` (RL Zoo's dotted names in the configs);
-:mod:`agents.cli` registers ``uvdms train`` and ``uvdms export-agent``.
+The paths that were re-exports or aliases in 0.3.0 (``agents.train``, ``agents.policy``, ``agents.wrappers``,
+``agents.callbacks``, ``agents.ppo_lagrangian``) fail on import in one line naming their new home
+(:mod:`agents.common.legacy`); :mod:`agents.cli` registers ``uvdms train`` and ``uvdms export-agent``.
 """
+
+from agents.common.legacy import MOVED as _MOVED
+from uvdms_gym.utils.legacy import install_moved_finder
+
+install_moved_finder(_MOVED)

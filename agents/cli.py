@@ -1,7 +1,7 @@
 """``uvdms`` subcommands of the agents package: ``uvdms train`` and ``uvdms export-agent``.
 
 :mod:`uvdms_cli.main` imports this module and calls :func:`register` with its subparsers.
-``uvdms train`` takes exactly the arguments of ``python -m agents.train`` (the parser is shared); unlike it, it
+``uvdms train`` takes exactly the arguments of ``python -m agents.training.train`` (the parser is shared); unlike it, it
 gets the base and filter factories of residual agents and the safety filter from the composition layer
 (``register(..., components=...)``: :mod:`uvdms_cli.main` passes the registry's, built on first use).
 ``uvdms export-agent RUN_DIR OUT`` writes the weights-only export of :func:`agents.export.export_agent`.
@@ -19,7 +19,7 @@ from agents.common.names import NO_BASE
 if TYPE_CHECKING:
     from agents.common.envs import ActionComponents
 
-_TRAIN_HELP = "train a Stable-Baselines3 agent from train_configs/<algo>.yml (same as python -m agents.train)"
+_TRAIN_HELP = "train a Stable-Baselines3 agent from train_configs/<algo>.yml (same as python -m agents.training.train)"
 _EXPORT_HELP = "export a trained agent to the weights-only format (no pickles; loads with load_weights_only)"
 
 
@@ -85,7 +85,7 @@ _TRAIN_OPTIONS: tuple[tuple[str, str, Callable[[Any], list[str]] | None], ...] =
     ("no_progress", "--no-progress", None),
     ("verbose", "--verbose", lambda v: [str(v)]),
 )
-"""How ``uvdms train``'s namespace maps back to ``python -m agents.train``'s options (:func:`_train_argv`)."""
+"""How ``uvdms train``'s namespace maps back to ``python -m agents.training.train``'s options (:func:`_train_argv`)."""
 _ALWAYS = ("seed", "out", "gym_packages", "verbose")
 """Options written even at their defaults (the others only when given: ``None``, empty and ``False`` are not)."""
 

@@ -15,7 +15,7 @@ Each page is built from the code, so that it cannot drift from it:
   (the v1 reward weights included) and the range from :data:`RANGES` (a keyword missing there is an error).
 
 ``--check`` writes nothing and exits with status 1 when a committed page differs from what would be written
-(``tests/docs/test_env_pages.py`` runs the same comparison).
+(``tests/docs/test_docs_site.py`` runs the same comparison).
 """
 
 from __future__ import annotations

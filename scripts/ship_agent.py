@@ -339,7 +339,7 @@ def write_readme(folder: str | Path) -> Path:
         "",
         f"`uvdms evaluate --controller trained_agents/{name} --env {env_id} --env-kwargs {task_kv} --episodes 10 "
         "--seed 1000` reproduces `evaluation.json`; in Python, "
-        f'`agents.policy.load_agent("trained_agents/{name}")` returns a controller whose `predict(obs)` applies '
+        f'`agents.export.load_agent("trained_agents/{name}")` returns a controller whose `predict(obs)` applies '
         "the observation normalisation and the action scale.",
         "",
         README_SNIPPET_HEADING,

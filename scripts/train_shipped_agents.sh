@@ -12,7 +12,7 @@
 # n_timesteps. Seed 0: training envs use seeds 0 and 1, the evaluation callback seeds 1000000+
 # (agents/training/train.py). The shipped agents are evaluated on seeds 1000-1009 (README, "Train an agent").
 # A run whose directory already exists is skipped (resume it with `uvdms train --resume DIR`).
-# The machine has 2 cores: two lanes, nice 10, torch.set_num_threads(1) (agents.train does that).
+# The machine has 2 cores: two lanes, nice 10, torch.set_num_threads(1) (agents.training.train does that).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-.venv/bin/python}
@@ -41,7 +41,7 @@ run_one() {
     return 0
   fi
   echo "[$(date -u +%FT%TZ)] start $name" >> "$OUT/logs/lanes.log"
-  nice -n 10 "$PY" -m agents.train --algo "$algo" --env "$env" --env-kwargs "$kw" --seed "$SEED" \
+  nice -n 10 "$PY" -m agents.training.train --algo "$algo" --env "$env" --env-kwargs "$kw" --seed "$SEED" \
     --total-timesteps "$steps" --out "$OUT/$name" --no-progress > "$OUT/logs/$name.log" 2>&1 ||
     echo "FAILED $name" >> "$OUT/logs/lanes.log"
   echo "[$(date -u +%FT%TZ)] end $name" >> "$OUT/logs/lanes.log"

@@ -35,7 +35,7 @@ E2E="track_scale=0.5"
 PPO_LAGRANGIAN="--vec-env rollout --hyperparams action_scale=0.3"
 # Residual scales: benchmarks/residual_reach.py (CAMPC's correction of mpc clipped to a residual of scale s, random
 # circles, 8 held-out seeds): contact-free 6/8 at s = 0.3, 8/8 at s = 0.5; on transport mpc and campc agree.
-# The circle residual learns with TD3-prior (agents/td3_prior.py: TD3+BC's actor loss toward the zero residual,
+# The circle residual learns with TD3-prior (agents/algos/td3_prior.py: TD3+BC's actor loss toward the zero residual,
 # and a 10k-step critic burn-in); SAC and plain TD3 residuals drove the arms into contacts early in training
 # (README, "Learned entries"). Its training reward drops the effort term (it penalises the composed command, so
 # it pulls the residual against the base) and weighs the clearance term 5x.

@@ -12,15 +12,14 @@ Importing the package registers the environments (entry points are strings, so n
 (RL Zoo's ``--gym-packages uvdms_gym``).
 """
 
-import sys
 import warnings
 
 from gymnasium.envs.registration import register, registry
 
-from uvdms_gym._moved import MovedModuleFinder
 from uvdms_gym.physics.params import UVDMSParams
+from uvdms_gym.utils.legacy import MOVED, install_moved_finder
 
-__version__ = "0.1.0"
+__version__ = "0.4.0"
 __all__ = ["ENV_IDS", "UVDMSParams", "__version__"]
 
 _REGISTRATIONS: tuple[tuple[str, str, int], ...] = (
@@ -41,7 +40,6 @@ for _env_id, _entry_point, _max_steps in _REGISTRATIONS:
 # make() warns that any version but the newest is "out of date"; silence that for the uvdms ids only.
 warnings.filterwarnings("ignore", message=r".*The environment uvdms/\S+ is out of date", category=DeprecationWarning)
 
-# The module paths before the package was grouped into subpackages (uvdms_gym.sim, uvdms_gym.params, ...) still
-# import, as aliases of the modules at their new homes, with a DeprecationWarning (uvdms_gym/_moved.py).
-if not any(isinstance(_finder, MovedModuleFinder) for _finder in sys.meta_path):
-    sys.meta_path.append(MovedModuleFinder())
+# The module paths before the package was grouped into subpackages (uvdms_gym.sim, uvdms_gym.params, ...) fail in
+# one line naming their new home (uvdms_gym/utils/legacy.py; the aliases of 0.3.0 were removed in 0.4.0).
+install_moved_finder(MOVED)

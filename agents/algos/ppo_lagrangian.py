@@ -49,7 +49,6 @@ State. ``lagrangian_multiplier`` (and ``n_dual_updates``) are attributes of the 
 """
 
 import math
-import sys
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
@@ -449,7 +448,3 @@ class PPOLagrangian(RolloutPPO):
                 losses.append(loss.item())
         self.logger.record("train/cost_value_loss", float(np.mean(losses)))
 
-
-# SB3 zips of PPO-Lagrangian runs written before the move record their policy class as
-# ``agents.ppo_lagrangian.CostActorCriticPolicy`` (cloudpickled); this alias lets them load and resume.
-sys.modules.setdefault("agents.ppo_lagrangian", sys.modules[__name__])

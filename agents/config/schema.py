@@ -140,7 +140,7 @@ class TrainConfig:
         residual_base: Train a residual agent on this base controller (a velocity-mode baseline name, ``mpc`` or
             ``campc``; ``None``: a plain agent): the environment receives
             ``clip(a_base + residual_scale * a, -1, 1)`` and the policy observes ``[obs; a_base]``
-            (:mod:`uvdms_gym.residual`). Only ``uvdms train`` can build the base (``python -m agents.train``
+            (:mod:`uvdms_gym.residual`). Only ``uvdms train`` can build the base (``python -m agents.training.train``
             refuses); which names are valid is checked there.
         residual_scale: Bound of the residual, in (0, 1]; required with ``residual_base``, not allowed without.
         residual_penalty: Training-side shaping of a residual agent (only with ``residual_base``; 0: none): the

@@ -7,10 +7,10 @@ model (``n_timesteps``, ``n_envs``, ``normalize``, ``policy``, ``policy_kwargs``
 ``noise_std``, ``env_wrapper``, ``callback``, ...); everything else goes to the algorithm and fails. So the project's
 training-side options are written the way RL Zoo writes them:
 
-* ``env_wrapper: [{agents.wrappers.ScaledAction: {scale: 0.3}}, {agents.wrappers.AliveBonus: {bonus: 2.0}}]``
-  -> ``action_scale: 0.3``, ``alive_bonus: 2.0``;
-* ``callback: [{agents.callbacks.ScaleInitialActions: {scale: 0.01}}]`` -> ``action_init_scale: 0.01``, and
-  ``{agents.callbacks.DelayActorUpdates: {steps: 20000}}`` -> ``actor_warmup_steps: 20000``;
+* ``env_wrapper: [{agents.common.wrappers.ScaledAction: {scale: 0.3}},
+  {agents.common.wrappers.AliveBonus: {bonus: 2.0}}]`` -> ``action_scale: 0.3``, ``alive_bonus: 2.0``;
+* ``callback: [{agents.training.callbacks.ScaleInitialActions: {scale: 0.01}}]`` -> ``action_init_scale: 0.01``, and
+  ``{agents.training.callbacks.DelayActorUpdates: {steps: 20000}}`` -> ``actor_warmup_steps: 20000``;
 * ``env_kwargs`` is an RL Zoo key already (the ``gymnasium.make`` keyword arguments);
 * options RL Zoo takes only from its command line (``--eval-freq``, ``--eval-episodes``, ``--n-eval-envs``,
   ``--save-freq``, ``--eval-env-kwargs``, ``--save-replay-buffer``) sit in the top-level mapping
@@ -19,7 +19,8 @@ training-side options are written the way RL Zoo writes them:
   ``checkpoint_freq``, ``eval_env_kwargs``, ``save_replay_buffer``, ``max_episode_steps``.
 
 Only the four class names above are accepted (nothing named in a config is imported here; RL Zoo imports
-them itself). The flat keys (``alive_bonus``, ``eval_freq``, ...) stay valid in an entry, in ``--hyperparams``
+them itself; the names of before 0.4.0, ``agents.wrappers.*`` and ``agents.callbacks.*``, are refused with the
+new one). The flat keys (``alive_bonus``, ``eval_freq``, ...) stay valid in an entry, in ``--hyperparams``
 and in a run's ``config.yml``; giving one both ways is an error.
 """
 
@@ -28,6 +29,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from agents.common.legacy import MOVED
 from agents.config.typecheck import ConfigError, check_known_keys, tname
 
 TRAIN_OPTIONS = "train_options"
@@ -44,13 +46,13 @@ TRAIN_OPTION_KEYS: tuple[str, ...] = (
 """Keys of a ``train_options`` mapping (``TrainConfig`` fields)."""
 
 WRAPPERS: dict[str, tuple[str, str]] = {
-    "agents.wrappers.ScaledAction": ("scale", "action_scale"),
-    "agents.wrappers.AliveBonus": ("bonus", "alive_bonus"),
+    "agents.common.wrappers.ScaledAction": ("scale", "action_scale"),
+    "agents.common.wrappers.AliveBonus": ("bonus", "alive_bonus"),
 }
 """``env_wrapper`` class name -> (its keyword argument, the ``TrainConfig`` field it sets)."""
 CALLBACKS: dict[str, tuple[str, str]] = {
-    "agents.callbacks.ScaleInitialActions": ("scale", "action_init_scale"),
-    "agents.callbacks.DelayActorUpdates": ("steps", "actor_warmup_steps"),
+    "agents.training.callbacks.ScaleInitialActions": ("scale", "action_init_scale"),
+    "agents.training.callbacks.DelayActorUpdates": ("steps", "actor_warmup_steps"),
 }
 """``callback`` class name -> (its keyword argument, the ``TrainConfig`` field it sets)."""
 
@@ -74,10 +76,7 @@ def flatten_entry(entry: Mapping[str, Any], where: str) -> dict[str, Any]:
             continue
         for name, kwargs in _class_items(flat.pop(key), f"{where}: key {key!r}"):
             if name not in table:
-                raise ConfigError(
-                    f"{where}: key {key!r}: {name!r} is not one of {sorted(table)} (the project's loader imports "
-                    "nothing named in a config)"
-                )
+                raise ConfigError(f"{where}: key {key!r}: {_unknown_class(name, table)}")
             argument, field_name = table[name]
             check_known_keys(kwargs, [argument], f"{where}: key {key!r}: {name}", "arguments")
             if argument not in kwargs:
@@ -86,6 +85,14 @@ def flatten_entry(entry: Mapping[str, Any], where: str) -> dict[str, Any]:
                 raise ConfigError(f"{where}: {field_name!r} is given twice (as a key and through {key!r} {name})")
             flat[field_name] = kwargs[argument]
     return flat
+
+
+def _unknown_class(name: str, table: Mapping[str, Any]) -> str:
+    """Why ``name`` is refused: a name of before 0.4.0 (with the new one), or not one of ``table``."""
+    module, _, attribute = name.rpartition(".")
+    if module in MOVED and f"{MOVED[module]}.{attribute}" in table:
+        return f"{name!r} was renamed {MOVED[module]}.{attribute} in 0.4.0 (the alias {module} was removed)"
+    return f"{name!r} is not one of {sorted(table)} (the project's loader imports nothing named in a config)"
 
 
 def _class_items(value: Any, where: str) -> list[tuple[str, dict[str, Any]]]:

@@ -26,12 +26,12 @@ _TUNE_HELP = "search hyperparameters with Ray Tune and Optuna's TPE sampler; wri
 _SWEEP_EPILOG = (
     "Example: uvdms sweep --algo ppo --env uvdms/CircleTrack-v0 --env-kwargs case=1 --seeds 0 1 2 "
     "--grid learning_rate=1.0e-3,3.0e-4 --backend ray --out sweeps/ppo_case1. Run directories, summary and CPU "
-    "accounting: see agents/sweep.py and docs/CLUSTER_TRAINING.md."
+    "accounting: see agents/distributed/sweep.py and docs/CLUSTER_TRAINING.md."
 )
 _TUNE_EPILOG = (
     "Example: uvdms tune --algo ppo --env uvdms/CircleTrack-v0 --env-kwargs case=1 --n-trials 50 "
     "--total-timesteps 100000 --out tune/ppo_case1; then uvdms train --algo ppo --env uvdms/CircleTrack-v0 "
-    "--config tune/ppo_case1/ppo.yml. See agents/tune.py and docs/CLUSTER_TRAINING.md."
+    "--config tune/ppo_case1/ppo.yml. See agents/distributed/tune.py and docs/CLUSTER_TRAINING.md."
 )
 
 

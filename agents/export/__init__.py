@@ -27,7 +27,7 @@ deterministic, VecNormalize observation statistics applied without a VecEnv):
 
 Modules: :mod:`~agents.export.controller` (the controller and the errors), :mod:`~agents.export.sb3` (trust-gated SB3
 zips), :mod:`~agents.export.weights` (the weights-only format), :mod:`~agents.export.agent` (the loader that
-dispatches on the folder's format, and :func:`export_agent`). ``agents.policy`` re-exports the same names.
+dispatches on the folder's format, and :func:`export_agent`).
 """
 
 from agents.export.agent import export_agent, load_agent

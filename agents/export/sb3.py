@@ -20,6 +20,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
 from agents.algos import ALGOS
+from agents.common.legacy import new_module, old_pickles
 from agents.common.paths import trained_agents_dir
 from agents.export.controller import (
     SHIPPED_MODEL,
@@ -75,7 +76,8 @@ def load_sb3_zip(path: str | Path, trust: bool, algo: str | None = None, device:
         raise FileNotFoundError(path)
     algo = algo if algo is not None else zip_algo(path)
     try:
-        return ALGOS[algo].load(str(path), device=device, print_system_info=False)
+        with old_pickles():  # a zip written before 0.3.0 names its policy class by the old module path
+            return ALGOS[algo].load(str(path), device=device, print_system_info=False)
     except (zipfile.BadZipFile, EOFError) as exc:
         raise ExportFormatError(f"{path}: not a readable SB3 zip, corrupt or truncated ({exc})") from exc
     except ValueError as exc:  # SB3 turns a BadZipFile into ValueError("Error: the file ... wasn't a zip-file")
@@ -85,10 +87,10 @@ def load_sb3_zip(path: str | Path, trust: bool, algo: str | None = None, device:
 
 
 def zip_algo(path: str | Path) -> str:
-    """Algorithm of an SB3 zip, read from the module name of its policy class (no unpickling)."""
+    """Algorithm of an SB3 zip, read from the module name of its policy class (no unpickling; old names mapped)."""
     with zipfile.ZipFile(path) as archive:
         data = json.loads(archive.read("data").decode("utf-8"))
-    module = data.get("policy_class", {}).get("__module__")
+    module = new_module(data.get("policy_class", {}).get("__module__"))
     for name, cls in ALGOS.items():
         if any(p.__module__ == module for p in cls.policy_aliases.values()):
             return name

@@ -1,4 +1,4 @@
-"""The argument parser of ``python -m agents.train`` / ``uvdms train``, importable without torch or SB3.
+"""The argument parser of ``python -m agents.training.train`` / ``uvdms train``, importable without torch or SB3.
 
 ``uvdms`` builds its subcommand parsers at start-up, so this module must stay light (no torch, no SB3).
 """
@@ -28,12 +28,12 @@ __all__ = [
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """Argument parser of ``python -m agents.train``."""
+    """Argument parser of ``python -m agents.training.train``."""
     parser = OneLineArgumentParser(
         command="uvdms",
-        prog="python -m agents.train",
+        prog="python -m agents.training.train",
         description="Train a Stable-Baselines3 agent from train_configs/<algo>.yml.",
-        epilog="Run directory layout and seed scheme: see the docstring of agents/train.py.",
+        epilog="Run directory layout and seed scheme: see the docstring of agents/training/train.py.",
     )
     parser.add_argument("--algo", choices=ALGO_NAMES, help="algorithm (required unless --resume)")
     parser.add_argument("--env", dest="env_id", help="Gymnasium env id (required unless --resume)")

@@ -61,8 +61,8 @@ def composition_factories(
             parts.append(f"the teacher {teacher_name(cfg.hyperparams)!r}")
         raise ConfigError(
             f"this configuration needs {' with '.join(parts)}, whose controllers live in the baselines package, "
-            "which agents does not import: train it with `uvdms train` (python -m agents.train cannot), or pass "
-            "components= to agents.train.train"
+            "which agents does not import: train it with `uvdms train` (python -m agents.training.train cannot), or "
+            "pass components= to agents.training.train.train"
         )
     base_factory = None
     try:

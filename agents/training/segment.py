@@ -36,6 +36,7 @@ from agents.common.envs import (
     train_env_seed,
 )
 from agents.common.learning_curve import LEARNING_CURVE_FILE, LearningCurve
+from agents.common.legacy import old_pickles
 from agents.common.threads import UpdateThreads, update_threads
 from agents.config import ConfigError, TrainConfig
 from agents.training.callbacks import (
@@ -270,7 +271,8 @@ class TrainingSegment:
         if checkpoint.vecnormalize is not None:
             self.venv = VecNormalize.load(str(checkpoint.vecnormalize), self.venv)
             self.venv.training = True
-        model = ALGOS[cfg.algo].load(str(checkpoint.model), env=self.venv, print_system_info=False)
+        with old_pickles():  # a checkpoint written before 0.3.0 names its policy class by the old module path
+            model = ALGOS[cfg.algo].load(str(checkpoint.model), env=self.venv, print_system_info=False)
         self.model = model
         model.verbose = self.verbose
         model.set_random_seed(self.record["model_seed"])

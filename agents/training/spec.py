@@ -1,7 +1,7 @@
 """The run specification: what one training run trains, as one frozen value passed around.
 
-``uvdms train``, ``python -m agents.train``, a sweep's run (:mod:`agents.distributed.worker`) and a tuning trial
-(:mod:`agents.distributed.tune`) all describe a fresh run by the same fields; :class:`RunSpec` holds them, checks
+``uvdms train``, ``python -m agents.training.train``, a sweep's run (:mod:`agents.distributed.worker`) and a tuning
+trial (:mod:`agents.distributed.tune`) all describe a fresh run by the same fields; :class:`RunSpec` holds them, checks
 them, resolves them into the :class:`~agents.config.TrainConfig` the run uses and writes them back as the equivalent
 command line (``command.txt``, ``meta.json``). Where the run writes (``out_dir``) and how it reports (progress bar,
 callbacks) are arguments of :func:`agents.training.train.train_run`, not part of the specification.
@@ -165,9 +165,9 @@ class RunSpec:
 
 
 def command_prefix(cfg: TrainConfig) -> list[str]:
-    """What runs ``cfg``: ``uvdms train`` with controllers or a teacher to compose, else ``python -m agents.train``."""
+    """What runs ``cfg``: ``uvdms train`` with a component to compose, else ``python -m agents.training.train``."""
     plain = cfg.composition.is_plain and cfg.algo != "dagger"
-    return ["python", "-m", "agents.train"] if plain else ["uvdms", "train"]
+    return ["python", "-m", "agents.training.train"] if plain else ["uvdms", "train"]
 
 
 def resolve_config(

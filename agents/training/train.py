@@ -1,6 +1,6 @@
 """Train a Stable-Baselines3 agent on a Gymnasium environment from a YAML configuration.
 
-Library entry point: :func:`train`; command line: ``python -m agents.train`` (:func:`main`). The parts live in
+Library entry point: :func:`train`; command line: ``python -m agents.training.train`` (:func:`main`). The parts live in
 :mod:`agents.training.spec` (the run specification), :mod:`agents.training.segment` (one training segment),
 :mod:`agents.common.envs` (env construction, seeds), :mod:`agents.training.callbacks`, :mod:`agents.training.models`
 (replay buffer, action-layer scaling), :mod:`agents.training.rundir` (run directories, checkpoints) and
@@ -48,7 +48,7 @@ Residual agents and the safety filter (``residual_base``, ``residual_scale``, ``
 ``--residual BASE --residual-scale S`` / ``--safety-filter``; :mod:`uvdms_gym.residual`) compose the policy with
 controllers of ``baselines``, which this package never imports: :func:`train` needs them injected as
 ``components`` (:class:`agents.common.envs.ActionComponents`; ``uvdms train`` passes the registry's). Without them (this
-module's ``python -m agents.train``) such a configuration is refused with an error naming ``uvdms train``. The
+module's ``python -m agents.training.train``) such a configuration is refused with an error naming ``uvdms train``. The
 composition is recorded in ``config.yml`` (the flat entry) and in every segment of ``meta.json``, kept by
 ``--resume``, and exported with the agent.
 

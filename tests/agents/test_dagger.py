@@ -1,4 +1,4 @@
-"""DAgger on a residual (agents/dagger.py) and the teacher's labels (uvdms_gym.residual.ResidualAction).
+"""DAgger on a residual (agents/algos/dagger.py) and the teacher's labels (uvdms_gym.residual.ResidualAction).
 
 * ``teacher_residual`` is the residual output that makes the composed command the teacher's, clipped to the bound.
 * ``ResidualAction`` with a teacher reports, at every step, the label of the state the action was taken in,

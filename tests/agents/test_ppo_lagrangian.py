@@ -1,4 +1,4 @@
-"""PPO-Lagrangian (agents/ppo_lagrangian.py): the formulas, a problem where the budget binds, state, configs, CLI.
+"""PPO-Lagrangian (agents/algos/ppo_lagrangian.py): the formulas, a problem where the budget binds, state, configs, CLI.
 
 The small problem (:class:`CostlyPush`): one action ``a`` in [-1, 1] per step for ``HORIZON`` steps, reward ``a``,
 cost ``a**2``. Unconstrained, the best policy pushes ``a = 1`` and pays ``HORIZON`` per episode; under the budget

@@ -1,4 +1,4 @@
-"""Residual agents and the training-time safety filter (uvdms_gym/residual.py and its wiring).
+"""Residual agents and the training-time safety filter (uvdms_gym/residual/ and its wiring).
 
 * The training wrapper sends ``clip(a_base + s a, -1, 1)`` with ``a_base`` an independently computed MPC action,
   and the policy observes ``[obs; a_base]``.
@@ -7,7 +7,7 @@
 * ``uvdms train --residual mpc --residual-scale 0.2`` -> ``uvdms export-agent`` -> ``uvdms evaluate`` composes the
   base from the export's record alone; with the policy's output layer zeroed the evaluation is plain ``mpc``,
   action for action. ``--resume`` keeps the composition.
-* The factories build in hybrid vector-env workers; bad bases, scales and ``python -m agents.train`` are
+* The factories build in hybrid vector-env workers; bad bases, scales and ``python -m agents.training.train`` are
   refused with clear errors.
 """
 
@@ -315,7 +315,7 @@ def test_resume_keeps_the_residual_and_refuses_to_change_it(residual_export, cap
     assert meta["segments"][-1]["action_composition"]["residual_base"] == "mpc"
     assert meta["segments"][-1]["command"].startswith("uvdms train --resume")
     assert agents_train_main(["--resume", str(run_dir), "--total-timesteps", "20", "--no-progress"]) == 2
-    assert "uvdms train" in capsys.readouterr().err  # python -m agents.train cannot build the base
+    assert "uvdms train" in capsys.readouterr().err  # python -m agents.training.train cannot build the base
 
 
 def test_an_export_trained_with_the_filter_is_filtered_once(residual_export, tmp_path):

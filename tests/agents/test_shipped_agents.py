@@ -62,3 +62,19 @@ def test_shipped_agents_load_and_act():
         action = agent.predict(obs, info)
         assert env.action_space.contains(action.astype(np.float32))
         env.close()
+
+
+def test_every_seed_of_every_multi_seed_entry_loads_and_acts():
+    """The weights-only seeds load without trust=True, also those whose agent.json names a policy class by a path
+    removed in 0.4.0 (agents.ppo_lagrangian...: a record only, the policy is rebuilt from the ``policy`` alias)."""
+    seeds = sorted((REPO / "trained_agents").glob("*/seed_*"))
+    assert len(seeds) >= 3 * 15
+    old_paths = 0
+    for folder in seeds:
+        old_paths += "agents.ppo_lagrangian." in (folder / "agent.json").read_text(encoding="utf-8")
+        agent = load_agent(folder)
+        space = agent.observation_space
+        obs = np.linspace(-1.0, 1.0, space.shape[0]).astype(space.dtype)
+        action = agent.predict(obs)
+        assert action.shape == agent.action_space.shape and np.all(np.isfinite(action)), folder
+    assert old_paths == 6  # ppo-lagrangian-{circle,transport}-v1, 3 seeds each

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from agents.common.paths import SHIPPED_ALIASES, resolve_shipped, trained_agents_dir
-from agents.policy import load_agent
+from agents.export import load_agent
 
 REPO = Path(__file__).resolve().parents[2]
 SCHEME = re.compile(r"^[a-z0-9]+(-[a-z0-9]+)*-v\d+$")

@@ -115,10 +115,10 @@ def test_zoo_keys_and_flat_keys_read_the_same(tmp_path):
         "Pendulum-v1": {
             "n_timesteps": 100,
             "env_wrapper": [
-                {"agents.wrappers.ScaledAction": {"scale": 0.5}},
-                {"agents.wrappers.AliveBonus": {"bonus": 1.5}},
+                {"agents.common.wrappers.ScaledAction": {"scale": 0.5}},
+                {"agents.common.wrappers.AliveBonus": {"bonus": 1.5}},
             ],
-            "callback": [{"agents.callbacks.ScaleInitialActions": {"scale": 0.1}}],
+            "callback": [{"agents.training.callbacks.ScaleInitialActions": {"scale": 0.1}}],
         },
         TRAIN_OPTIONS: {"default": {"eval_freq": 7}, "Pendulum-v1": {"n_eval_episodes": 3}},
     }
@@ -145,13 +145,22 @@ def test_zoo_keys_and_flat_keys_read_the_same(tmp_path):
     ("entry", "message"),
     [
         ({"env_wrapper": [{"gymnasium.wrappers.ClipAction": {}}]}, "is not one of"),
-        ({"env_wrapper": [{"agents.wrappers.AliveBonus": {"bonsu": 1.0}}]}, "unknown key 'bonsu'"),
-        ({"env_wrapper": [{"agents.wrappers.AliveBonus": {}}]}, "needs"),
-        ({"env_wrapper": [{"agents.wrappers.AliveBonus": {"bonus": 2.0}}], "alive_bonus": 1.0}, "given twice"),
-        ({"env_wrapper": [{"agents.wrappers.AliveBonus": {"bonus": 1.0}}] * 2}, "listed twice"),
+        ({"env_wrapper": [{"agents.common.wrappers.AliveBonus": {"bonsu": 1.0}}]}, "unknown key 'bonsu'"),
+        ({"env_wrapper": [{"agents.common.wrappers.AliveBonus": {}}]}, "needs"),
+        ({"env_wrapper": [{"agents.common.wrappers.AliveBonus": {"bonus": 2.0}}], "alive_bonus": 1.0}, "given twice"),
+        ({"env_wrapper": [{"agents.common.wrappers.AliveBonus": {"bonus": 1.0}}] * 2}, "listed twice"),
         ({"env_wrapper": [3]}, "expected a class name"),
-        ({"callback": [{"agents.callbacks.ScaleInitialActions": {"scale": "x"}}]}, "action_init_scale"),
-        ({"env_wrapper": [{"agents.wrappers.ScaledAction": {"scale": 2.0}}]}, "action_scale"),
+        ({"callback": [{"agents.training.callbacks.ScaleInitialActions": {"scale": "x"}}]}, "action_init_scale"),
+        ({"env_wrapper": [{"agents.common.wrappers.ScaledAction": {"scale": 2.0}}]}, "action_scale"),
+        (  # the names of before 0.4.0 are refused with the new one
+            {"env_wrapper": [{"agents.wrappers.AliveBonus": {"bonus": 2.0}}]},
+            r"'agents\.wrappers\.AliveBonus' was renamed agents\.common\.wrappers\.AliveBonus in 0\.4\.0",
+        ),
+        (
+            {"callback": [{"agents.callbacks.ScaleInitialActions": {"scale": 0.1}}]},
+            r"'agents\.callbacks\.ScaleInitialActions' was renamed agents\.training\.callbacks\.ScaleInitialActions",
+        ),
+        ({"callback": [{"agents.callbacks.Nope": {"scale": 0.1}}]}, "is not one of"),
     ],
 )
 def test_bad_zoo_keys_are_named(tmp_path, entry, message):
@@ -220,10 +229,10 @@ def test_rl_zoo_trains_from_the_shipped_sac_config(tmp_path):
     (saved,) = model.parent.glob("uvdms-CircleTrack-v0/config.yml")
     hyperparams = dict(yaml.unsafe_load(saved.read_text(encoding="utf-8")))
     assert hyperparams["env_wrapper"] == [
-        {"agents.wrappers.ScaledAction": {"scale": 0.3}},
-        {"agents.wrappers.AliveBonus": {"bonus": 2.0}},
+        {"agents.common.wrappers.ScaledAction": {"scale": 0.3}},
+        {"agents.common.wrappers.AliveBonus": {"bonus": 2.0}},
     ]
-    assert hyperparams["callback"] == [{"agents.callbacks.ScaleInitialActions": {"scale": 0.01}}]
+    assert hyperparams["callback"] == [{"agents.training.callbacks.ScaleInitialActions": {"scale": 0.01}}]
 
 
 @pytest.mark.parametrize("algo", sorted(ALGOS))
@@ -307,7 +316,7 @@ def test_delay_actor_updates_keeps_the_actor_and_trains_the_critic(algo):
 
 def test_actor_warmup_steps_reads_from_the_zoo_callback_and_is_refused_for_ppo(tmp_path):
     path = tmp_path / "zoo.yml"
-    entry = {"n_timesteps": 10, "callback": [{"agents.callbacks.DelayActorUpdates": {"steps": 500}}]}
+    entry = {"n_timesteps": 10, "callback": [{"agents.training.callbacks.DelayActorUpdates": {"steps": 500}}]}
     path.write_text(yaml.safe_dump({"Pendulum-v1": entry}), encoding="utf-8")
     assert load_config(path, "sac", "Pendulum-v1").actor_warmup_steps == 500
     with pytest.raises(ConfigError, match="'actor_warmup_steps' is only for off-policy algorithms, not ppo"):

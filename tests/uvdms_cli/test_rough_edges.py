@@ -9,8 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.export import EnvMismatchWarning
-from agents.policy import load_agent
+from agents.export import EnvMismatchWarning, load_agent
 from uvdms_cli.main import main
 
 REPO = Path(__file__).resolve().parents[2]
@@ -87,7 +86,7 @@ def test_argument_mistakes_are_one_line(capsys, argv, expected):
 
 def test_python_m_agents_train_argument_mistake_is_one_line():
     proc = subprocess.run(
-        [sys.executable, "-m", "agents.train", "--algo", "nope"], capture_output=True, text=True, timeout=120
+        [sys.executable, "-m", "agents.training.train", "--algo", "nope"], capture_output=True, text=True, timeout=120
     )
     lines = proc.stderr.strip().splitlines()
     assert proc.returncode == 2 and len(lines) == 1 and "'nope'" in lines[0], proc.stderr

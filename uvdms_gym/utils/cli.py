@@ -1,4 +1,4 @@
-"""Command-line helpers shared by ``uvdms`` and ``python -m agents.train``: argument errors in one line.
+"""Command-line helpers shared by ``uvdms`` and ``python -m agents.training.train``: argument errors in one line.
 
 argparse prints the usage and an error over several lines; the project's commands promise one line,
 ``uvdms: error: <what is wrong>``, and exit status 2. :class:`OneLineArgumentParser` does that for argument

@@ -1,7 +1,7 @@
 """Environment keyword arguments from the command line: the one ``k=v`` parser, and checking keys before ``make``.
 
 Every command that takes ``--env-kwargs K=V ...`` or ``--hyperparams K=V ...`` (``uvdms evaluate``,
-``uvdms train``, ``python -m agents.train``) parses it with :func:`parse_kv`, and checks environment keys
+``uvdms train``, ``python -m agents.training.train``) parses it with :func:`parse_kv`, and checks environment keys
 with :func:`check_make_kwargs` before any model loads, so that a typo is one clear error, not a traceback
 from inside an environment constructor.
 """

@@ -1,0 +1,98 @@
+"""Module paths removed with the compatibility layer: importing one fails in one line naming its new home.
+
+Release 0.3.0 grouped the packages into subpackages and kept the old module paths as deprecated aliases; 0.4.0
+removed the aliases. A package keeps a table ``{old module: new module}`` of what it moved and installs a
+:class:`MovedModuleFinder` for it on import (:func:`install_moved_finder`; ``uvdms_gym`` for :data:`MOVED`,
+``agents`` for :data:`agents.common.legacy.MOVED`), in the style of Gymnasium's ``_renamed_wrapper``:
+``import uvdms_gym.sim`` raises ``ModuleNotFoundError: uvdms_gym.sim was moved to uvdms_gym.physics.sim in 0.3.0
+and the alias removed in 0.4.0; import uvdms_gym.physics.sim``.
+
+Files pickled before a move (trusted SB3 zips that name a class by its old module) load inside
+:func:`old_modules_aliased`, which makes the old names aliases of the new modules for the time of the load only.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import importlib.abc
+import importlib.machinery
+import sys
+import types
+from collections.abc import Iterator, Mapping, Sequence
+
+MOVED_IN = "0.3.0"
+"""The release that moved the modules of the tables (and kept the old paths as deprecated aliases)."""
+REMOVED_IN = "0.4.0"
+"""The release that removed the aliases."""
+
+MOVED: dict[str, str] = {
+    "uvdms_gym.params": "uvdms_gym.physics.params",
+    "uvdms_gym.frames": "uvdms_gym.physics.frames",
+    "uvdms_gym.model": "uvdms_gym.physics.model",
+    "uvdms_gym.kinematics": "uvdms_gym.physics.kinematics",
+    "uvdms_gym.nominal": "uvdms_gym.physics.nominal",
+    "uvdms_gym.hydro": "uvdms_gym.physics.hydro",
+    "uvdms_gym.sim": "uvdms_gym.physics.sim",
+    "uvdms_gym.geometry": "uvdms_gym.distances.geometry",
+    "uvdms_gym.distances_pybullet": "uvdms_gym.distances.pybullet_queries",
+    "uvdms_gym.io": "uvdms_gym.utils.io",
+    "uvdms_gym.kwargs": "uvdms_gym.utils.kwargs",
+    "uvdms_gym.provenance": "uvdms_gym.utils.provenance",
+    "uvdms_gym.cluster": "uvdms_gym.utils.cluster",
+    "uvdms_gym.display": "uvdms_gym.utils.display",
+}
+"""Old module paths of ``uvdms_gym`` (aliases in 0.3.0, removed in 0.4.0) -> their homes."""
+
+
+def moved_message(old: str, new: str) -> str:
+    """The one line that answers an import of ``old``: where it lives now and which release removed the alias."""
+    return f"{old} was moved to {new} in {MOVED_IN} and the alias removed in {REMOVED_IN}; import {new}"
+
+
+class MovedModuleFinder(importlib.abc.MetaPathFinder):
+    """A ``sys.meta_path`` finder that raises :func:`moved_message` for the old names of its table.
+
+    Appended after the standard finders, it is asked only about names no other finder found, so a module that
+    exists is never shadowed.
+    """
+
+    def __init__(self, table: Mapping[str, str]) -> None:
+        self.table = dict(table)
+
+    def find_spec(
+        self, fullname: str, path: Sequence[str] | None = None, target: types.ModuleType | None = None
+    ) -> importlib.machinery.ModuleSpec | None:
+        """``None`` for a name not in the table (the usual ``No module named ...`` follows).
+
+        Raises:
+            ModuleNotFoundError: For an old name, with the one-line message naming its new home.
+        """
+        new = self.table.get(fullname)
+        if new is None:
+            return None
+        raise ModuleNotFoundError(moved_message(fullname, new), name=fullname)
+
+
+def install_moved_finder(table: Mapping[str, str]) -> None:
+    """Put a :class:`MovedModuleFinder` for ``table`` at the end of ``sys.meta_path`` (once per table)."""
+    if not any(isinstance(f, MovedModuleFinder) and f.table == dict(table) for f in sys.meta_path):
+        sys.meta_path.append(MovedModuleFinder(table))
+
+
+@contextlib.contextmanager
+def old_modules_aliased(table: Mapping[str, str]) -> Iterator[None]:
+    """Within the block, each old name of ``table`` is an alias of its new module (for unpickling old files).
+
+    The new modules are imported; the aliases this block added to ``sys.modules`` are removed when it ends.
+    """
+    added = []
+    try:
+        for old, new in table.items():
+            if old not in sys.modules:
+                sys.modules[old] = importlib.import_module(new)
+                added.append(old)
+        yield
+    finally:
+        for old in added:
+            sys.modules.pop(old, None)
