@@ -80,6 +80,7 @@ from uvdms_gym.physics.obstacles import Obstacle
 from uvdms_gym.physics.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
 from uvdms_gym.utils.display import require_display
 from uvdms_gym.utils.io import quiet_c_stream
+from uvdms_gym.utils.validation import finite_vector
 
 NU_LIMIT = 50.0
 """Sanity bound on every component of ``nu`` (m/s, rad/s); beyond it the state is a blow-up."""
@@ -176,21 +177,6 @@ class StepInfo:
     def any_saturated(self) -> bool:
         """Whether any component was saturated."""
         return True in self.saturated.tolist()  # (a list scan: ndarray.any() costs several times more)
-
-
-def _vector(value: object, n: int, name: str) -> np.ndarray:
-    """Validate a finite float vector of length ``n`` (``ValueError`` naming the problem)."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a numeric array of shape ({n},): {exc}") from None
-    if arr.shape != (n,):
-        raise ValueError(f"{name} must have shape ({n},), got shape {arr.shape}")
-    if np.isnan(arr).any():
-        raise ValueError(f"{name} contains NaN at indices {np.flatnonzero(np.isnan(arr)).tolist()}")
-    if np.isinf(arr).any():
-        raise ValueError(f"{name} contains inf at indices {np.flatnonzero(np.isinf(arr)).tolist()}")
-    return arr
 
 
 class UVDMSSim:
@@ -463,7 +449,7 @@ class UVDMSSim:
             ValueError: not a finite 3-vector.
         """
         self._check_open()
-        v = (0.0, 0.0, 0.0) if v_c_ned is None else tuple(_vector(v_c_ned, 3, "current").tolist())
+        v = (0.0, 0.0, 0.0) if v_c_ned is None else tuple(finite_vector(v_c_ned, 3, "current").tolist())
         if v == self._current_ned:
             return
         old_world = np.array(self._current_world)
@@ -528,10 +514,10 @@ class UVDMSSim:
         """
         self._check_open()
         nj = self._n_joints
-        eta = _vector(eta, 6, "eta")
-        nu = np.zeros(6) if nu is None else _vector(nu, 6, "nu")
-        q = np.zeros(nj) if q is None else _vector(q, nj, "q")
-        qdot = np.zeros(nj) if qdot is None else _vector(qdot, nj, "qdot")
+        eta = finite_vector(eta, 6, "eta")
+        nu = np.zeros(6) if nu is None else finite_vector(nu, 6, "nu")
+        q = np.zeros(nj) if q is None else finite_vector(q, nj, "q")
+        qdot = np.zeros(nj) if qdot is None else finite_vector(qdot, nj, "qdot")
         if with_object and not self._arms:
             raise ValueError("with_object=True needs the arms (arms=False was given)")
         if self._has_obstacles:  # removed before the object, re-added after it: the same body order every episode
@@ -908,16 +894,16 @@ class UVDMSSim:
         try:
             tau = np.array(tau, dtype=float)  # a copy: the caller's array is never modified
         except (TypeError, ValueError):
-            pass  # _vector below names the problem
+            pass  # finite_vector below names the problem
         if not isinstance(tau, np.ndarray) or tau.shape != tau_max.shape:
-            tau = _vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
+            tau = finite_vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
         if int(n_substeps) != n_substeps or n_substeps < 1:
             raise ValueError(f"n_substeps must be an integer >= 1, got {n_substeps!r}")
         within = np.abs(tau) <= tau_max  # False for NaN/inf and for saturated components
         saturated = ~within
         if False in within.tolist():  # (a list scan: ndarray.all() costs several times more on 18 entries)
             if not np.isfinite(tau).all():
-                tau = _vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
+                tau = finite_vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
             tau = np.clip(tau, -tau_max, tau_max)
         tau_list = tau.tolist()
         tau_v, tau_q = tau_list[:6], tau_list[6:]

@@ -5,5 +5,6 @@
 * :mod:`~uvdms_gym.utils.provenance`: package versions, git revision, ``REPO_ROOT``, timing records;
 * :mod:`~uvdms_gym.utils.cluster`: Ray session helpers;
 * :mod:`~uvdms_gym.utils.display`: whether PyBullet's GUI can open;
-* :mod:`~uvdms_gym.utils.jit`: the one numba entry point.
+* :mod:`~uvdms_gym.utils.jit`: the one numba entry point;
+* :mod:`~uvdms_gym.utils.validation`: the one check of a finite float vector.
 """
