@@ -21,7 +21,8 @@ from sim_helpers import (
 from uvdms_gym.physics import frames, model
 from uvdms_gym.physics.hydro import HydroScale
 from uvdms_gym.physics.params import GRAVITY, JOINT_NAMES, UVDMSParams
-from uvdms_gym.physics.sim import PhysicsError, UVDMSSim
+from uvdms_gym.physics.sim import UVDMSSim
+from uvdms_gym.physics.state import PhysicsError
 
 P = UVDMSParams()
 # Bare vehicle with buoyancy equal to weight: no net heave force, so 1-DOF responses can be isolated.

@@ -43,7 +43,8 @@ from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.nominal import NominalDynamics
 from uvdms_gym.physics.params import D1, D2, UVDMSParams
 from uvdms_gym.physics.render import CAMERA_YAW_OFFSET_DEG, ReferenceScene
-from uvdms_gym.physics.sim import PhysicsError, UVDMSSim
+from uvdms_gym.physics.sim import UVDMSSim
+from uvdms_gym.physics.state import PhysicsError
 from uvdms_gym.utils.display import gui_available, require_display
 
 PREVIEW_TIMES: tuple[float, ...] = (0.0, 0.4, 0.8)

@@ -60,7 +60,6 @@ import itertools
 import math
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from types import MappingProxyType, TracebackType
 
 import numpy as np
@@ -68,6 +67,9 @@ import pybullet as pb
 from pybullet_utils import bullet_client
 
 from uvdms_gym.physics import frames, model, render
+from uvdms_gym.physics.body import configure_engine, load_body
+from uvdms_gym.physics.contacts import ContactMonitor
+from uvdms_gym.physics.grasp import RigidGrasp
 from uvdms_gym.physics.hydro import (
     HydroCoefficients,
     HydroScale,
@@ -75,37 +77,25 @@ from uvdms_gym.physics.hydro import (
     link_forces_world,
     link_table,
 )
-from uvdms_gym.physics.obstacle_bodies import OBJECT_GROUP, OBSTACLE_GROUP, ROBOT_GROUP, ObstacleBodies
+from uvdms_gym.physics.obstacle_bodies import ObstacleBodies
 from uvdms_gym.physics.obstacles import Obstacle
-from uvdms_gym.physics.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
+from uvdms_gym.physics.params import GRAVITY, UVDMSParams
+from uvdms_gym.physics.state import (
+    NU_LIMIT,
+    SimState,
+    StepInfo,
+    base_state,
+    blew_up,
+    check_bounds,
+    saturate,
+    state_from_raw,
+)
 from uvdms_gym.utils.display import require_display
 from uvdms_gym.utils.io import quiet_c_stream
 from uvdms_gym.utils.validation import finite_vector
 
-NU_LIMIT = 50.0
-"""Sanity bound on every component of ``nu`` (m/s, rad/s); beyond it the state is a blow-up."""
-QDOT_LIMIT = 100.0
-"""Sanity bound on every joint rate, rad/s."""
-POSITION_LIMIT = 1.0e4
-"""Sanity bound on the vehicle's and the object's NED position, m."""
-MAX_JOINT_VELOCITY = 10.0 * QDOT_LIMIT
-"""PyBullet's joint-rate clamp (default 100 rad/s, a silent non-physical cap) is raised above
-:data:`QDOT_LIMIT` so that the sanity check, not the clamp, decides."""
-GRASP_MAX_FORCE = 1.0e6
-"""Maximum force of each grasp constraint (PyBullet's default 500 N could let the chain slip), N."""
-GRASP_TOLERANCE = (1.0e-3, math.radians(0.5))
-"""Largest position (m) and angle (rad) mismatch between the two grasp frames accepted by
-``reset(..., with_object=True)``: the object is welded to both, so they must coincide."""
 MIN_VIRTUAL_MASS = model.TINY_MASS
 """Floor on the virtual added-mass link's mass and inertia when :attr:`HydroScale.added_mass` is 0."""
-
-CONSTRAINT_ERP = 0.8
-"""Error reduction parameter of the (non-contact) constraints: the fraction of a position error of the
-grasp welds and joint limits removed per physics step [D] (PyBullet's default 0.2 leaves several times
-more drift, see the module docstring)."""
-CONSTRAINT_CFM = 1.0e-9
-"""Global constraint force mixing: a tiny regularisation for the direct solver at singular (e.g.
-straight-arm) configurations of the closed chain."""
 
 _WORLD = pb.WORLD_FRAME
 _TORQUE = pb.TORQUE_CONTROL
@@ -117,66 +107,10 @@ _step_simulation = pb.stepSimulation
 _base_pose = pb.getBasePositionAndOrientation
 _base_velocity = pb.getBaseVelocity
 _joint_states = pb.getJointStates
-_closest_points = pb.getClosestPoints
-_contact_points = pb.getContactPoints
-_perform_collision_detection = pb.performCollisionDetection
 _chain = itertools.chain.from_iterable
 _fromiter = np.fromiter
 _arctan2 = np.arctan2
 _arcsin = np.arcsin
-
-
-class PhysicsError(RuntimeError):
-    """The simulation blew up: a state became non-finite or left the documented sanity bounds.
-
-    Raised by :meth:`UVDMSSim.step` instead of ever returning NaN; the simulator must be reset.
-    """
-
-
-@dataclass(frozen=True)
-class SimState:
-    """State of the system in NED/FRD (docs/MODEL.md section 1).
-
-    Attributes:
-        eta: vehicle pose ``[x y z phi theta psi]`` (NED position of the body origin, ZYX Euler).
-        nu: body velocity ``[u v w p q r]`` at the body origin (FRD).
-        q: joint angles ``[q_l; q_r]`` (12; empty for a bare vehicle).
-        qdot: joint rates, same order.
-        t: simulated time since the last reset, s.
-    """
-
-    eta: np.ndarray
-    nu: np.ndarray
-    q: np.ndarray
-    qdot: np.ndarray
-    t: float
-
-    @property
-    def zeta(self) -> np.ndarray:
-        """System velocity ``[nu; qdot]`` (18)."""
-        return np.concatenate([self.nu, self.qdot])
-
-
-@dataclass(frozen=True)
-class StepInfo:
-    """What :meth:`UVDMSSim.step` applied.
-
-    Attributes:
-        tau: the generalized force actually applied (after saturation), ``[tau_v (6); tau_q (12)]``.
-        saturated: boolean mask, ``True`` where the requested component exceeded ``params.tau_max``.
-        t: simulated time after the step, s.
-        n_substeps: number of physics steps taken.
-    """
-
-    tau: np.ndarray
-    saturated: np.ndarray
-    t: float
-    n_substeps: int
-
-    @property
-    def any_saturated(self) -> bool:
-        """Whether any component was saturated."""
-        return True in self.saturated.tolist()  # (a list scan: ndarray.any() costs several times more)
 
 
 class UVDMSSim:
@@ -236,57 +170,29 @@ class UVDMSSim:
         """Load the body and configure PyBullet (called once by the constructor)."""
         self._cid: int = self._client._client
         c = self._client
-        c.setGravity(0.0, 0.0, -GRAVITY)
-        with quiet_c_stream(sys.stdout):  # switching the solver prints two lines on the C stdout
-            c.setPhysicsEngineParameter(
-                fixedTimeStep=self._dt,
-                constraintSolverType=pb.CONSTRAINT_SOLVER_LCP_DANTZIG,
-                globalCFM=CONSTRAINT_CFM,
-                erp=CONSTRAINT_ERP,
-            )
-        path = model.write_urdf(model.build_urdf(self._params, arms=self._arms, hull_collision=self._outer))
-        # With self_collision, contacts between non-adjacent links are simulated (physical contact forces) and
-        # count_contacts() reads them from the contact manifold PyBullet builds during each step.
-        flags = pb.URDF_USE_INERTIA_FROM_FILE
-        if self._self_collision:
-            flags |= pb.URDF_USE_SELF_COLLISION | pb.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
-        self._body: int = c.loadURDF(str(path), flags=flags)
-        names = {"vehicle": -1}
-        for j in range(c.getNumJoints(self._body)):
-            names[c.getJointInfo(self._body, j)[12].decode()] = j
-        self._link_index = MappingProxyType(names)
-        joint_names = JOINT_NAMES if self._arms else ()
-        by_joint = {c.getJointInfo(self._body, j)[1].decode(): j for j in range(c.getNumJoints(self._body))}
-        self._joints: list[int] = [by_joint[n] for n in joint_names]
+        configure_engine(c, self._dt)
+        self._body, self._link_index, self._joints = load_body(
+            c, self._params, arms=self._arms, outer=self._outer, self_collision=self._self_collision
+        )
+        names = self._link_index
         self._n_joints = len(self._joints)
         self._tau_max = np.asarray(self._params.tau_max, dtype=float)[: 6 + self._n_joints]
-        if self._joints:
-            c.setJointMotorControlArray(self._body, self._joints, pb.VELOCITY_CONTROL, forces=[0.0] * self._n_joints)
-        for link in names.values():
-            c.changeDynamics(self._body, link, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0)
-        for j in self._joints:  # gear-train viscous friction (params.ArmParams.joint_friction)
-            c.changeDynamics(self._body, j, jointDamping=self._params.arm.joint_friction)
-        for j in self._joints:  # PyBullet silently clamps joint rates at 100 rad/s: let PhysicsError see them
-            c.changeDynamics(self._body, j, maxJointVelocity=MAX_JOINT_VELOCITY)
         self._am_link = names["added_mass"]
         # moving links in the order of q (their link index equals their joint index)
         self._state_links = [self._am_link, *self._joints]
         self._r_g = np.array(self._params.vehicle.r_g, dtype=float)
-        if self._outer:  # the robot's collision group, explicitly (obstacle_bodies.py)
-            for link in names.values():
-                c.setCollisionFilterGroupMask(self._body, link, ROBOT_GROUP, ROBOT_GROUP | OBSTACLE_GROUP)
-        self._obj: int | None = None
+        self._grasp = RigidGrasp(
+            c, self._body, self._link_index, self._params, physics_dt=self._dt, collision=self._outer
+        )
+        self._contacts = ContactMonitor(
+            c, self._body, self._link_index, self._params, arms=self._arms, self_collision=self._self_collision
+        )
         self._obstacle_bodies = ObstacleBodies(c)
         self._markers: render.ReferenceMarkers | None = None  # created by show_reference (rendering only)
         self._has_obstacles = False
-        self._grasp_constraints: list[int] = []
-        self._contact_pairs: set[tuple[int, int]] = set()
-        self._needs_collision_pass = True
         self._t = 0.0
         self._raw: tuple | None = None  # cached raw state read, see _read_state
-        self._raw_obj: tuple | None = None  # the same for the object, see _read_object
         self._nu_prev = (0.0, 0.0, 0.0)  # previous substep's (relative) body velocity, for the lagged added mass
-        self._obj_p_prev = (0.0, 0.0, 0.0)
         self._has_current = False  # the no-current path evaluates exactly the formulas without a current
         self._current_ned = (0.0, 0.0, 0.0)
         self._current_world = (0.0, 0.0, 0.0)
@@ -317,7 +223,12 @@ class UVDMSSim:
     @property
     def object_id(self) -> int | None:
         """PyBullet unique id of the gripped object, or ``None``."""
-        return self._obj
+        return self._grasp.object_id
+
+    @property
+    def grasp(self) -> RigidGrasp:
+        """The gripped object and its closed chain (:mod:`uvdms_gym.physics.grasp`)."""
+        return self._grasp
 
     @property
     def link_index(self) -> MappingProxyType[str, int]:
@@ -411,7 +322,8 @@ class UVDMSSim:
             raise TypeError(f"scale must be a HydroScale, got {type(scale).__name__}")
         self._scale = scale
         self._hydro = h = hydro_coefficients(self._params, scale, arms=self._arms)
-        self._raw = self._raw_obj = None
+        self._raw = None
+        self._grasp.invalidate()
         self._client.changeDynamics(
             self._body,
             self._am_link,
@@ -426,8 +338,8 @@ class UVDMSSim:
         self._link_table = link_table(h)
         self._link_forces = np.empty((self._link_table.shape[0], 3))
         self._n_link_state = 7 * self._link_table.shape[0]  # [orientation xyzw, velocity] per link
-        if self._obj is not None:
-            self._set_object_dynamics()
+        if self._grasp.object_id is not None:
+            self._grasp.set_dynamics(h)
 
     def set_current(self, v_c_ned: Sequence[float] | np.ndarray | None) -> None:
         """Set a uniform, irrotational ocean current ``v_c`` (NED, m/s); ``None`` or zeros: no current.
@@ -463,25 +375,8 @@ class UVDMSSim:
         _, quat, _, _, _ = self._read_state()
         dv_body = frames.quat_xyzw_to_rot(np.array(quat)).T @ dv_world  # R_WB^T dv_W = R_NB^T dv_NED
         self._nu_prev = tuple((np.array(self._nu_prev) - dv_body).tolist())
-        if self._obj is not None:
-            _, oquat, _, _ = self._read_object()
-            e = frames.quat_xyzw_to_rot(np.array(oquat))[:, 1]  # object axis (its y) in the world
-            dp = self._hydro.obj_added_mass * float(dv_world @ e) * e
-            self._obj_p_prev = tuple((np.array(self._obj_p_prev) - dp).tolist())
-
-    def _set_object_dynamics(self) -> None:
-        o, h = self._params.obj, self._hydro
-        m = o.mass
-        i_t = m * (3.0 * o.radius**2 + o.length**2) / 12.0
-        i_ax = 0.5 * m * o.radius**2
-        self._client.changeDynamics(
-            self._obj,
-            -1,
-            mass=m + h.obj_added_mass,
-            localInertiaDiagonal=[i_t + h.obj_added_inertia, i_ax, i_t + h.obj_added_inertia],
-            linearDamping=0.0,
-            angularDamping=0.0,
-        )
+        if self._grasp.object_id is not None:
+            self._grasp.shift_lag(dv_world, self._hydro)
 
     # ------------------------------------------------------------------ reset / state
     def reset(
@@ -523,89 +418,24 @@ class UVDMSSim:
         if self._has_obstacles:  # removed before the object, re-added after it: the same body order every episode
             self._obstacle_bodies.clear()
             self._has_obstacles = False
-        self._remove_object()
+        self._grasp.detach()
         c = self._client
-        r_wb = frames.body_rot_ned_to_world(frames.euler_to_rot(eta[3:]))
-        r_g_w = r_wb @ self._r_g
-        p_com = frames.ned_to_world(eta[:3]) + r_g_w
-        w_w = r_wb @ nu[3:]
-        v_com = r_wb @ nu[:3] + np.cross(w_w, r_g_w)
-        c.resetBasePositionAndOrientation(self._body, p_com.tolist(), frames.rot_to_quat_xyzw(r_wb).tolist())
+        p_com, quat, v_com, w_w, r_wb = base_state(eta, nu, self._r_g)
+        c.resetBasePositionAndOrientation(self._body, p_com.tolist(), quat.tolist())
         c.resetBaseVelocity(self._body, v_com.tolist(), w_w.tolist())
         for k, j in enumerate(self._joints):
             c.resetJointState(self._body, j, float(q[k]), float(qdot[k]))
         self._t = 0.0
-        self._raw = self._raw_obj = None
+        self._raw = None
+        self._grasp.invalidate()
         self._nu_prev = (float(nu[0]), float(nu[1]), float(nu[2]))
         if self._has_current:  # the lag state is the relative velocity nu_r = nu - R_NB^T v_c
             r_nb = frames.body_rot_world_to_ned(r_wb)
             self._nu_prev = tuple((nu[:3] - r_nb.T @ np.array(self._current_ned)).tolist())
         if with_object:
-            self._create_object()
-        self._needs_collision_pass = True
+            self._grasp.attach(self._hydro, self._current_world if self._has_current else None)
+        self._contacts.needs_pass = True
         return self.state()
-
-    def _remove_object(self) -> None:
-        for cid in self._grasp_constraints:
-            self._client.removeConstraint(cid)
-        self._grasp_constraints = []
-        if self._obj is not None:
-            self._client.removeBody(self._obj)
-            self._obj = None
-
-    def _create_object(self) -> None:
-        c = self._client
-        grasp = {}
-        for side in ARM_SIDES:
-            ls = c.getLinkState(
-                self._body, self._link_index[f"{side}_grasp"], computeLinkVelocity=1, computeForwardKinematics=1
-            )
-            grasp[side] = ls
-        (pl, ol), (pr, orr) = (grasp["left"][4:6]), (grasp["right"][4:6])
-        dp = float(np.linalg.norm(np.subtract(pl, pr)))
-        r_rel = frames.quat_xyzw_to_rot(np.array(ol)).T @ frames.quat_xyzw_to_rot(np.array(orr))
-        dang = float(np.arccos(np.clip((np.trace(r_rel) - 1.0) / 2.0, -1.0, 1.0)))
-        if dp > GRASP_TOLERANCE[0] or dang > GRASP_TOLERANCE[1]:
-            raise ValueError(
-                f"with_object=True: the grasp frames differ by {dp * 1e3:.3f} mm and {math.degrees(dang):.3f} deg "
-                f"(tolerance {GRASP_TOLERANCE[0] * 1e3:.1f} mm, {math.degrees(GRASP_TOLERANCE[1]):.1f} deg); "
-                "give joint angles at which both grippers hold the object (e.g. q_left == q_right)"
-            )
-        path = model.write_urdf(model.build_object_urdf(self._params, collision=self._outer))
-        self._obj = c.loadURDF(str(path), basePosition=pr, baseOrientation=orr, flags=pb.URDF_USE_INERTIA_FROM_FILE)
-        if self._outer:  # the object collides with outer obstacles only, never with the arms holding it
-            c.setCollisionFilterGroupMask(self._obj, -1, OBJECT_GROUP, OBSTACLE_GROUP)
-        else:
-            c.setCollisionFilterGroupMask(self._obj, -1, 0, 0)
-        self._set_object_dynamics()
-        c.resetBaseVelocity(self._obj, grasp["right"][6], grasp["right"][7])
-        for side in ARM_SIDES:
-            cid = c.createConstraint(
-                self._body,
-                self._link_index[f"{side}_grasp"],
-                self._obj,
-                -1,
-                pb.JOINT_FIXED,
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0, 1.0],
-                [0.0, 0.0, 0.0, 1.0],
-            )
-            c.changeConstraint(cid, maxForce=GRASP_MAX_FORCE)
-            self._grasp_constraints.append(cid)
-        self._obj_p_prev = self._object_axial_momentum()
-
-    def _object_axial_momentum(self) -> tuple[float, float, float]:
-        """Axial added momentum ``m_a (v_r . e) e`` of the object (world frame; ``v_r = v - v_c``)."""
-        _, (qx, qy, qz, qw) = _base_pose(self._obj, self._cid)
-        (vx, vy, vz), _ = _base_velocity(self._obj, self._cid)
-        if self._has_current:  # relative to the water
-            cx, cy, cz = self._current_world
-            vx, vy, vz = vx - cx, vy - cy, vz - cz
-        ex, ey, ez = 2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw)
-        k = self._hydro.obj_added_mass * (vx * ex + vy * ey + vz * ez)
-        return (k * ex, k * ey, k * ez)
 
     def _read_state(self) -> tuple:
         """Raw PyBullet state ``(p_com, quat, v_com, w, joint_states)``, read once per physics state.
@@ -623,50 +453,14 @@ class UVDMSSim:
             raw = self._raw = (p_com, quat, v_com, w_w, js)
         return raw
 
-    def _read_object(self) -> tuple:
-        """Raw PyBullet object state ``(p, quat, v, w)`` (world frame), cached like :meth:`_read_state`."""
-        raw = self._raw_obj
-        if raw is None:
-            obj = self._require_object()
-            p, quat = _base_pose(obj, self._cid)
-            v, w = _base_velocity(obj, self._cid)
-            raw = self._raw_obj = (p, quat, v, w)
-        return raw
-
     def state(self) -> SimState:
         """The current state in NED/FRD, converted from PyBullet's base (COM) pose and velocity.
 
-        (Double precision: ``getLinkStates`` would be one query but returns single-precision values.)
-        The conversion is written in scalars around the few numpy calls whose rounding it must keep (the
-        3x3 matrix products and the inverse trigonometric functions give the same bits as
-        :mod:`uvdms_gym.physics.frames`; plain Python products and ``math.atan2`` would differ in the last bit).
+        (Double precision: ``getLinkStates`` would be one query but returns single-precision values;
+        :func:`uvdms_gym.physics.state.state_from_raw` converts.)
         """
         self._check_open()
-        (px, py, pz), (x, y, z, w), (vx, vy, vz), (wx, wy, wz), js = self._read_state()
-        # R_WB, the expressions of frames.quat_xyzw_to_rot
-        r_wb = np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-            ]
-        )
-        rx, ry, rz = (r_wb @ self._r_g).tolist()  # r_G in world axes
-        # Euler angles of R_NB = S R_WB (frames.rot_to_euler); the +0.0 keeps the signed zeros of the product
-        (r00, _, _), (r10, _, _), (r20, r21, r22) = r_wb.tolist()
-        phi, psi = _arctan2(np.array([0.0 - r21, 0.0 - r10]), np.array([0.0 - r22, r00 + 0.0])).tolist()
-        theta = -float(_arcsin(min(max(0.0 - r20, -1.0), 1.0)))
-        eta = np.array([px - rx, -(py - ry), -(pz - rz), phi, theta, psi])
-        # v_origin = v_com - w x r_g
-        v = np.array([vx - (wy * rz - wz * ry), vy - (wz * rx - wx * rz), vz - (wx * ry - wy * rx)])
-        r_bw = r_wb.T
-        nu = np.concatenate([r_bw @ v, r_bw @ np.array([wx, wy, wz])])
-        if js:
-            q = np.array([s[0] for s in js])
-            qdot = np.array([s[1] for s in js])
-        else:
-            q = qdot = np.zeros(0)
-        return SimState(eta=eta, nu=nu, q=q, qdot=qdot, t=self._t)
+        return state_from_raw(self._read_state(), self._r_g, self._t)
 
     def link_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """NED position and rotation matrix (``R_N,link``) of a link frame (e.g. ``"right_grasp"``)."""
@@ -679,12 +473,6 @@ class UVDMSSim:
         r_w = frames.quat_xyzw_to_rot(np.array(ls[5]))
         return frames.world_to_ned(np.array(ls[4])), frames.body_rot_world_to_ned(r_w)
 
-    def _require_object(self) -> int:
-        self._check_open()
-        if self._obj is None:
-            raise RuntimeError("no object: reset(..., with_object=True) first")
-        return self._obj
-
     def object_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Object pose: NED position of its centre (3) and ZYX Euler angles ``[phi, theta, psi]`` (3)."""
         p, rpy, _ = self.object_pose_rotation()
@@ -692,13 +480,13 @@ class UVDMSSim:
 
     def object_position(self) -> np.ndarray:
         """NED position of the object's centre (3)."""
-        p, _, _, _ = self._read_object()
-        return np.array([p[0], -p[1], -p[2]])  # frames.world_to_ned
+        self._check_open()
+        return self._grasp.position()
 
     def object_rotation(self) -> np.ndarray:
         """Object orientation as a rotation matrix ``R_N,object`` (NED)."""
-        _, quat, _, _ = self._read_object()
-        return frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(quat))
+        self._check_open()
+        return self._grasp.rotation()
 
     def object_pose_rotation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`object_pose` and :meth:`object_rotation` from one conversion: ``(p, rpy, R_N,object)``.
@@ -713,26 +501,17 @@ class UVDMSSim:
 
     def object_velocity(self) -> np.ndarray:
         """Object twist ``[v; w]`` (6): velocity of its centre and angular velocity, both in NED."""
-        _, _, v, w = self._read_object()
-        return np.concatenate([frames.world_to_ned(np.array(v)), frames.world_to_ned(np.array(w))])
+        self._check_open()
+        return self._grasp.velocity()
 
     def grasp_forces(self) -> np.ndarray:
         """Wrenches exerted by the end effectors on the object, ``(2, 6)`` rows ``[left; right]``.
 
-        Each row is ``[force (3); moment (3)]`` in NED, about the object's centre (the grasp point), from
-        the last physics step's constraint impulses (``getConstraintState``, impulse / dt). These are the
-        paper's ``F_e``. Zeros without an object.
+        Each row is ``[force (3); moment (3)]`` in NED about the object's centre, the paper's ``F_e``
+        (:meth:`uvdms_gym.physics.grasp.RigidGrasp.forces`). Zeros without an object.
         """
         self._check_open()
-        out = np.zeros((2, 6))
-        for k, cid in enumerate(self._grasp_constraints):
-            f = np.array(self._client.getConstraintState(cid), dtype=float)
-            side = ARM_SIDES[k]
-            ls = self._client.getLinkState(self._body, self._link_index[f"{side}_grasp"], computeForwardKinematics=1)
-            r_w = frames.quat_xyzw_to_rot(np.array(ls[5]))  # angular rows act about the grasp frame's axes
-            out[k, :3] = frames.S @ (_GRASP_SIGN * f[:3])
-            out[k, 3:] = frames.S @ (r_w @ (_GRASP_SIGN * f[3:6]))
-        return out
+        return self._grasp.forces()
 
     def zeta(self) -> np.ndarray:
         """System velocity ``[nu; qdot]`` (a cheaper :meth:`state` for velocity loops)."""
@@ -748,39 +527,15 @@ class UVDMSSim:
         return out
 
     def count_contacts(self, pairs: Sequence[tuple[str, str]] | None = None) -> int:
-        """Number of touching robot-part pairs (PyBullet's closest-point or contact report).
+        """Number of touching robot-part pairs (:meth:`uvdms_gym.physics.contacts.ContactMonitor.count`).
 
         Args:
             pairs: link-name pairs to check (e.g. the pairs whose exact distance is near contact); default: all
                 monitored pairs, i.e. right-arm vs left-arm links and arm links 1-6 vs frame plates (97 pairs,
                 the pairs the 18 distances of docs/MODEL.md section 4 watch).
-
-        Without simulated self-collision each pair is one ``getClosestPoints`` query with a zero distance
-        threshold (about 2 µs a pair). With it, the pairs are read from the contact manifold of the last step.
         """
         self._check_open()
-        li, b, cid = self._link_index, self._body, self._cid
-        if pairs is None:
-            if not self._contact_pairs:
-                plates = [li[f"plate_{pl.name}"] for pl in self._params.plates]
-                n = self._params.arm.n_links if self._arms else 0
-                monitored = {(li[f"right_link{i}"], li[f"left_link{j}"]) for i in range(n) for j in range(n)}
-                monitored |= {(li[f"{s}_link{i}"], p) for s in ARM_SIDES for i in range(1, n) for p in plates}
-                self._contact_pairs = monitored
-            idx = self._contact_pairs
-        else:
-            try:
-                idx = {(li[a], li[c]) for a, c in pairs}
-            except KeyError as exc:
-                raise ValueError(f"unknown link name {exc.args[0]!r} in pairs") from None
-        if not self._self_collision:
-            return sum(1 for a, c in idx if _closest_points(b, b, 0.0, a, c, physicsClientId=cid))
-        if self._needs_collision_pass:
-            _perform_collision_detection(cid)
-            self._needs_collision_pass = False
-        both = idx | {(c, a) for a, c in idx}
-        touching = {(cp[3], cp[4]) for cp in _contact_points(b, b, physicsClientId=cid) if cp[8] <= 0.0} & both
-        return len({tuple(sorted(pair)) for pair in touching})
+        return self._contacts.count(pairs)
 
     def render_rgb(
         self, width: int = 320, height: int = 240, *, camera_yaw_deg: float = render.CAMERA_YAW_OFFSET_DEG
@@ -850,17 +605,14 @@ class UVDMSSim:
         A part is a link name (``"vehicle"``: the hull) or ``"object"``; an obstacle is its index in :attr:`obstacles`.
         """
         self._check_open()
-        ids, cid, n = self._obstacle_bodies.body_ids, self._cid, 0
-        for part, k in pairs:
-            body, link = (self._require_object(), -1) if part == "object" else (self._body, self._link_index[part])
-            n += bool(_closest_points(body, ids[k], 0.0, link, -1, physicsClientId=cid))
-        return n
+        return self._contacts.count_obstacles(pairs, self._obstacle_bodies.body_ids, self._grasp.require)
 
     # ------------------------------------------------------------------ stepping
     def bare_step(self) -> None:
         """One ``stepSimulation`` with no hydrodynamics and no inputs (for benchmarks; advances ``t``)."""
         _step_simulation(self._cid)
-        self._raw = self._raw_obj = None
+        self._raw = None
+        self._grasp.invalidate()
         self._t += self._dt
         if self._has_obstacles:
             self._obstacle_bodies.place(self._t)
@@ -899,19 +651,17 @@ class UVDMSSim:
             tau = finite_vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
         if int(n_substeps) != n_substeps or n_substeps < 1:
             raise ValueError(f"n_substeps must be an integer >= 1, got {n_substeps!r}")
-        within = np.abs(tau) <= tau_max  # False for NaN/inf and for saturated components
-        saturated = ~within
-        if False in within.tolist():  # (a list scan: ndarray.all() costs several times more on 18 entries)
-            if not np.isfinite(tau).all():
-                tau = finite_vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
-            tau = np.clip(tau, -tau_max, tau_max)
+        clipped = saturate(tau, tau_max)
+        if clipped is None:
+            finite_vector(tau, tau_max.size, "tau")  # raises the ValueError naming the NaN and inf entries
+        tau, saturated = clipped
         tau_list = tau.tolist()
         tau_v, tau_q = tau_list[:6], tau_list[6:]
         self._fb_saturated = saturated
         substep = self._substep
         for _ in range(int(n_substeps)):
             substep(tau_v, tau_q, feedback)
-        self._needs_collision_pass = False
+        self._contacts.needs_pass = False
         if feedback is not None:
             tau, saturated = self._fb_tau, self._fb_saturated
         self._check_state()
@@ -935,12 +685,12 @@ class UVDMSSim:
         tau_max = self._tau_max
         if t.shape != tau_max.shape:
             raise ValueError(f"feedback must return a finite tau of shape {tau_max.shape}, got {t!r}")
-        within = np.abs(t) <= tau_max  # False for NaN/inf and for saturated components
-        if False in within.tolist():
-            if not np.isfinite(t).all():
-                raise ValueError(f"feedback must return a finite tau of shape {tau_max.shape}, got {t!r}")
-            t = np.clip(t, -tau_max, tau_max)
-            self._fb_saturated = self._fb_saturated | ~within
+        clipped = saturate(t, tau_max)
+        if clipped is None:
+            raise ValueError(f"feedback must return a finite tau of shape {tau_max.shape}, got {t!r}")
+        if clipped[0] is not t:  # saturated
+            t = clipped[0]
+            self._fb_saturated = self._fb_saturated | clipped[1]
         self._fb_tau = t
         t_list = t.tolist()
         return t_list[:6], t_list[6:]
@@ -1029,69 +779,20 @@ class UVDMSSim:
             for link, force, ls in zip(self._joints, forces.tolist(), links):
                 apply_force(body, link, force, ls[0], world, cid)
             _motor_array(body, self._joints, _TORQUE, forces=tau_q, physicsClientId=cid)
-        if self._obj is not None:
-            self._object_hydro()
+        grasp = self._grasp
+        if grasp.object_id is not None:
+            grasp.apply_hydro(self._hydro, self._current_world if self._has_current else None)
         _step_simulation(cid)
-        self._raw = self._raw_obj = None
+        self._raw = None
+        grasp.invalidate()
         self._t += self._dt
         if self._has_obstacles:
             self._obstacle_bodies.place(self._t)
 
-    def _object_hydro(self) -> None:
-        """Apply the object's hydrodynamic wrench (:func:`uvdms_gym.physics.hydro.object_wrench`, inlined)."""
-        cid, obj, h = self._cid, self._obj, self._hydro
-        pos, (qx, qy, qz, qw) = _base_pose(obj, cid)
-        (vx, vy, vz), _ = _base_velocity(obj, cid)
-        if self._has_current:  # every term below acts on the velocity relative to the water
-            cx, cy, cz = self._current_world
-            vx, vy, vz = vx - cx, vy - cy, vz - cz
-        ex, ey, ez = 2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw)
-        vt = vx * ex + vy * ey + vz * ez
-        k = h.obj_added_mass * vt
-        p_ax = (k * ex, k * ey, k * ez)  # axial added momentum
-        p0x, p0y, p0z = self._obj_p_prev
-        self._obj_p_prev = p_ax
-        inv_dt = self._inv_dt
-        # Morison drag (hydro.morison_force), lift = buoyancy + weight cancel of the added mass, + dP_ax/dt
-        nx, ny, nz = vx - vt * ex, vy - vt * ey, vz - vt * ez
-        kvn = h.obj_kn * math.sqrt(nx * nx + ny * ny + nz * nz)
-        kvt = h.obj_kt * abs(vt) * vt
-        lift = h.obj_buoyancy + h.obj_added_mass * GRAVITY
-        force = (
-            (-kvn * nx - kvt * ex) + lift * 0.0 + (p_ax[0] - p0x) * inv_dt,
-            (-kvn * ny - kvt * ey) + lift * 0.0 + (p_ax[1] - p0y) * inv_dt,
-            (-kvn * nz - kvt * ez) + lift * 1.0 + (p_ax[2] - p0z) * inv_dt,
-        )
-        moment = (k * (vy * ez - vz * ey), k * (vz * ex - vx * ez), k * (vx * ey - vy * ex))
-        _apply_force(obj, -1, force, pos, _WORLD, cid)
-        _apply_torque(obj, -1, moment, _WORLD, cid)
-
     def _fail(self, message: str) -> None:
-        raise PhysicsError(f"simulation blew up at t = {self._t:.4f} s: {message}; reset() required")
+        raise blew_up(self._t, message)
 
     def _check_state(self) -> None:
-        """Raise :class:`PhysicsError` if the state is non-finite or beyond the documented sanity bounds."""
-        pos, _, vel, ang, js = self._read_state()  # cached for the state() that usually follows
-        # cheap conservative pre-check on PyBullet's COM velocity (components below NU_LIMIT / 2 imply
-        # |nu_i| <= sqrt(3) NU_LIMIT / 2 + |w| |r_G| < NU_LIMIT); the exact check only if it fails
-        if not (max(map(abs, (*vel, *ang))) < 0.5 * NU_LIMIT and max(map(abs, pos)) < 0.5 * POSITION_LIMIT):
-            st = self.state()
-            if not (np.isfinite(st.eta).all() and np.isfinite(st.nu).all()):
-                self._fail(f"non-finite state: eta = {st.eta}, nu = {st.nu}")
-            if np.abs(st.nu).max() > NU_LIMIT:
-                self._fail(f"|nu| > {NU_LIMIT}: nu = {st.nu}")
-            if np.abs(st.eta[:3]).max() > POSITION_LIMIT:
-                self._fail(f"|position| > {POSITION_LIMIT}: eta = {st.eta}")
-        if js:
-            qdot = [s[1] for s in js]
-            if not max(map(abs, qdot)) <= QDOT_LIMIT:
-                self._fail(f"|qdot| > {QDOT_LIMIT} or non-finite: qdot = {qdot}")
-        if self._obj is not None:
-            p, _, v, w = self._read_object()
-            if not (max(map(abs, (*v, *w))) < NU_LIMIT + QDOT_LIMIT and max(map(abs, p)) < POSITION_LIMIT):
-                self._fail(f"object state out of bounds or non-finite: position {p}, velocity {v}, {w}")
-
-
-_GRASP_SIGN = -1.0
-"""``getConstraintState`` reports the constraint force on the parent (the grasp link); the force on the
-object (the child) is its opposite (checked against the object's momentum balance in the tests)."""
+        """Raise :class:`~uvdms_gym.physics.state.PhysicsError` if the state is non-finite or beyond the bounds."""
+        raw_object = self._grasp.read() if self._grasp.object_id is not None else None
+        check_bounds(self._read_state(), self._r_g, self._t, raw_object)  # the read is cached for state()

@@ -1,0 +1,98 @@
+"""The UVDMS multibody in PyBullet: the engine set-up (:func:`configure_engine`) and the body (:func:`load_body`).
+
+Physics set-up [D] (the module docstring of :mod:`uvdms_gym.physics.sim` says why): gravity in the z-up world,
+the direct MLCP constraint solver with error reduction :data:`CONSTRAINT_ERP` and force mixing
+:data:`CONSTRAINT_CFM`; the body from :func:`uvdms_gym.physics.model.build_urdf` with
+``URDF_USE_INERTIA_FROM_FILE``, its default joint motors disabled, linear, angular and joint damping 0 on every
+link, the arms' gear-train friction as joint damping, and PyBullet's joint-rate clamp raised to
+:data:`MAX_JOINT_VELOCITY`.
+"""
+
+from __future__ import annotations
+
+import sys
+from types import MappingProxyType
+from typing import NamedTuple
+
+import pybullet as pb
+
+from uvdms_gym.physics import model
+from uvdms_gym.physics.obstacle_bodies import OBSTACLE_GROUP, ROBOT_GROUP
+from uvdms_gym.physics.params import GRAVITY, JOINT_NAMES, UVDMSParams
+from uvdms_gym.physics.state import QDOT_LIMIT
+from uvdms_gym.utils.io import quiet_c_stream
+
+MAX_JOINT_VELOCITY = 10.0 * QDOT_LIMIT
+"""PyBullet's joint-rate clamp (default 100 rad/s, a silent non-physical cap) is raised above
+:data:`~uvdms_gym.physics.state.QDOT_LIMIT` so that the sanity check, not the clamp, decides."""
+CONSTRAINT_ERP = 0.8
+"""Error reduction parameter of the (non-contact) constraints: the fraction of a position error of the
+grasp welds and joint limits removed per physics step [D] (PyBullet's default 0.2 leaves several times
+more drift, see the module docstring of :mod:`uvdms_gym.physics.sim`)."""
+CONSTRAINT_CFM = 1.0e-9
+"""Global constraint force mixing: a tiny regularisation for the direct solver at singular (e.g.
+straight-arm) configurations of the closed chain."""
+
+
+class LoadedBody(NamedTuple):
+    """The UVDMS multibody as loaded by :func:`load_body`.
+
+    Attributes:
+        body: PyBullet unique id of the multibody.
+        link_index: link name -> link index (``"vehicle"`` is the base, -1).
+        joints: joint indices in the order of ``q`` (empty without arms).
+    """
+
+    body: int
+    link_index: MappingProxyType[str, int]
+    joints: list[int]
+
+
+def configure_engine(client, physics_dt: float) -> None:
+    """Gravity, the fixed time step and the constraint solver of ``client``."""
+    client.setGravity(0.0, 0.0, -GRAVITY)
+    with quiet_c_stream(sys.stdout):  # switching the solver prints two lines on the C stdout
+        client.setPhysicsEngineParameter(
+            fixedTimeStep=physics_dt,
+            constraintSolverType=pb.CONSTRAINT_SOLVER_LCP_DANTZIG,
+            globalCFM=CONSTRAINT_CFM,
+            erp=CONSTRAINT_ERP,
+        )
+
+
+def load_body(client, params: UVDMSParams, *, arms: bool, outer: bool, self_collision: bool) -> LoadedBody:
+    """Load the UVDMS into ``client`` and set its dynamics (see the module docstring).
+
+    Args:
+        client: a ``BulletClient``.
+        params: the physical parameters.
+        arms: ``False`` loads the bare vehicle.
+        outer: give the hull a collision box and put the robot's links in the robot's collision group.
+        self_collision: simulate contacts between non-adjacent links.
+    """
+    c = client
+    path = model.write_urdf(model.build_urdf(params, arms=arms, hull_collision=outer))
+    # With self_collision, contacts between non-adjacent links are simulated (physical contact forces) and
+    # count_contacts() reads them from the contact manifold PyBullet builds during each step.
+    flags = pb.URDF_USE_INERTIA_FROM_FILE
+    if self_collision:
+        flags |= pb.URDF_USE_SELF_COLLISION | pb.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
+    body = c.loadURDF(str(path), flags=flags)
+    names = {"vehicle": -1}
+    for j in range(c.getNumJoints(body)):
+        names[c.getJointInfo(body, j)[12].decode()] = j
+    joint_names = JOINT_NAMES if arms else ()
+    by_joint = {c.getJointInfo(body, j)[1].decode(): j for j in range(c.getNumJoints(body))}
+    joints = [by_joint[n] for n in joint_names]
+    if joints:
+        c.setJointMotorControlArray(body, joints, pb.VELOCITY_CONTROL, forces=[0.0] * len(joints))
+    for link in names.values():
+        c.changeDynamics(body, link, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0)
+    for j in joints:  # gear-train viscous friction (params.ArmParams.joint_friction)
+        c.changeDynamics(body, j, jointDamping=params.arm.joint_friction)
+    for j in joints:  # PyBullet silently clamps joint rates at 100 rad/s: let PhysicsError see them
+        c.changeDynamics(body, j, maxJointVelocity=MAX_JOINT_VELOCITY)
+    if outer:  # the robot's collision group, explicitly (obstacle_bodies.py)
+        for link in names.values():
+            c.setCollisionFilterGroupMask(body, link, ROBOT_GROUP, ROBOT_GROUP | OBSTACLE_GROUP)
+    return LoadedBody(body, MappingProxyType(names), joints)
