@@ -9,7 +9,7 @@ interface.
 
 :class:`RigidGrasp` welds the object to ``left_grasp`` and ``right_grasp`` with two fixed constraints of maximum
 force :data:`GRASP_MAX_FORCE`, solved with the joint limits by PyBullet's direct MLCP solver (the module docstring
-of :mod:`uvdms_gym.physics.sim` says why). The object's added mass is rigid (added to its mass and transverse
+of :mod:`uvdms_gym.physics.body` says why). The object's added mass is rigid (added to its mass and transverse
 inertia); its Morison drag, the lift that cancels the weight of the added mass, the rate of its axial added momentum
 (one physics step lagged) and its Munk moment are applied as external loads
 (:func:`uvdms_gym.physics.hydro.object_wrench`, inlined in :meth:`RigidGrasp.apply_hydro`).

@@ -5,34 +5,9 @@ vehicle base with the virtual ``added_mass`` link, the frame plates and both 6-j
 :func:`uvdms_gym.physics.model.build_urdf` with ``URDF_USE_INERTIA_FROM_FILE``. Every public quantity is NED/FRD
 (:mod:`uvdms_gym.physics.frames`); PyBullet's world is z-up (``p_W = diag(1, -1, -1) p_NED``).
 
-Physics set-up [D]:
-
-* gravity ``(0, 0, -9.81)`` in the z-up world, default joint motors disabled, linear/angular damping 0
-  on every link (PyBullet's default 0.04 would add an unmodelled damping), joint damping and friction 0;
-  no self-collision flag: links pass through each other, contacts are *reported* by distance queries.
-* joints in torque control; joint limits are PyBullet's URDF joint-limit constraints.
-* constraints (joint limits, the two grasp welds) are solved by PyBullet's direct MLCP solver
-  (``CONSTRAINT_SOLVER_LCP_DANTZIG``) with error reduction :data:`CONSTRAINT_ERP` = 0.8. The default
-  iterative solver (PGS, 50 iterations, ERP 0.2) converges poorly on the closed chain (a 9.9 kg object,
-  added mass included, between two arms whose distal links weigh 1.2-1.6 kg): 3-6 mm of grasp error
-  under moderate motion, and no better with 1000 iterations. The direct solver meets the velocity
-  constraints exactly; what remains is the second-order drift of the position integration
-  (``~ w^2 r dt^2`` per step), removed at 80 % per step: 0.2 mm and 0.02 deg at joint rates up to
-  5 rad/s (tested: < 1 mm, < 0.5 deg). Its cost is that of PGS within about 15 %: a physics step with the
-  gripped object costs about 45 µs instead of 12 µs, the closed chain's constraint solve either way.
-* ``physics_dt = 0.01 s`` by default: the hydrodynamic forces are explicit, and the stiffest explicit
-  term is the one-step-lagged residual added mass (ratio 0.24, independent of ``dt``, see
-  :mod:`uvdms_gym.physics.hydro`); the damping terms are far below their explicit limit ``dt d / m < 2`` (vehicle
-  ``0.01 * 290 / 130``, links ``< 0.1`` below 10 m/s); the 1-DOF surge, heave and yaw responses match
-  their ODEs within about 1 % (the surge residue is the pitch coupling of the low centre of gravity,
-  unchanged at ``dt = 0.002``); the grasp welds stay within 0.2 mm (tested). Smaller ``dt`` costs
-  proportionally more and buys little; larger ``dt`` grows the grasp drift as ``dt^2``.
-* cost (``uvdms bench sim``, same states, median): bare ``stepSimulation`` 18-24 µs, one physics step with
-  hydrodynamics 2.7x that (3.2x before the compiled link loop), the rest being the state read, the
-  arithmetic and the 15 force calls.
-* caution for controllers: at straight arms the roll joints 1, 3, 5 have tiny effective inertias
-  (``1 / (M^-1)_ii`` = 4e-4 to 8e-4 kg m^2), so torques near ``tau_max`` spin them beyond
-  :data:`QDOT_LIMIT` within one step (:class:`PhysicsError`).
+Physics set-up [D] (gravity, damping, the constraint solver, the physics step, and why): the module docstring of
+:mod:`uvdms_gym.physics.body`. The gripped object and its closed chain: :mod:`uvdms_gym.physics.grasp`; contact
+counts: :mod:`uvdms_gym.physics.contacts`; the state and its sanity bounds: :mod:`uvdms_gym.physics.state`.
 
 Per physics step (:meth:`UVDMSSim.step` runs ``n_substeps`` of them with the same ``tau``): one
 ``getLinkStates`` call reads the body origin (the ``added_mass`` link sits there) and the 12 moving links
@@ -49,8 +24,8 @@ the next ``stepSimulation`` or reset (``docs/ARCHITECTURE.md``, Performance). Wi
 runs exactly the formulas above (one flag test per load group, no extra arithmetic).
 
 Failures are never silent: an invalid ``tau`` raises :class:`ValueError`, saturation is reported in
-:class:`StepInfo`, and a state that is non-finite or beyond the sanity bounds :data:`NU_LIMIT`,
-:data:`QDOT_LIMIT`, :data:`POSITION_LIMIT` raises :class:`PhysicsError` (the simulator must then be
+:class:`~uvdms_gym.physics.state.StepInfo`, and a state that is non-finite or beyond the sanity bounds of
+:mod:`uvdms_gym.physics.state` raises :class:`~uvdms_gym.physics.state.PhysicsError` (the simulator must then be
 reset).
 """
 
@@ -695,6 +670,7 @@ class UVDMSSim:
         t_list = t.tolist()
         return t_list[:6], t_list[6:]
 
+    # hot path (over 80 lines): one function so that every physics step runs without a Python call per load group
     def _substep(
         self, tau_v: list[float], tau_q: list[float], feedback: Callable[[np.ndarray], np.ndarray] | None = None
     ) -> None:
