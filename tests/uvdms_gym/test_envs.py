@@ -208,7 +208,7 @@ def test_velocity_loop_inverse_diagonal_matches_numpy_inverse():
 
 def test_transport_orientation_errors_match_frames_rot_error():
     """errors_pose's float-arithmetic rotation errors equal frames.rot_error of the Euler references."""
-    from uvdms_gym.envs.base import POS_SCALE, errors_pose
+    from uvdms_gym.envs.tracking import POS_SCALE, errors_pose
     from uvdms_gym.physics.frames import euler_to_rot, rot_error
 
     rng = np.random.default_rng(3)

@@ -11,7 +11,8 @@ slice       size  content
 ==========  ====  =====================================================================================
 0:18        18    reference preview: ``y_ref(t + h) - y`` at ``h`` in :data:`PREVIEW_TIMES`, in the body frame
                   (circle: left and right end-effector position errors; transport: object position error
-                  and orientation error as a rotation vector), divided by :data:`POS_SCALE` m / 1 rad
+                  and orientation error as a rotation vector), divided by
+                  :data:`~uvdms_gym.envs.tracking.POS_SCALE` m / 1 rad
 18:20       2     vehicle roll and pitch, rad
 20:26       6     vehicle body velocity ``nu`` divided by its limits ``zeta_max[:6]``
 26:50       24    joint angles as ``sin q`` (12) then ``cos q`` (12)
@@ -33,9 +34,6 @@ import numpy as np
 from gymnasium.utils import EzPickle
 
 from uvdms_gym.distances import compute_distances, contact_thresholds, velocity_damper
-from uvdms_gym.envs.errors import POS_SCALE as POS_SCALE  # re-exported: the former home of these names
-from uvdms_gym.envs.errors import errors_pose as errors_pose
-from uvdms_gym.envs.errors import errors_positions as errors_positions
 from uvdms_gym.envs.lowlevel import VelocityLoop
 from uvdms_gym.physics.current import CurrentModel, CurrentState, parse_current
 from uvdms_gym.physics.hydro import HydroScale
