@@ -6,7 +6,7 @@ Why: every v0 reward term is <= 0, so a policy that ends the episode early (a co
 shorter negative sum than one that keeps going, and ending early is the return-maximising policy unless
 training adds an alive bonus. Under the v1 reward every step's reward is >= 0 and bounded, and a contact costs a
 penalty on top of ending the episode, so at equal tracking running to the time limit always scores more than
-ending early (``tests/uvdms_gym/test_envs_v1.py`` checks it on a policy that drives an arm into the frame).
+ending early (``tests/uvdms_gym/envs/test_envs_v1.py`` checks it on a policy that drives an arm into the frame).
 
 v1 reward, the sum of the terms reported in ``info`` (``e_p``: position tracking error in m, ``e_o``: orientation
 error in rad, ``a``: the clipped action, ``S``: the velocity-damper shape of the 18 clearances, 1 beyond

@@ -12,7 +12,7 @@ rows give velocities (linear of the named point, angular) expressed in NED, colu
 Dynamics (:meth:`~KinematicModel.mass_matrix`, :meth:`~KinematicModel.nonlinear_effects`,
 :meth:`~KinematicModel.gravity`) are computed lazily on a separate ``pin.Data`` and cached per state.
 
-PyBullet's ``calculateMassMatrix`` for this body (measured, see ``tests/uvdms_gym/test_kinematics.py``) uses the
+PyBullet's ``calculateMassMatrix`` for this body (measured, see ``tests/uvdms_gym/physics/test_kinematics.py``) uses the
 velocity coordinates ``[omega_B; v_C; qdot]``: body angular velocity, then the linear velocity of the
 vehicle's centre of gravity ``r_G``, both in body (FRD) axes, then the joints in PyBullet link order. It
 ignores the base pose (evaluates at the identity), which is consistent with body-axis coordinates. With

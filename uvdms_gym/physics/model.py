@@ -137,7 +137,7 @@ def _plate_edges(plate) -> str:
 
     Box plus edge capsules is exactly the plate's mid-surface rectangle swept by a ball of radius ``t/2``,
     so a capsule link touches the plate exactly when its axis is ``r + t/2`` from the rectangle, also beside
-    the edges (a bare box touches there at ``r``; measured in ``tests/uvdms_gym/test_distances.py``).
+    the edges (a bare box touches there at ``r``; measured in ``tests/uvdms_gym/distances/test_distances.py``).
     """
     hx, hy = plate.half_extents
     rho = 0.5 * plate.thickness

@@ -13,10 +13,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
-from sim_helpers import com_acceleration_world, com_velocity_world, random_state, reference_acceleration
 from test_sim import P_NEUTRAL
 
 import uvdms_gym
+from tests.support.sim import com_acceleration_world, com_velocity_world, random_state, reference_acceleration
 from uvdms_gym.physics import current as current_mod
 from uvdms_gym.physics import frames, hydro, model
 from uvdms_gym.physics import grasp as grasp_mod

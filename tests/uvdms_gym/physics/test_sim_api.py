@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pybullet as pb
 import pytest
-from sim_helpers import random_state
 
+from tests.support.sim import random_state
 from uvdms_gym.physics import frames
 from uvdms_gym.physics.params import UVDMSParams
 from uvdms_gym.physics.sim import UVDMSSim
