@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import replace
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -452,6 +451,3 @@ class UVDMSEnv(gym.Env, EzPickle):
         )
 
     # ----------------------------------------------------------------- misc
-    def with_params(self, **changes: Any) -> UVDMSParams:
-        """A copy of the environment's parameters with top-level fields replaced (for perturbed models)."""
-        return replace(self.params, **changes)
