@@ -449,5 +449,3 @@ class UVDMSEnv(gym.Env, EzPickle):
                 link_drag=float(rng.uniform(lo, hi)),
             )
         )
-
-    # ----------------------------------------------------------------- misc
