@@ -56,6 +56,34 @@ PHYSICS_ERROR_REWARD = -100.0
 """Reward of the step on which the physics blew up (the episode then terminates)."""
 
 
+def _check_modes(
+    action_mode: str, render_mode: str | None, render_modes: list[str], control_dt: float, physics_dt: float
+) -> None:
+    """``ValueError`` naming an unknown action or render mode or a non-positive time step."""
+    if action_mode not in ("velocity", "torque"):
+        raise ValueError(f"action_mode must be 'velocity' or 'torque', got {action_mode!r}")
+    if render_mode is not None and render_mode not in render_modes:
+        raise ValueError(f"render_mode must be one of {render_modes} or None, got {render_mode!r}")
+    if not (physics_dt > 0 and control_dt > 0):
+        raise ValueError(f"control_dt and physics_dt must be positive, got {control_dt}, {physics_dt}")
+
+
+def _substeps(control_dt: float, physics_dt: float) -> int:
+    """Physics steps per control step (``ValueError`` unless ``control_dt`` is a whole multiple of ``physics_dt``)."""
+    n_sub = round(control_dt / physics_dt)
+    if n_sub < 1 or abs(n_sub * physics_dt - control_dt) > 1e-9:
+        raise ValueError(f"control_dt ({control_dt}) must be a whole multiple of physics_dt ({physics_dt})")
+    return n_sub
+
+
+def _weights(**weights: float) -> dict[str, float]:
+    """The reward weights as floats (``ValueError`` naming ``<name>_weight`` unless finite and non-negative)."""
+    for name, w in weights.items():
+        if not (math.isfinite(w) and w >= 0.0):
+            raise ValueError(f"{name}_weight must be a finite non-negative number, got {w}")
+    return {name: float(w) for name, w in weights.items()}
+
+
 class UVDMSEnv(gym.Env, EzPickle):
     """Base class: one simulator, one kinematic model, a task; see the module docstring.
 
@@ -103,12 +131,7 @@ class UVDMSEnv(gym.Env, EzPickle):
         render_height: int = 240,
         params: UVDMSParams | None = None,
     ) -> None:
-        if action_mode not in ("velocity", "torque"):
-            raise ValueError(f"action_mode must be 'velocity' or 'torque', got {action_mode!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        if not (physics_dt > 0 and control_dt > 0):
-            raise ValueError(f"control_dt and physics_dt must be positive, got {control_dt}, {physics_dt}")
+        _check_modes(action_mode, render_mode, self.metadata["render_modes"], control_dt, physics_dt)
         if render_mode == "human":
             require_display()  # a clear exception where PyBullet's GUI connect would call exit()
         # Per-instance metadata (Gymnasium convention): frames come once per control step, and "human" is listed
@@ -118,22 +141,18 @@ class UVDMSEnv(gym.Env, EzPickle):
             "render_fps": 1.0 / float(control_dt),
             "render_modes": [m for m in type(self).metadata["render_modes"] if m != "human" or gui_available()],
         }
-        n_sub = round(control_dt / physics_dt)
-        if n_sub < 1 or abs(n_sub * physics_dt - control_dt) > 1e-9:
-            raise ValueError(f"control_dt ({control_dt}) must be a whole multiple of physics_dt ({physics_dt})")
+        n_sub = _substeps(control_dt, physics_dt)
         if not 0.0 <= hydro_randomization < 1.0:
             raise ValueError(f"hydro_randomization must be in [0, 1), got {hydro_randomization}")
         self.current_model = parse_current(current)  # ValueError naming the problem, before any client exists
         """The ocean-current process (:mod:`uvdms_gym.physics.current`), or ``None`` for still water."""
-        for name, w in (
-            ("track_weight", track_weight),
-            ("orientation_weight", orientation_weight),
-            ("effort_weight", effort_weight),
-            ("proximity_weight", proximity_weight),
-            ("contact_weight", contact_weight),
-        ):
-            if not (math.isfinite(w) and w >= 0.0):
-                raise ValueError(f"{name} must be a finite non-negative number, got {w}")
+        weights = _weights(
+            track=track_weight,
+            orientation=orientation_weight,
+            effort=effort_weight,
+            proximity=proximity_weight,
+            contact=contact_weight,
+        )
         self.params = params or UVDMSParams()
         self.action_mode = action_mode
         self.control_dt = float(control_dt)
@@ -143,13 +162,7 @@ class UVDMSEnv(gym.Env, EzPickle):
         self._current_state: CurrentState | None = None
         self._current_value = (0.0, 0.0, 0.0)
         self.terminate_on_contact = bool(terminate_on_contact)
-        self.weights = {
-            "track": float(track_weight),
-            "orientation": float(orientation_weight),
-            "effort": float(effort_weight),
-            "proximity": float(proximity_weight),
-            "contact": float(contact_weight),
-        }
+        self.weights = weights
         self.max_tracking_error = float(max_tracking_error)
         self._reward_keys = {k: f"reward_{k}" for k in self.weights}
         self.render_mode = render_mode
@@ -161,7 +174,10 @@ class UVDMSEnv(gym.Env, EzPickle):
         """Torque-mode scale: ``tau = action * tau_max`` (N, N m)."""
         self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = gym.spaces.Box(-OBS_CLIP, OBS_CLIP, (OBS_DIM,), np.float32)
+        self._build_models()
 
+    def _build_models(self) -> None:
+        """The simulator, the kinematic and nominal models, the velocity loop and the per-episode state."""
         self._sim = self._make_sim()
         self._kin = KinematicModel(self.params)
         self._nominal = NominalDynamics(self._kin)
