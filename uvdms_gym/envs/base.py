@@ -24,12 +24,14 @@ slice       size  content
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Sequence
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.error import ResetNeeded
 from gymnasium.utils import EzPickle
 
 from uvdms_gym.distances import compute_distances, contact_thresholds, velocity_damper
@@ -54,6 +56,15 @@ CONTACT_MARGIN = 0.01
 """Rows whose exact distance is within this of contact (m) are checked with PyBullet for contact."""
 PHYSICS_ERROR_REWARD = -100.0
 """Reward of the step on which the physics blew up (the episode then terminates)."""
+
+
+class _Episode(NamedTuple):
+    """What a copy of an environment replays: the generator after ``reset()``'s seeding, and the actions since."""
+
+    generator: np.random.Generator
+    seed: int | None
+    options: dict[str, Any] | None
+    actions: list[np.ndarray]
 
 
 def _check_modes(
@@ -88,8 +99,13 @@ class UVDMSEnv(gym.Env, EzPickle):
     """Base class: one simulator, one kinematic model, a task; see the module docstring.
 
     Pickling and ``copy.deepcopy`` work the Gymnasium way (:class:`gymnasium.utils.EzPickle`): the constructor's
-    arguments are pickled and the copy is a new environment built from them, with its own PyBullet client; the
-    state (episode, simulator, random generator) is not copied. ``reset()`` after ``close()`` connects a new client.
+    arguments are pickled and the copy is a new environment built from them, with its own PyBullet client. During
+    an episode the copy also carries the episode (the random generator as the last ``reset()`` left it, and the
+    actions stepped since), and replays it when it is unpickled: the copy is in the original's state, bit for bit,
+    and can be stepped at once (the Gymnasium wrappers around it, which pickle their own flags and step counts, then
+    tell the truth). Replaying costs one step per step of the episode so far. A copy of an environment that was
+    never reset, or was closed, is a fresh environment: stepping it before ``reset()`` raises
+    :class:`gymnasium.error.ResetNeeded`. ``reset()`` after ``close()`` connects a new client.
 
     Subclasses implement :meth:`_build_task`, :meth:`_initial_state`, :meth:`_output` and
     :meth:`_errors` and set :attr:`with_object`.
@@ -179,6 +195,7 @@ class UVDMSEnv(gym.Env, EzPickle):
     def _build_models(self) -> None:
         """The simulator, the kinematic and nominal models, the velocity loop and the per-episode state."""
         self._sim = self._make_sim()
+        self._episode: _Episode | None = None  # set by reset(): what a copy replays (__getstate__)
         self._kin = KinematicModel(self.params)
         self._nominal = NominalDynamics(self._kin)
         self._loop = VelocityLoop(self._nominal, self.tau_max)
@@ -192,6 +209,25 @@ class UVDMSEnv(gym.Env, EzPickle):
         self._nu_scale = self.zeta_max[:6].copy()
         self._qdot_scale = self.zeta_max[6:].copy()
         self._closed = False
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The constructor's arguments (:class:`~gymnasium.utils.EzPickle`) and, during an episode, the episode."""
+        state = EzPickle.__getstate__(self)
+        if self._episode is not None and not self._closed:
+            state["_episode"] = self._episode
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Build the environment from its constructor's arguments, then replay the episode if there was one."""
+        state = dict(state)
+        episode = state.pop("_episode", None)
+        EzPickle.__setstate__(self, state)
+        if episode is not None:
+            self._np_random, self._np_random_seed = copy.deepcopy(episode.generator), episode.seed
+            self._episode = _Episode(episode.generator, episode.seed, episode.options, [])
+            self._start_episode()
+            for action in episode.actions:
+                self.step(action)
 
     def _make_sim(self) -> UVDMSSim:
         """A simulator with its own PyBullet client (DIRECT, or the GUI with ``render_mode="human"``)."""
@@ -246,6 +282,11 @@ class UVDMSEnv(gym.Env, EzPickle):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Start an episode: draw the task (and hydrodynamic factors) from the seeded generator."""
         super().reset(seed=seed)
+        self._episode = _Episode(copy.deepcopy(self.np_random), self._np_random_seed, options, [])
+        return self._start_episode()
+
+    def _start_episode(self) -> tuple[np.ndarray, dict[str, Any]]:
+        """The part of :meth:`reset` after the generator is set: draw the task, reset the simulator, observe."""
         if self._closed:  # reset after close: a new client, as Gymnasium's classic environments do
             self._sim = self._make_sim()
             self._closed = False
@@ -264,7 +305,13 @@ class UVDMSEnv(gym.Env, EzPickle):
 
     def step(self, action):
         """Apply the action over ``control_dt``, then observe, score and check the episode end."""
+        if self._episode is None:
+            raise ResetNeeded(
+                "this environment has no episode (never reset, or copied or unpickled after close()): "
+                "call reset() before step()"
+            )
         a, clipped = self._validate_action(action)
+        self._episode.actions.append(np.array(action, dtype=np.float64))  # what a copy replays (__setstate__)
         if self._current_state is not None and self.current_model.random:
             self._advance_current()
         physics_error = None
