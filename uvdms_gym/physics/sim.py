@@ -41,20 +41,18 @@ import numpy as np
 import pybullet as pb
 from pybullet_utils import bullet_client
 
-from uvdms_gym.physics import frames, model, render
+from uvdms_gym.physics import frames, render
 from uvdms_gym.physics.body import configure_engine, load_body
 from uvdms_gym.physics.contacts import ContactMonitor
 from uvdms_gym.physics.grasp import RigidGrasp
 from uvdms_gym.physics.hydro import (
     HydroCoefficients,
     HydroScale,
-    hydro_coefficients,
     link_forces_world,
-    link_table,
 )
 from uvdms_gym.physics.obstacle_bodies import ObstacleBodies
 from uvdms_gym.physics.obstacles import Obstacle
-from uvdms_gym.physics.params import GRAVITY, UVDMSParams
+from uvdms_gym.physics.params import UVDMSParams
 from uvdms_gym.physics.state import (
     NU_LIMIT,
     SimState,
@@ -65,12 +63,10 @@ from uvdms_gym.physics.state import (
     saturate,
     state_from_raw,
 )
+from uvdms_gym.physics.water import Water
 from uvdms_gym.utils.display import require_display
 from uvdms_gym.utils.io import quiet_c_stream
 from uvdms_gym.utils.validation import finite_vector
-
-MIN_VIRTUAL_MASS = model.TINY_MASS
-"""Floor on the virtual added-mass link's mass and inertia when :attr:`HydroScale.added_mass` is 0."""
 
 _WORLD = pb.WORLD_FRAME
 _TORQUE = pb.TORQUE_CONTROL
@@ -167,15 +163,10 @@ class UVDMSSim:
         self._has_obstacles = False
         self._t = 0.0
         self._raw: tuple | None = None  # cached raw state read, see _read_state
-        self._nu_prev = (0.0, 0.0, 0.0)  # previous substep's (relative) body velocity, for the lagged added mass
-        self._has_current = False  # the no-current path evaluates exactly the formulas without a current
-        self._current_ned = (0.0, 0.0, 0.0)
-        self._current_world = (0.0, 0.0, 0.0)
-        self._scale = HydroScale()
-        self._hydro: HydroCoefficients = hydro_coefficients(self._params, self._scale, arms=self._arms)
+        self._water = wa = Water(c, self._body, self._am_link, self._params, arms=self._arms)
         self.set_hydro_scale(hydro_scale or HydroScale())
         # compile (or load from numba's disk cache) the link-force kernel now rather than in the first step
-        link_forces_world(np.zeros(7 * self._link_table.shape[0]), self._link_table, self._link_forces)
+        link_forces_world(np.zeros(7 * wa.link_table.shape[0]), wa.link_table, wa.link_forces)
         self.reset(np.zeros(6))
 
     # ------------------------------------------------------------------ properties
@@ -233,17 +224,17 @@ class UVDMSSim:
     @property
     def hydro_scale(self) -> HydroScale:
         """The current model-mismatch factors."""
-        return self._scale
+        return self._water.scale
 
     @property
     def hydro(self) -> HydroCoefficients:
         """The hydrodynamic coefficients in use."""
-        return self._hydro
+        return self._water.hydro
 
     @property
     def current(self) -> np.ndarray:
         """The ocean current ``v_c`` (NED, m/s; zeros without a current), see :meth:`set_current`."""
-        return np.array(self._current_ned)
+        return np.array(self._water.current_ned)
 
     @property
     def closed(self) -> bool:
@@ -295,26 +286,11 @@ class UVDMSSim:
         self._check_open()
         if not isinstance(scale, HydroScale):
             raise TypeError(f"scale must be a HydroScale, got {type(scale).__name__}")
-        self._scale = scale
-        self._hydro = h = hydro_coefficients(self._params, scale, arms=self._arms)
         self._raw = None
         self._grasp.invalidate()
-        self._client.changeDynamics(
-            self._body,
-            self._am_link,
-            mass=max(h.rigid_added_mass, MIN_VIRTUAL_MASS),
-            localInertiaDiagonal=[max(i, MIN_VIRTUAL_MASS) for i in h.rigid_added_inertia],
-        )
-        # the weight cancellation follows the mass actually set (floored), its centroid shift is negligible
-        self._up_force = h.up_force + (max(h.rigid_added_mass, MIN_VIRTUAL_MASS) - h.rigid_added_mass) * GRAVITY
-        self._up_centroid = h.up_centroid
-        # the vehicle's constants as one flat tuple (one unpacking per physics step instead of attribute lookups)
-        self._vehicle_consts = (*h.d_lin, *h.d_quad, *h.a_res, self._up_force, *self._up_centroid)
-        self._link_table = link_table(h)
-        self._link_forces = np.empty((self._link_table.shape[0], 3))
-        self._n_link_state = 7 * self._link_table.shape[0]  # [orientation xyzw, velocity] per link
+        self._water.set_scale(scale)
         if self._grasp.object_id is not None:
-            self._grasp.set_dynamics(h)
+            self._grasp.set_dynamics(self._water.hydro)
 
     def set_current(self, v_c_ned: Sequence[float] | np.ndarray | None) -> None:
         """Set a uniform, irrotational ocean current ``v_c`` (NED, m/s); ``None`` or zeros: no current.
@@ -337,21 +313,13 @@ class UVDMSSim:
         """
         self._check_open()
         v = (0.0, 0.0, 0.0) if v_c_ned is None else tuple(finite_vector(v_c_ned, 3, "current").tolist())
-        if v == self._current_ned:
+        dv_world = self._water.set_current(v)
+        if dv_world is None:
             return
-        old_world = np.array(self._current_world)
-        self._current_ned = v
-        self._current_world = tuple(frames.ned_to_world(np.array(v)).tolist())
-        self._has_current = v != (0.0, 0.0, 0.0)
-        self._shift_lag_states(np.array(self._current_world) - old_world)
-
-    def _shift_lag_states(self, dv_world: np.ndarray) -> None:
-        """Re-express the lagged added-mass states relative to a current changed by ``dv_world`` (z-up world)."""
         _, quat, _, _, _ = self._read_state()
-        dv_body = frames.quat_xyzw_to_rot(np.array(quat)).T @ dv_world  # R_WB^T dv_W = R_NB^T dv_NED
-        self._nu_prev = tuple((np.array(self._nu_prev) - dv_body).tolist())
+        self._water.shift_lag(dv_world, quat)
         if self._grasp.object_id is not None:
-            self._grasp.shift_lag(dv_world, self._hydro)
+            self._grasp.shift_lag(dv_world, self._water.hydro)
 
     # ------------------------------------------------------------------ reset / state
     def reset(
@@ -403,12 +371,9 @@ class UVDMSSim:
         self._t = 0.0
         self._raw = None
         self._grasp.invalidate()
-        self._nu_prev = (float(nu[0]), float(nu[1]), float(nu[2]))
-        if self._has_current:  # the lag state is the relative velocity nu_r = nu - R_NB^T v_c
-            r_nb = frames.body_rot_world_to_ned(r_wb)
-            self._nu_prev = tuple((nu[:3] - r_nb.T @ np.array(self._current_ned)).tolist())
+        self._water.reset_lag(nu, r_wb)
         if with_object:
-            self._grasp.attach(self._hydro, self._current_world if self._has_current else None)
+            self._grasp.attach(self._water.hydro, self._water.current)
         self._contacts.needs_pass = True
         return self.state()
 
@@ -700,8 +665,9 @@ class UVDMSSim:
             self._fail(f"body velocity out of bounds or non-finite: nu = {[u, v, w, p, q, r]}")
         if feedback is not None:
             tau_v, tau_q = self._feedback(feedback, (u, v, w, p, q, r))
-        if self._has_current:  # from here on (u, v, w) is relative to the water: nu_r = nu - [R_NB^T v_c; 0]
-            kx, ky, kz = self._current_world  # R_WB^T v_c,W = R_NB^T v_c,NED
+        wa = self._water
+        if wa.has_current:  # from here on (u, v, w) is relative to the water: nu_r = nu - [R_NB^T v_c; 0]
+            kx, ky, kz = wa.current_world  # R_WB^T v_c,W = R_NB^T v_c,NED
             u, v, w = (
                 u - (r00 * kx + r10 * ky + r20 * kz),
                 v - (r01 * kx + r11 * ky + r21 * kz),
@@ -709,9 +675,9 @@ class UVDMSSim:
             )
         # vehicle: damping + residual added mass (hydro.vehicle_wrench, inlined) + control
         inv_dt = self._inv_dt
-        u0, v0, w0 = self._nu_prev
-        self._nu_prev = (u, v, w)
-        dl0, dl1, dl2, dl3, dl4, dl5, dq0, dq1, dq2, dq3, dq4, dq5, a1, a2, a3, up, cx, cy, cz = self._vehicle_consts
+        u0, v0, w0 = wa.nu_prev
+        wa.nu_prev = (u, v, w)
+        dl0, dl1, dl2, dl3, dl4, dl5, dq0, dq1, dq2, dq3, dq4, dq5, a1, a2, a3, up, cx, cy, cz = wa.vehicle_consts
         p1, p2, p3 = a1 * u, a2 * v, a3 * w
         t0, t1, t2, t3, t4, t5 = tau_v
         fx = t0 - (dl0 + dq0 * abs(u)) * u - a1 * (u - u0) * inv_dt + (p2 * r - p3 * q)
@@ -746,18 +712,18 @@ class UVDMSSim:
         # arm links: buoyancy at the midpoint (= COM) + Morison drag (hydro.link_forces_world, compiled)
         if tau_q:
             links = st[1:]
-            forces = self._link_forces
-            states = _fromiter(_chain([ls[1] + ls[6] for ls in links]), float, self._n_link_state)
-            if self._has_current:  # Morison drag on the midpoint velocity relative to the water
-                states.reshape(-1, 7)[:, 4:] -= self._current_world
-            link_forces_world(states, self._link_table, forces)
+            forces = wa.link_forces
+            states = _fromiter(_chain([ls[1] + ls[6] for ls in links]), float, wa.n_link_state)
+            if wa.has_current:  # Morison drag on the midpoint velocity relative to the water
+                states.reshape(-1, 7)[:, 4:] -= wa.current_world
+            link_forces_world(states, wa.link_table, forces)
             world = _WORLD
             for link, force, ls in zip(self._joints, forces.tolist(), links):
                 apply_force(body, link, force, ls[0], world, cid)
             _motor_array(body, self._joints, _TORQUE, forces=tau_q, physicsClientId=cid)
         grasp = self._grasp
         if grasp.object_id is not None:
-            grasp.apply_hydro(self._hydro, self._current_world if self._has_current else None)
+            grasp.apply_hydro(wa.hydro, wa.current)
         _step_simulation(cid)
         self._raw = None
         grasp.invalidate()
