@@ -87,8 +87,13 @@ def _substeps(control_dt: float, physics_dt: float) -> int:
     return n_sub
 
 
-def _weights(**weights: float) -> dict[str, float]:
-    """The reward weights as floats (``ValueError`` naming ``<name>_weight`` unless finite and non-negative)."""
+def _weights(*values: float) -> dict[str, float]:
+    """The reward weights ``track, orientation, effort, proximity, contact`` by name, as floats.
+
+    Raises:
+        ValueError: a weight is not finite and non-negative (the message names ``<name>_weight``).
+    """
+    weights = dict(zip(("track", "orientation", "effort", "proximity", "contact"), values, strict=True))
     for name, w in weights.items():
         if not (math.isfinite(w) and w >= 0.0):
             raise ValueError(f"{name}_weight must be a finite non-negative number, got {w}")
@@ -162,13 +167,7 @@ class UVDMSEnv(gym.Env, EzPickle):
             raise ValueError(f"hydro_randomization must be in [0, 1), got {hydro_randomization}")
         self.current_model = parse_current(current)  # ValueError naming the problem, before any client exists
         """The ocean-current process (:mod:`uvdms_gym.physics.current`), or ``None`` for still water."""
-        weights = _weights(
-            track=track_weight,
-            orientation=orientation_weight,
-            effort=effort_weight,
-            proximity=proximity_weight,
-            contact=contact_weight,
-        )
+        weights = _weights(track_weight, orientation_weight, effort_weight, proximity_weight, contact_weight)
         self.params = params or UVDMSParams()
         self.action_mode = action_mode
         self.control_dt = float(control_dt)

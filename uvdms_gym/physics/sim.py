@@ -53,8 +53,6 @@ from uvdms_gym.utils.io import quiet_c_stream
 from uvdms_gym.utils.validation import finite_vector
 
 _get_link_states = pb.getLinkStates
-_base_pose = pb.getBasePositionAndOrientation
-_base_velocity = pb.getBaseVelocity
 _joint_states = pb.getJointStates
 _arctan2 = np.arctan2
 _arcsin = np.arcsin
@@ -352,22 +350,6 @@ class UVDMSSim(Stepping):
             self._grasp.attach(self._water.hydro, self._water.current)
         self._contacts.needs_pass = True
         return self.state()
-
-    def _read_state(self) -> tuple:
-        """Raw PyBullet state ``(p_com, quat, v_com, w, joint_states)``, read once per physics state.
-
-        The read is cached until the state changes (a physics step or a reset): :meth:`step` reads it for its
-        sanity check, and the :meth:`state` that follows, and the velocity loop of the next step's first
-        substep, reuse it instead of querying PyBullet again.
-        """
-        raw = self._raw
-        if raw is None:
-            cid, body = self._cid, self._body
-            p_com, quat = _base_pose(body, cid)
-            v_com, w_w = _base_velocity(body, cid)
-            js = _joint_states(body, self._joints, cid) if self._joints else ()
-            raw = self._raw = (p_com, quat, v_com, w_w, js)
-        return raw
 
     def state(self) -> SimState:
         """The current state in NED/FRD, converted from PyBullet's base (COM) pose and velocity.

@@ -44,6 +44,8 @@ _apply_torque = pb.applyExternalTorque
 _motor_array = pb.setJointMotorControlArray
 _step_simulation = pb.stepSimulation
 _joint_states = pb.getJointStates
+_base_pose = pb.getBasePositionAndOrientation
+_base_velocity = pb.getBaseVelocity
 _chain = itertools.chain.from_iterable
 _fromiter = np.fromiter
 
@@ -72,8 +74,21 @@ class Stepping:
     def _check_open(self) -> None:  # pragma: no cover - the simulator's
         raise NotImplementedError
 
-    def _read_state(self) -> tuple:  # pragma: no cover - the simulator's
-        raise NotImplementedError
+    def _read_state(self) -> tuple:
+        """Raw PyBullet state ``(p_com, quat, v_com, w, joint_states)``, read once per physics state.
+
+        The read is cached until the state changes (a physics step or a reset): :meth:`step` reads it for its
+        sanity check, and the :meth:`state` that follows, and the velocity loop of the next step's first
+        substep, reuse it instead of querying PyBullet again.
+        """
+        raw = self._raw
+        if raw is None:
+            cid, body = self._cid, self._body
+            p_com, quat = _base_pose(body, cid)
+            v_com, w_w = _base_velocity(body, cid)
+            js = _joint_states(body, self._joints, cid) if self._joints else ()
+            raw = self._raw = (p_com, quat, v_com, w_w, js)
+        return raw
 
     def bare_step(self) -> None:
         """One ``stepSimulation`` with no hydrodynamics and no inputs (for benchmarks; advances ``t``)."""
