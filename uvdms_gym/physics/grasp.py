@@ -75,6 +75,9 @@ class Grasp(Protocol):
     def invalidate(self) -> None:
         """Forget the cached state read (the state changed)."""
 
+    def require(self) -> int:
+        """The object's id (``RuntimeError`` while nothing is held)."""
+
     def read(self) -> tuple:
         """Raw PyBullet object state ``(p, quat, v, w)`` (z-up world), cached until :meth:`invalidate`."""
 

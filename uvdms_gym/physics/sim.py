@@ -314,8 +314,8 @@ class UVDMSSim(Stepping):
             qdot: joint rates (default 0).
             with_object: create the cylinder at the ``right_grasp`` frame, moving with it, and weld it to
                 both ``left_grasp`` and ``right_grasp`` (two fixed constraints). The two grasp frames must
-                coincide within :data:`GRASP_TOLERANCE` (e.g. equal joint angles, as at ``q = 0``).
-                Without it, any existing object and its constraints are removed.
+                coincide within :data:`~uvdms_gym.physics.grasp.GRASP_TOLERANCE` (e.g. equal joint angles, as at
+                ``q = 0``). Without it, any existing object and its constraints are removed.
 
         Outer obstacles (:meth:`set_obstacles`) are removed too, before the object, so that a caller that sets them
         again after the reset (as ``uvdms/TransportObstacles-v1`` does for every episode) builds the bodies in the

@@ -78,8 +78,8 @@ class Stepping:
         """Raw PyBullet state ``(p_com, quat, v_com, w, joint_states)``, read once per physics state.
 
         The read is cached until the state changes (a physics step or a reset): :meth:`step` reads it for its
-        sanity check, and the :meth:`state` that follows, and the velocity loop of the next step's first
-        substep, reuse it instead of querying PyBullet again.
+        sanity check, and the :meth:`~uvdms_gym.physics.sim.UVDMSSim.state` that follows, and the velocity loop of
+        the next step's first substep, reuse it instead of querying PyBullet again.
         """
         raw = self._raw
         if raw is None:
