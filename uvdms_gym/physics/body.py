@@ -42,6 +42,7 @@ from types import MappingProxyType
 from typing import NamedTuple
 
 import pybullet as pb
+from pybullet_utils.bullet_client import BulletClient
 
 from uvdms_gym.physics import model
 from uvdms_gym.physics.obstacle_bodies import OBSTACLE_GROUP, ROBOT_GROUP
@@ -75,7 +76,7 @@ class LoadedBody(NamedTuple):
     joints: list[int]
 
 
-def configure_engine(client, physics_dt: float) -> None:
+def configure_engine(client: BulletClient, physics_dt: float) -> None:
     """Gravity, the fixed time step and the constraint solver of ``client``."""
     client.setGravity(0.0, 0.0, -GRAVITY)
     with quiet_c_stream(sys.stdout):  # switching the solver prints two lines on the C stdout
@@ -87,7 +88,9 @@ def configure_engine(client, physics_dt: float) -> None:
         )
 
 
-def load_body(client, params: UVDMSParams, *, arms: bool, outer: bool, self_collision: bool) -> LoadedBody:
+def load_body(
+    client: BulletClient, params: UVDMSParams, *, arms: bool, outer: bool, self_collision: bool
+) -> LoadedBody:
     """Load the UVDMS into ``client`` and set its dynamics (see the module docstring).
 
     Args:

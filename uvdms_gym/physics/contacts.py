@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 
 import pybullet as pb
+from pybullet_utils.bullet_client import BulletClient
 
 from uvdms_gym.physics.params import ARM_SIDES, UVDMSParams
 
@@ -35,7 +36,14 @@ class ContactMonitor:
     """
 
     def __init__(
-        self, client, body: int, link_index: Mapping[str, int], params: UVDMSParams, *, arms: bool, self_collision: bool
+        self,
+        client: BulletClient,
+        body: int,
+        link_index: Mapping[str, int],
+        params: UVDMSParams,
+        *,
+        arms: bool,
+        self_collision: bool,
     ) -> None:
         self._cid: int = client._client
         self._body = body

@@ -23,6 +23,7 @@ from typing import Protocol
 
 import numpy as np
 import pybullet as pb
+from pybullet_utils.bullet_client import BulletClient
 
 from uvdms_gym.physics import frames, model
 from uvdms_gym.physics.hydro import HydroCoefficients
@@ -108,7 +109,7 @@ class RigidGrasp:
 
     def __init__(
         self,
-        client,
+        client: BulletClient,
         body: int,
         link_index: Mapping[str, int],
         params: UVDMSParams,

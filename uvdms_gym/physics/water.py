@@ -9,6 +9,7 @@ to the water). :class:`uvdms_gym.physics.sim.UVDMSSim` holds one and reads its a
 from __future__ import annotations
 
 import numpy as np
+from pybullet_utils.bullet_client import BulletClient
 
 from uvdms_gym.physics import frames, model
 from uvdms_gym.physics.hydro import HydroCoefficients, HydroScale, hydro_coefficients, link_table
@@ -41,7 +42,9 @@ class Water:
         nu_prev: the previous physics step's (relative) body velocity ``(u, v, w)``, for the lagged added mass.
     """
 
-    def __init__(self, client, body: int, added_mass_link: int, params: UVDMSParams, *, arms: bool) -> None:
+    def __init__(
+        self, client: BulletClient, body: int, added_mass_link: int, params: UVDMSParams, *, arms: bool
+    ) -> None:
         self._client = client
         self._body = body
         self._am_link = added_mass_link
