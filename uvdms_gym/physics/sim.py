@@ -32,7 +32,7 @@ from pybullet_utils import bullet_client
 from uvdms_gym.physics import frames, render
 from uvdms_gym.physics.body import configure_engine, load_body
 from uvdms_gym.physics.contacts import ContactMonitor
-from uvdms_gym.physics.grasp import RigidGrasp
+from uvdms_gym.physics.grasp import Grasp, RigidGrasp
 from uvdms_gym.physics.hydro import (
     HydroCoefficients,
     HydroScale,
@@ -126,7 +126,7 @@ class UVDMSSim(Stepping):
         # moving links in the order of q (their link index equals their joint index)
         self._state_links = [self._am_link, *self._joints]
         self._r_g = np.array(self._params.vehicle.r_g, dtype=float)
-        self._grasp = RigidGrasp(
+        self._grasp: Grasp = RigidGrasp(
             c, self._body, self._link_index, self._params, physics_dt=self._dt, collision=self._outer
         )
         self._contacts = ContactMonitor(
@@ -166,8 +166,8 @@ class UVDMSSim(Stepping):
         return self._grasp.object_id
 
     @property
-    def grasp(self) -> RigidGrasp:
-        """The gripped object and its closed chain (:mod:`uvdms_gym.physics.grasp`)."""
+    def grasp(self) -> Grasp:
+        """The gripped object and its closed chain (:mod:`uvdms_gym.physics.grasp`; a :class:`~uvdms_gym.physics.grasp.RigidGrasp`)."""
         return self._grasp
 
     @property

@@ -29,7 +29,7 @@ import numpy as np
 import pybullet as pb
 
 from uvdms_gym.physics.contacts import ContactMonitor
-from uvdms_gym.physics.grasp import RigidGrasp
+from uvdms_gym.physics.grasp import Grasp
 from uvdms_gym.physics.hydro import link_forces_world
 from uvdms_gym.physics.obstacle_bodies import ObstacleBodies
 from uvdms_gym.physics.state import NU_LIMIT, StepInfo, blew_up, check_bounds, saturate
@@ -64,7 +64,7 @@ class Stepping:
     _raw: tuple | None
     _r_g: np.ndarray
     _water: Water
-    _grasp: RigidGrasp
+    _grasp: Grasp
     _contacts: ContactMonitor
     _obstacle_bodies: ObstacleBodies
     _has_obstacles: bool
