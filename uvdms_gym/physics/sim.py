@@ -167,7 +167,7 @@ class UVDMSSim(Stepping):
 
     @property
     def grasp(self) -> Grasp:
-        """The gripped object and its closed chain (:mod:`uvdms_gym.physics.grasp`; a :class:`~uvdms_gym.physics.grasp.RigidGrasp`)."""
+        """The gripped object and its closed chain (a :class:`~uvdms_gym.physics.grasp.RigidGrasp`)."""
         return self._grasp
 
     @property
