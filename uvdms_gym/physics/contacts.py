@@ -8,11 +8,12 @@ physics step; after a reset, before any step, one ``performCollisionDetection`` 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 
 import pybullet as pb
 from pybullet_utils.bullet_client import BulletClient
 
+from uvdms_gym.physics.body import LoadedBody
 from uvdms_gym.physics.params import ARM_SIDES, UVDMSParams
 
 _closest_points = pb.getClosestPoints
@@ -25,31 +26,20 @@ class ContactMonitor:
 
     Args:
         client: the simulator's ``BulletClient``.
-        body: PyBullet id of the UVDMS multibody.
-        link_index: link name -> link index of ``body`` (``"vehicle"`` is the base, -1).
+        robot: the UVDMS multibody (its id, link indices, and joints: none for the bare vehicle).
         params: the physical parameters (the plates and the number of arm links).
-        arms: whether the body has arms.
         self_collision: whether contacts between robot links are simulated (read from the contact manifold).
 
     Attributes:
         needs_pass: the contact manifold is stale (set after a reset; a physics step builds it and clears this).
     """
 
-    def __init__(
-        self,
-        client: BulletClient,
-        body: int,
-        link_index: Mapping[str, int],
-        params: UVDMSParams,
-        *,
-        arms: bool,
-        self_collision: bool,
-    ) -> None:
+    def __init__(self, client: BulletClient, robot: LoadedBody, params: UVDMSParams, *, self_collision: bool) -> None:
         self._cid: int = client._client
-        self._body = body
-        self._link_index = link_index
+        self._body = robot.body
+        self._link_index = robot.link_index
         self._params = params
-        self._arms = arms
+        self._arms = bool(robot.joints)
         self._self_collision = self_collision
         self._pairs: set[tuple[int, int]] = set()
         self.needs_pass = True

@@ -116,9 +116,8 @@ class UVDMSSim(Stepping):
         self._cid: int = self._client._client
         c = self._client
         configure_engine(c, self._dt)
-        self._body, self._link_index, self._joints = load_body(
-            c, self._params, arms=self._arms, outer=self._outer, self_collision=self._self_collision
-        )
+        robot = load_body(c, self._params, arms=self._arms, outer=self._outer, self_collision=self._self_collision)
+        self._body, self._link_index, self._joints = robot
         names = self._link_index
         self._n_joints = len(self._joints)
         self._tau_max = np.asarray(self._params.tau_max, dtype=float)[: 6 + self._n_joints]
@@ -129,9 +128,7 @@ class UVDMSSim(Stepping):
         self._grasp: Grasp = RigidGrasp(
             c, self._body, self._link_index, self._params, physics_dt=self._dt, collision=self._outer
         )
-        self._contacts = ContactMonitor(
-            c, self._body, self._link_index, self._params, arms=self._arms, self_collision=self._self_collision
-        )
+        self._contacts = ContactMonitor(c, robot, self._params, self_collision=self._self_collision)
         self._obstacle_bodies = ObstacleBodies(c)
         self._markers: render.ReferenceMarkers | None = None  # created by show_reference (rendering only)
         self._has_obstacles = False
