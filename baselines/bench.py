@@ -185,7 +185,7 @@ def benchmark_mpc(
     import pinocchio as pin
 
     from baselines.mpc.campc import MPCController, task_config
-    from uvdms_gym.envs.tasks import make_circle_task
+    from uvdms_gym.envs.references import make_circle_task
     from uvdms_gym.physics.frames import quat_xyzw_to_rot, rot_to_euler
 
     cfg = config or task_config("circle")

@@ -1,4 +1,4 @@
-"""Record the v0 reference trajectories that ``tests/uvdms_gym/test_same_physics.py`` compares against.
+"""Record the v0 reference trajectories that ``tests/uvdms_gym/physics/test_same_physics.py`` compares against.
 
 Run once on the code whose physics is the reference (it was run before the speed work of the step):
 

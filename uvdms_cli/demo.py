@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uvdms_gym.envs.tasks import CIRCLE_VEHICLE_START
+from uvdms_gym.envs.references import CIRCLE_VEHICLE_START
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.nominal import NominalDynamics
 from uvdms_gym.physics.params import CIRCLE_Q0_LEFT_DEG, CIRCLE_Q0_RIGHT_DEG, UVDMSParams

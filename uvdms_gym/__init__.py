@@ -5,7 +5,7 @@ Importing the package registers the environments (entry points are strings, so n
 * ``uvdms/CircleTrack-v0``: collision-risk circle tracking (paper Cases 1 and 2, or random circles);
 * ``uvdms/Transport-v0``: transport of a gripped cylinder;
 * ``uvdms/CircleTrack-v1``, ``uvdms/Transport-v1``: the same tasks with a bounded, non-negative per-step reward
-  and a contact penalty, under which ending an episode early never pays (:mod:`uvdms_gym.envs.v1`);
+  and a contact penalty, under which ending an episode early never pays (:mod:`uvdms_gym.envs.bounded_reward`);
 * ``uvdms/TransportObstacles-v1``: the v1 transport among moving outer obstacles (:mod:`uvdms_gym.envs.obstacles`).
 
 ``gymnasium.make("uvdms_gym:uvdms/CircleTrack-v0")`` also works without importing the package first
@@ -25,8 +25,8 @@ __all__ = ["ENV_IDS", "UVDMSParams", "__version__"]
 _REGISTRATIONS: tuple[tuple[str, str, int], ...] = (
     ("uvdms/CircleTrack-v0", "uvdms_gym.envs.circle:CircleTrackEnv", 500),
     ("uvdms/Transport-v0", "uvdms_gym.envs.transport:TransportEnv", 600),
-    ("uvdms/CircleTrack-v1", "uvdms_gym.envs.v1:CircleTrackV1Env", 500),
-    ("uvdms/Transport-v1", "uvdms_gym.envs.v1:TransportV1Env", 600),
+    ("uvdms/CircleTrack-v1", "uvdms_gym.envs.circle:CircleTrackV1Env", 500),
+    ("uvdms/Transport-v1", "uvdms_gym.envs.transport:TransportV1Env", 600),
     ("uvdms/TransportObstacles-v1", "uvdms_gym.envs.obstacles:TransportObstaclesV1Env", 600),
 )
 """(id, entry point, max_episode_steps) of every registered environment."""

@@ -1,4 +1,4 @@
-"""Fixtures of the simulator tests: the plant with arms, without self-collision, and the bare vehicle."""
+"""Fixtures of the uvdms_gym tests (every subdirectory): the plant with arms, without self-collision, bare."""
 
 import pytest
 

@@ -416,7 +416,7 @@ def compute_distances_reference(kin: KinematicModel) -> DistanceResult:
     The same analytic method as the default ``"exact"`` path (see :func:`_link_link_exact` and
     :func:`_link_plate_exact`), written with numpy array operations; about ten times slower than the
     compiled path (numpy's per-call overhead dominates on arrays of a few dozen elements; ``uvdms bench sim``
-    prints the ratio). Kept so that the kernel is tested against it (``tests/uvdms_gym/test_distances.py``).
+    prints the ratio). Kept so that the kernel is tested against it (``tests/uvdms_gym/distances/test_distances.py``).
 
     Args:
         kin: kinematic model after ``set_state`` (or any object with ``link_segments``,
@@ -468,8 +468,8 @@ def distance_jacobian(kin: KinematicModel, res: DistanceResult) -> np.ndarray:
     ``v_k + w_k x P`` for every joint ``k`` supporting the body, so
     ``n^T J_P[:, k] = n . v_k + (P x n) . w_k``, and ``E x n = P x n`` (``E - P`` is parallel to ``n``):
     a column supporting both bodies cancels exactly. The base columns therefore vanish identically (both
-    points ride on the vehicle); ``tests/uvdms_gym/test_distances.py`` checks this against the full point Jacobians of
-    ``KinematicModel.point_jacobian`` and against finite differences of ``d``.
+    points ride on the vehicle); ``tests/uvdms_gym/distances/test_distances.py`` checks this against the full point
+    Jacobians of ``KinematicModel.point_jacobian`` and against finite differences of ``d``.
     Rows with ``E = P`` (``d = 0``, axes intersecting) have no direction and are zero. Computed by the
     compiled kernel :func:`uvdms_gym.distances.kernels.jdis_rows` (reference: :func:`distance_jacobian_reference`).
 

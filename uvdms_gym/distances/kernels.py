@@ -3,8 +3,8 @@
 These are scalar-loop transcriptions of the numpy reference in :mod:`uvdms_gym.distances`
 (``_link_link_exact``, ``_link_plate_exact``, ``distance_jacobian_reference``): the same formulas, the same
 candidate order and the same first-minimum tie rule, so they agree with it to rounding (tested to 1e-12 in
-``tests/uvdms_gym/test_distances.py``). The numpy version spends its time in per-call overhead on arrays of a few
-dozen elements; these loops do the 90 pairs (42 link-link, 48 link-plate) in about 4 µs.
+``tests/uvdms_gym/distances/test_distances.py``). The numpy version spends its time in per-call overhead on arrays
+of a few dozen elements; these loops do the 90 pairs (42 link-link, 48 link-plate) in about 4 µs.
 
 Compilation is lazy (first call) and cached on disk (``cache=True``: ``NUMBA_CACHE_DIR`` if set, else
 ``__pycache__`` beside this file, else numba's user-wide cache directory). If that location is not

@@ -11,7 +11,8 @@ slice       size  content
 ==========  ====  =====================================================================================
 0:18        18    reference preview: ``y_ref(t + h) - y`` at ``h`` in :data:`PREVIEW_TIMES`, in the body frame
                   (circle: left and right end-effector position errors; transport: object position error
-                  and orientation error as a rotation vector), divided by :data:`POS_SCALE` m / 1 rad
+                  and orientation error as a rotation vector), divided by
+                  :data:`~uvdms_gym.envs.tracking.POS_SCALE` m / 1 rad
 18:20       2     vehicle roll and pitch, rad
 20:26       6     vehicle body velocity ``nu`` divided by its limits ``zeta_max[:6]``
 26:50       24    joint angles as ``sin q`` (12) then ``cos q`` (12)
@@ -23,19 +24,17 @@ slice       size  content
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Sequence
-from dataclasses import replace
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.error import ResetNeeded
 from gymnasium.utils import EzPickle
 
 from uvdms_gym.distances import compute_distances, contact_thresholds, velocity_damper
-from uvdms_gym.envs.errors import POS_SCALE as POS_SCALE  # re-exported: the former home of these names
-from uvdms_gym.envs.errors import errors_pose as errors_pose
-from uvdms_gym.envs.errors import errors_positions as errors_positions
 from uvdms_gym.envs.lowlevel import VelocityLoop
 from uvdms_gym.physics.current import CurrentModel, CurrentState, parse_current
 from uvdms_gym.physics.hydro import HydroScale
@@ -43,7 +42,8 @@ from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.nominal import NominalDynamics
 from uvdms_gym.physics.params import D1, D2, UVDMSParams
 from uvdms_gym.physics.render import CAMERA_YAW_OFFSET_DEG, ReferenceScene
-from uvdms_gym.physics.sim import PhysicsError, UVDMSSim
+from uvdms_gym.physics.sim import UVDMSSim
+from uvdms_gym.physics.state import PhysicsError
 from uvdms_gym.utils.display import gui_available, require_display
 
 PREVIEW_TIMES: tuple[float, ...] = (0.0, 0.4, 0.8)
@@ -58,12 +58,59 @@ PHYSICS_ERROR_REWARD = -100.0
 """Reward of the step on which the physics blew up (the episode then terminates)."""
 
 
+class _Episode(NamedTuple):
+    """What a copy of an environment replays: the generator after ``reset()``'s seeding, and the actions since."""
+
+    generator: np.random.Generator
+    seed: int | None
+    options: dict[str, Any] | None
+    actions: list[np.ndarray]
+
+
+def _check_modes(
+    action_mode: str, render_mode: str | None, render_modes: list[str], control_dt: float, physics_dt: float
+) -> None:
+    """``ValueError`` naming an unknown action or render mode or a non-positive time step."""
+    if action_mode not in ("velocity", "torque"):
+        raise ValueError(f"action_mode must be 'velocity' or 'torque', got {action_mode!r}")
+    if render_mode is not None and render_mode not in render_modes:
+        raise ValueError(f"render_mode must be one of {render_modes} or None, got {render_mode!r}")
+    if not (physics_dt > 0 and control_dt > 0):
+        raise ValueError(f"control_dt and physics_dt must be positive, got {control_dt}, {physics_dt}")
+
+
+def _substeps(control_dt: float, physics_dt: float) -> int:
+    """Physics steps per control step (``ValueError`` unless ``control_dt`` is a whole multiple of ``physics_dt``)."""
+    n_sub = round(control_dt / physics_dt)
+    if n_sub < 1 or abs(n_sub * physics_dt - control_dt) > 1e-9:
+        raise ValueError(f"control_dt ({control_dt}) must be a whole multiple of physics_dt ({physics_dt})")
+    return n_sub
+
+
+def _weights(*values: float) -> dict[str, float]:
+    """The reward weights ``track, orientation, effort, proximity, contact`` by name, as floats.
+
+    Raises:
+        ValueError: a weight is not finite and non-negative (the message names ``<name>_weight``).
+    """
+    weights = dict(zip(("track", "orientation", "effort", "proximity", "contact"), values, strict=True))
+    for name, w in weights.items():
+        if not (math.isfinite(w) and w >= 0.0):
+            raise ValueError(f"{name}_weight must be a finite non-negative number, got {w}")
+    return {name: float(w) for name, w in weights.items()}
+
+
 class UVDMSEnv(gym.Env, EzPickle):
     """Base class: one simulator, one kinematic model, a task; see the module docstring.
 
     Pickling and ``copy.deepcopy`` work the Gymnasium way (:class:`gymnasium.utils.EzPickle`): the constructor's
-    arguments are pickled and the copy is a new environment built from them, with its own PyBullet client; the
-    state (episode, simulator, random generator) is not copied. ``reset()`` after ``close()`` connects a new client.
+    arguments are pickled and the copy is a new environment built from them, with its own PyBullet client. During
+    an episode the copy also carries the episode (the random generator as the last ``reset()`` left it, and the
+    actions stepped since), and replays it when it is unpickled: the copy is in the original's state, bit for bit,
+    and can be stepped at once (the Gymnasium wrappers around it, which pickle their own flags and step counts, then
+    tell the truth). Replaying costs one step per step of the episode so far. A copy of an environment that was
+    never reset, or was closed, is a fresh environment: stepping it before ``reset()`` raises
+    :class:`gymnasium.error.ResetNeeded`. ``reset()`` after ``close()`` connects a new client.
 
     Subclasses implement :meth:`_build_task`, :meth:`_initial_state`, :meth:`_output` and
     :meth:`_errors` and set :attr:`with_object`.
@@ -105,12 +152,7 @@ class UVDMSEnv(gym.Env, EzPickle):
         render_height: int = 240,
         params: UVDMSParams | None = None,
     ) -> None:
-        if action_mode not in ("velocity", "torque"):
-            raise ValueError(f"action_mode must be 'velocity' or 'torque', got {action_mode!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        if not (physics_dt > 0 and control_dt > 0):
-            raise ValueError(f"control_dt and physics_dt must be positive, got {control_dt}, {physics_dt}")
+        _check_modes(action_mode, render_mode, self.metadata["render_modes"], control_dt, physics_dt)
         if render_mode == "human":
             require_display()  # a clear exception where PyBullet's GUI connect would call exit()
         # Per-instance metadata (Gymnasium convention): frames come once per control step, and "human" is listed
@@ -120,22 +162,12 @@ class UVDMSEnv(gym.Env, EzPickle):
             "render_fps": 1.0 / float(control_dt),
             "render_modes": [m for m in type(self).metadata["render_modes"] if m != "human" or gui_available()],
         }
-        n_sub = round(control_dt / physics_dt)
-        if n_sub < 1 or abs(n_sub * physics_dt - control_dt) > 1e-9:
-            raise ValueError(f"control_dt ({control_dt}) must be a whole multiple of physics_dt ({physics_dt})")
+        n_sub = _substeps(control_dt, physics_dt)
         if not 0.0 <= hydro_randomization < 1.0:
             raise ValueError(f"hydro_randomization must be in [0, 1), got {hydro_randomization}")
         self.current_model = parse_current(current)  # ValueError naming the problem, before any client exists
         """The ocean-current process (:mod:`uvdms_gym.physics.current`), or ``None`` for still water."""
-        for name, w in (
-            ("track_weight", track_weight),
-            ("orientation_weight", orientation_weight),
-            ("effort_weight", effort_weight),
-            ("proximity_weight", proximity_weight),
-            ("contact_weight", contact_weight),
-        ):
-            if not (math.isfinite(w) and w >= 0.0):
-                raise ValueError(f"{name} must be a finite non-negative number, got {w}")
+        weights = _weights(track_weight, orientation_weight, effort_weight, proximity_weight, contact_weight)
         self.params = params or UVDMSParams()
         self.action_mode = action_mode
         self.control_dt = float(control_dt)
@@ -145,13 +177,7 @@ class UVDMSEnv(gym.Env, EzPickle):
         self._current_state: CurrentState | None = None
         self._current_value = (0.0, 0.0, 0.0)
         self.terminate_on_contact = bool(terminate_on_contact)
-        self.weights = {
-            "track": float(track_weight),
-            "orientation": float(orientation_weight),
-            "effort": float(effort_weight),
-            "proximity": float(proximity_weight),
-            "contact": float(contact_weight),
-        }
+        self.weights = weights
         self.max_tracking_error = float(max_tracking_error)
         self._reward_keys = {k: f"reward_{k}" for k in self.weights}
         self.render_mode = render_mode
@@ -163,8 +189,12 @@ class UVDMSEnv(gym.Env, EzPickle):
         """Torque-mode scale: ``tau = action * tau_max`` (N, N m)."""
         self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = gym.spaces.Box(-OBS_CLIP, OBS_CLIP, (OBS_DIM,), np.float32)
+        self._build_models()
 
+    def _build_models(self) -> None:
+        """The simulator, the kinematic and nominal models, the velocity loop and the per-episode state."""
         self._sim = self._make_sim()
+        self._episode: _Episode | None = None  # set by reset(): what a copy replays (__getstate__)
         self._kin = KinematicModel(self.params)
         self._nominal = NominalDynamics(self._kin)
         self._loop = VelocityLoop(self._nominal, self.tau_max)
@@ -178,6 +208,25 @@ class UVDMSEnv(gym.Env, EzPickle):
         self._nu_scale = self.zeta_max[:6].copy()
         self._qdot_scale = self.zeta_max[6:].copy()
         self._closed = False
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The constructor's arguments (:class:`~gymnasium.utils.EzPickle`) and, during an episode, the episode."""
+        state = EzPickle.__getstate__(self)
+        if self._episode is not None and not self._closed:
+            state["_episode"] = self._episode
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Build the environment from its constructor's arguments, then replay the episode if there was one."""
+        state = dict(state)
+        episode = state.pop("_episode", None)
+        EzPickle.__setstate__(self, state)
+        if episode is not None:
+            self._np_random, self._np_random_seed = copy.deepcopy(episode.generator), episode.seed
+            self._episode = _Episode(episode.generator, episode.seed, episode.options, [])
+            self._start_episode()
+            for action in episode.actions:
+                self.step(action)
 
     def _make_sim(self) -> UVDMSSim:
         """A simulator with its own PyBullet client (DIRECT, or the GUI with ``render_mode="human"``)."""
@@ -232,6 +281,11 @@ class UVDMSEnv(gym.Env, EzPickle):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Start an episode: draw the task (and hydrodynamic factors) from the seeded generator."""
         super().reset(seed=seed)
+        self._episode = _Episode(copy.deepcopy(self.np_random), self._np_random_seed, options, [])
+        return self._start_episode()
+
+    def _start_episode(self) -> tuple[np.ndarray, dict[str, Any]]:
+        """The part of :meth:`reset` after the generator is set: draw the task, reset the simulator, observe."""
         if self._closed:  # reset after close: a new client, as Gymnasium's classic environments do
             self._sim = self._make_sim()
             self._closed = False
@@ -250,7 +304,13 @@ class UVDMSEnv(gym.Env, EzPickle):
 
     def step(self, action):
         """Apply the action over ``control_dt``, then observe, score and check the episode end."""
+        if self._episode is None:
+            raise ResetNeeded(
+                "this environment has no episode (never reset, or copied or unpickled after close()): "
+                "call reset() before step()"
+            )
         a, clipped = self._validate_action(action)
+        self._episode.actions.append(np.array(action, dtype=np.float64))  # what a copy replays (__setstate__)
         if self._current_state is not None and self.current_model.random:
             self._advance_current()
         physics_error = None
@@ -451,8 +511,3 @@ class UVDMSEnv(gym.Env, EzPickle):
                 link_drag=float(rng.uniform(lo, hi)),
             )
         )
-
-    # ----------------------------------------------------------------- misc
-    def with_params(self, **changes: Any) -> UVDMSParams:
-        """A copy of the environment's parameters with top-level fields replaced (for perturbed models)."""
-        return replace(self.params, **changes)

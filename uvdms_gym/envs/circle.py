@@ -7,8 +7,9 @@ from typing import Any
 import numpy as np
 
 from uvdms_gym.envs.base import UVDMSEnv
-from uvdms_gym.envs.errors import errors_positions
-from uvdms_gym.envs.tasks import CircleTask, make_circle_task
+from uvdms_gym.envs.bounded_reward import BoundedReward
+from uvdms_gym.envs.references import CircleTask, make_circle_task
+from uvdms_gym.envs.tracking import errors_positions
 from uvdms_gym.physics.render import FRONT_CAMERA_YAW_OFFSET_DEG, ReferenceScene
 
 TRACKING_TRANSIENT = 5.0
@@ -126,3 +127,29 @@ class CircleTrackEnv(UVDMSEnv):
         grid = np.linspace(0.0, self.task.period, CIRCLE_MARKER_SAMPLES + 1)  # the last point closes the circle
         ref = self.task.reference(grid)
         return ReferenceScene(paths=(ref[:, :3], ref[:, 3:]), points=self.task.reference(self.t).reshape(2, 3))
+
+
+class CircleTrackV1Env(BoundedReward, CircleTrackEnv):
+    """``uvdms/CircleTrack-v1``: :class:`~uvdms_gym.envs.circle.CircleTrackEnv` with the bounded v1 reward.
+
+    ## Rewards
+    ``reward = reward_track + reward_orientation + reward_effort + reward_proximity + reward_contact`` with
+    ``reward_track = track_weight * exp(-e / track_scale)`` (``e``: mean end-effector position error, m),
+    ``reward_orientation = 0``, ``reward_effort = effort_weight * (1 - |action|^2 / 18)``,
+    ``reward_proximity = proximity_weight * mean_i S(d_i)`` (velocity-damper shape: 1 beyond 0.12 m, 0 inside
+    0.05 m) and ``reward_contact = -contact_weight`` on a step with physical contact (which ends the episode).
+    Every term but the contact penalty lies in ``[0, weight]``, so at equal tracking running to the time limit
+    always beats ending the episode early. Defaults: :data:`V1_WEIGHTS`, ``track_scale = 0.05 m``. The optional
+    ``reward_precision = precision_weight * exp(-e / precision_scale)`` (default weight 0, scale 0.01 m) is a
+    narrow second tracking term for training with a wide ``track_scale``.
+
+    Everything else (dynamics, task, observation, costs, episode end, ``max_episode_steps = 500``) is v0's.
+
+    ## Version History
+    * v1: bounded non-negative per-step reward and a contact penalty (v0: every term <= 0). Release 0.3.0 adds
+      the optional keywords ``precision_weight`` and ``precision_scale`` (a narrow tracking term, off by
+      default: the default reward is unchanged).
+    * v0: initial release.
+    """
+
+    rewards_orientation = False

@@ -15,8 +15,7 @@ import numpy as np
 from uvdms_gym.distances.outer import RobotTrack, compute_outer_distances, part_names, robot_track, track_gaps
 from uvdms_gym.envs.base import CLEARANCE_CLIP, CONTACT_MARGIN, OBS_CLIP, OBS_DIM
 from uvdms_gym.envs.obstacle_scenarios import random_obstacles
-from uvdms_gym.envs.transport import vehicle_pose_for_object
-from uvdms_gym.envs.v1 import TransportV1Env
+from uvdms_gym.envs.transport import TransportV1Env, vehicle_pose_for_object
 from uvdms_gym.physics.obstacles import (
     POS,
     STATE_COLS,
@@ -45,7 +44,7 @@ class TransportObstaclesV1Env(TransportV1Env):
     """The v1 transport task with moving kinematic obstacles in the workspace.
 
     ## Description
-    As ``uvdms/Transport-v1`` (:class:`~uvdms_gym.envs.v1.TransportV1Env`), while 1-3 obstacles move through the
+    As ``uvdms/Transport-v1`` (:class:`~uvdms_gym.envs.transport.TransportV1Env`), while 1-3 obstacles move through the
     workspace. Obstacles are kinematic spheres and capsules (:mod:`uvdms_gym.physics.obstacles`): they follow their
     script exactly, push the robot on contact and are never pushed; they collide with the arm links, the object
     and the vehicle's hull. ``obstacles="random"`` (default) draws a scenario per seed whose obstacles cross the
@@ -122,7 +121,7 @@ class TransportObstaclesV1Env(TransportV1Env):
     # ----------------------------------------------------------------- scenario
     def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
         if self.task is None:  # called by the constructor's start check
-            from uvdms_gym.envs.tasks import make_transport_task
+            from uvdms_gym.envs.references import make_transport_task
 
             task = make_transport_task(self.goal, np.random.default_rng(0), **self._task_kwargs)
             return vehicle_pose_for_object(self._kin, task.start), np.zeros(12)

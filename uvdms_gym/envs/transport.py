@@ -7,8 +7,9 @@ from typing import Any
 import numpy as np
 
 from uvdms_gym.envs.base import UVDMSEnv
-from uvdms_gym.envs.errors import errors_pose
-from uvdms_gym.envs.tasks import TransportTask, make_transport_task
+from uvdms_gym.envs.bounded_reward import BoundedReward
+from uvdms_gym.envs.references import TransportTask, make_transport_task
+from uvdms_gym.envs.tracking import errors_pose
 from uvdms_gym.physics.frames import euler_to_rot
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.render import ReferenceScene
@@ -41,7 +42,7 @@ class TransportEnv(UVDMSEnv):
     ## Description
     The UVDMS grips a solid cylinder (0.6 m x 0.05 m, 1100 kg/m^3) with both end effectors (two fixed
     constraints in PyBullet). The object pose ``[x y z phi theta psi]`` (NED, ZYX Euler) must follow a C2
-    spline from the start pose through a mid waypoint to the goal (:mod:`uvdms_gym.envs.tasks`) and hold it.
+    spline from the start pose through a mid waypoint to the goal (:mod:`uvdms_gym.envs.references`) and hold it.
 
     ## Action Space
     As in :class:`~uvdms_gym.envs.circle.CircleTrackEnv`: ``Box(-1, 1, (18,), float32)``, velocity mode
@@ -123,3 +124,21 @@ class TransportEnv(UVDMSEnv):
         path = task.reference(np.linspace(0.0, task.move_time, PATH_MARKER_SAMPLES))[:, :3]
         goal = (task.goal[:3], euler_to_rot(task.goal[3:]))
         return ReferenceScene(paths=(path,), points=task.reference(self.t)[None, :3], goal=goal)
+
+
+class TransportV1Env(BoundedReward, TransportEnv):
+    """``uvdms/Transport-v1``: :class:`~uvdms_gym.envs.transport.TransportEnv` with the bounded v1 reward.
+
+    ## Rewards
+    As :class:`~uvdms_gym.envs.circle.CircleTrackV1Env`, with ``e`` the object's position error and
+    ``reward_orientation = orientation_weight * exp(-e_o / orientation_scale)`` (``e_o``: the object's
+    orientation error, rad; ``orientation_scale`` default 5 degrees).
+
+    Everything else (dynamics, task, observation, costs, episode end, ``max_episode_steps = 600``) is v0's.
+
+    ## Version History
+    * v1: bounded non-negative per-step reward and a contact penalty (v0: every term <= 0). Release 0.3.0 adds
+      the optional keywords ``precision_weight`` and ``precision_scale`` (a narrow tracking term, off by
+      default: the default reward is unchanged).
+    * v0: initial release.
+    """

@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from uvdms_gym.utils.validation import finite_vector
+
 MAX_CONSTANT_SPEED = 2.0
 """Largest accepted magnitude of a constant current, m/s (far beyond what the vehicle can hold against)."""
 RANDOM = "random"
@@ -144,22 +146,18 @@ def parse_current(spec: Any) -> CurrentModel | None:
         if spec == RANDOM:
             return RandomCurrent()
         raise ValueError(f"current must be None, {RANDOM!r} or a NED vector of 3 floats (m/s); got the string {spec!r}")
-    return ConstantCurrent(velocity=_constant_vector(spec))
+    return ConstantCurrent(velocity=_constant_velocity(spec))
 
 
-def _constant_vector(spec: Any) -> tuple[float, float, float]:
+def _constant_velocity(spec: Any) -> tuple[float, float, float]:
     """Validate a constant current: 3 finite floats, magnitude at most :data:`MAX_CONSTANT_SPEED`."""
     prefix = f"current must be None, {RANDOM!r} or a NED vector of 3 floats (m/s)"
     if isinstance(spec, (dict, bool, bytes)):
         raise ValueError(f"{prefix}; got a {type(spec).__name__}: {spec!r}")
     try:
-        arr = np.asarray(spec, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{prefix}; got the non-numeric value {spec!r}") from None
-    if arr.shape != (3,):
-        raise ValueError(f"{prefix}; got shape {arr.shape}: {spec!r}")
-    if not np.isfinite(arr).all():
-        raise ValueError(f"current must be finite, got {spec!r} (NaN or inf)")
+        arr = finite_vector(spec, 3, "current")
+    except ValueError as exc:
+        raise ValueError(f"{prefix}; {exc}") from None
     speed = float(np.linalg.norm(arr))
     if speed > MAX_CONSTANT_SPEED:
         raise ValueError(f"current {spec!r} has magnitude {speed:.3g} m/s, above the limit of {MAX_CONSTANT_SPEED} m/s")

@@ -30,7 +30,7 @@ Vehicle (body frame FRD, wrench about the body origin)
       base under a force at the origin is the bare vehicle's, about 130 kg in surge (rigid 106 kg at
       ``r_G`` plus the 31.3 kg virtual mass, reduced by the pitch coupling of the low centre of gravity),
       so the ratio is at most ``31.7 / 130 = 0.24``: a parasitic alternating mode that decays by a factor
-      4 per step, independent of ``dt`` (tested in ``tests/uvdms_gym/test_sim.py``).
+      4 per step, independent of ``dt`` (tested in ``tests/uvdms_gym/physics/test_sim.py``).
     * hydrostatics: hull buoyancy ``B`` up at ``r_B``; gravity is applied by the physics engine at ``r_G``.
       The buoyancy of the two fixed arm base shells (``link0``) and the weight cancellation of the virtual
       link are also upward forces at body-fixed points: all are lumped into one upward force at their

@@ -12,7 +12,7 @@ rows give velocities (linear of the named point, angular) expressed in NED, colu
 Dynamics (:meth:`~KinematicModel.mass_matrix`, :meth:`~KinematicModel.nonlinear_effects`,
 :meth:`~KinematicModel.gravity`) are computed lazily on a separate ``pin.Data`` and cached per state.
 
-PyBullet's ``calculateMassMatrix`` for this body (measured, see ``tests/uvdms_gym/test_kinematics.py``) uses the
+PyBullet's ``calculateMassMatrix`` for this body (measured, see ``tests/uvdms_gym/physics/test_kinematics.py``) uses the
 velocity coordinates ``[omega_B; v_C; qdot]``: body angular velocity, then the linear velocity of the
 vehicle's centre of gravity ``r_G``, both in body (FRD) axes, then the joints in PyBullet link order. It
 ignores the base pose (evaluates at the identity), which is consistent with body-axis coordinates. With
@@ -29,6 +29,7 @@ import pinocchio as pin
 
 from uvdms_gym.physics.model import link_segment, pinocchio_model
 from uvdms_gym.physics.params import ARM_SIDES, GRAVITY, JOINT_NAMES, N_DOF, N_JOINTS, UVDMSParams
+from uvdms_gym.utils.validation import finite_vector
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _N_CONFIG = 7 + N_JOINTS
@@ -38,16 +39,6 @@ _STRICT_LOWER = np.tri(N_DOF, k=-1, dtype=bool)
 def _skew(v: np.ndarray) -> np.ndarray:
     """Cross-product matrix ``[v]x`` with ``[v]x w = v x w``."""
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def _vector(x: np.ndarray, name: str, n: int) -> np.ndarray:
-    """``x`` as a finite float vector of length ``n``, else a ``ValueError`` naming ``name``."""
-    a = np.asarray(x, dtype=float)
-    if a.shape != (n,):
-        raise ValueError(f"{name} must have shape ({n},), got {a.shape}")
-    if not np.isfinite(a).all():
-        raise ValueError(f"{name} contains non-finite values: {a}")
-    return a
 
 
 def euler_to_quat_xyzw(rpy: np.ndarray) -> np.ndarray:
@@ -188,9 +179,9 @@ class KinematicModel:
         Raises:
             ValueError: an argument has the wrong shape or non-finite entries (the message names it).
         """
-        eta = _vector(eta, "eta", 6)
-        q = _vector(q, "q", N_JOINTS)
-        self._update(self.configuration(eta, q), None if zeta is None else _vector(zeta, "zeta", N_DOF))
+        eta = finite_vector(eta, 6, "eta")
+        q = finite_vector(q, N_JOINTS, "q")
+        self._update(self.configuration(eta, q), None if zeta is None else finite_vector(zeta, N_DOF, "zeta"))
 
     def set_configuration(self, config: np.ndarray, zeta: np.ndarray | None = None) -> None:
         """Like :meth:`set_state`, from a Pinocchio configuration (e.g. the result of ``pin.integrate``).
@@ -202,10 +193,10 @@ class KinematicModel:
         Raises:
             ValueError: wrong shape, non-finite entries, or a quaternion that is not unit (to 1e-6).
         """
-        config = _vector(config, "config", _N_CONFIG)
+        config = finite_vector(config, _N_CONFIG, "config")
         if abs(float(config[3:7] @ config[3:7]) - 1.0) > 1e-6:
             raise ValueError(f"config quaternion is not unit: {config[3:7]}")
-        self._update(config.copy(), None if zeta is None else _vector(zeta, "zeta", N_DOF))
+        self._update(config.copy(), None if zeta is None else finite_vector(zeta, N_DOF, "zeta"))
 
     def _update(self, config: np.ndarray, zeta: np.ndarray | None) -> None:
         self.config = config

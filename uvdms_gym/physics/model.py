@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uvdms_gym.physics.params import ARM_SIDES, UVDMSParams
+from uvdms_gym.physics.params import ARM_SIDES, FramePlate, UVDMSParams
 
 TINY_MASS = 1e-4
 """Mass of frame-only links (PyBullet gives a link without ``<inertial>`` 1 kg)."""
@@ -137,7 +137,7 @@ def _plate_edges(plate) -> str:
 
     Box plus edge capsules is exactly the plate's mid-surface rectangle swept by a ball of radius ``t/2``,
     so a capsule link touches the plate exactly when its axis is ``r + t/2`` from the rectangle, also beside
-    the edges (a bare box touches there at ``r``; measured in ``tests/uvdms_gym/test_distances.py``).
+    the edges (a bare box touches there at ``r``; measured in ``tests/uvdms_gym/distances/test_distances.py``).
     """
     hx, hy = plate.half_extents
     rho = 0.5 * plate.thickness
@@ -153,6 +153,67 @@ def _plate_edges(plate) -> str:
             f'<geometry><capsule radius="{rho:.12g}" length="{length:.12g}"/></geometry></collision>'
         )
     return "".join(out)
+
+
+def _plate_parts(plate: FramePlate, shapes: bool) -> list[str]:
+    """The link of a frame plate and its fixed joint to the vehicle (URDF elements)."""
+    parts = []
+    u, w, n = np.array(plate.u), np.array(plate.v), plate.normal
+    rot = np.column_stack([u, w, n])
+    size = (2 * plate.half_extents[0], 2 * plate.half_extents[1], plate.thickness)
+    geom = f'<geometry><box size="{_fmt(size)}"/></geometry>'
+    edges = _plate_edges(plate) if shapes else ""  # Pinocchio's URDF parser rejects capsules
+    parts.append(
+        f'<link name="plate_{plate.name}">{_inertial(TINY_MASS, (0, 0, 0), (TINY_INERTIA,) * 3)}'
+        f'<visual><origin xyz="0 0 0" rpy="0 0 0"/>{geom}<material name="plate"/></visual>'
+        f'<collision><origin xyz="0 0 0" rpy="0 0 0"/>{geom}</collision>{edges}</link>'
+    )
+    parts.append(_fixed(f"plate_{plate.name}_joint", "vehicle", f"plate_{plate.name}", plate.center, rot_to_rpy(rot)))
+    return parts
+
+
+def _arm_parts(params: UVDMSParams, side: str, shapes: bool) -> list[str]:
+    """The links and joints of one arm, its end-effector and grasp frames (URDF elements)."""
+    parts = []
+    arm = params.arm
+    mount_rpy = rot_to_rpy(mount_rotation(params))
+    base = params.arm_base_left if side == "left" else params.arm_base_right
+    for i in range(arm.n_links):
+        a, b = link_segment(params, i)
+        axis = link_axis(params, i)
+        mid = 0.5 * (a + b)
+        inertia = _cylinder_inertia(arm.link_mass[i], arm.link_radius, arm.link_length[i], axis)
+        if i > 0:  # the drive's rotor (a disk on the joint axis, link-frame z): J about z, J/2 transverse
+            j_rot = arm.rotor_inertia  # (a physical tensor: PyBullet zeroes one that breaks the triangle rule)
+            inertia = (inertia[0] + 0.5 * j_rot, inertia[1] + 0.5 * j_rot, inertia[2] + j_rot)
+        # PyBullet's capsule (and cylinder) lies along the local z axis of its origin.
+        cap_rpy = (0.0, 0.0, 0.0) if abs(axis[2]) > 0.5 else (math.copysign(math.pi / 2, -axis[1]), 0.0, 0.0)
+        geom = f'<geometry><capsule radius="{arm.link_radius:.12g}" length="{arm.link_length[i]:.12g}"/></geometry>'
+        shape = (
+            f'<visual><origin xyz="{_fmt(mid)}" rpy="{_fmt(cap_rpy)}"/>{geom}<material name="arm"/></visual>'
+            f'<collision><origin xyz="{_fmt(mid)}" rpy="{_fmt(cap_rpy)}"/>{geom}</collision>'
+        )
+        inertial = _inertial(arm.link_mass[i], mid, inertia)
+        parts.append(f'<link name="{side}_link{i}">{inertial}{shape if shapes else ""}</link>')
+        if i == 0:
+            parts.append(_fixed(f"{side}_mount", "vehicle", f"{side}_link0", base, mount_rpy))
+        else:
+            lo, hi = arm.q_min[i - 1], arm.q_max[i - 1]
+            parts.append(
+                f'<joint name="{side}_joint{i}" type="revolute"><parent link="{side}_link{i - 1}"/>'
+                f'<child link="{side}_link{i}"/>'
+                f'<origin xyz="0 0 {arm.dh_d[i - 1]:.12g}" rpy="{arm.dh_alpha[i - 1]:.12g} 0 0"/>'
+                f'<axis xyz="0 0 1"/><limit lower="{lo:.12g}" upper="{hi:.12g}" '
+                f'effort="{arm.tau_max[i - 1]:.12g}" velocity="{arm.qdot_max[i - 1]:.12g}"/>'
+                f'<dynamics damping="{arm.joint_friction:.12g}" friction="0"/></joint>'
+            )
+    p_ee, r_ee = ee_offset(params)
+    parts.append(_tiny_link(f"{side}_ee"))
+    parts.append(_fixed(f"{side}_ee_joint", f"{side}_link6", f"{side}_ee", p_ee, rot_to_rpy(r_ee)))
+    p_g, r_g = grasp_offset(params, side)
+    parts.append(_tiny_link(f"{side}_grasp"))
+    parts.append(_fixed(f"{side}_grasp_joint", f"{side}_ee", f"{side}_grasp", p_g, rot_to_rpy(r_g)))
+    return parts
 
 
 def build_urdf(
@@ -196,58 +257,9 @@ def build_urdf(
         parts.append(f'<link name="added_mass">{_inertial(ma, (0, 0, 0), v.added_mass[3:])}</link>')
         parts.append(_fixed("added_mass_joint", "vehicle", "added_mass", (0, 0, 0), (0, 0, 0)))
     for plate in params.plates:
-        u, w, n = np.array(plate.u), np.array(plate.v), plate.normal
-        rot = np.column_stack([u, w, n])
-        size = (2 * plate.half_extents[0], 2 * plate.half_extents[1], plate.thickness)
-        geom = f'<geometry><box size="{_fmt(size)}"/></geometry>'
-        edges = _plate_edges(plate) if shapes else ""  # Pinocchio's URDF parser rejects capsules
-        parts.append(
-            f'<link name="plate_{plate.name}">{_inertial(TINY_MASS, (0, 0, 0), (TINY_INERTIA,) * 3)}'
-            f'<visual><origin xyz="0 0 0" rpy="0 0 0"/>{geom}<material name="plate"/></visual>'
-            f'<collision><origin xyz="0 0 0" rpy="0 0 0"/>{geom}</collision>{edges}</link>'
-        )
-        parts.append(
-            _fixed(f"plate_{plate.name}_joint", "vehicle", f"plate_{plate.name}", plate.center, rot_to_rpy(rot))
-        )
-    arm = params.arm
-    mount_rpy = rot_to_rpy(mount_rotation(params))
+        parts.extend(_plate_parts(plate, shapes))
     for side in ARM_SIDES if arms else ():
-        base = params.arm_base_left if side == "left" else params.arm_base_right
-        for i in range(arm.n_links):
-            a, b = link_segment(params, i)
-            axis = link_axis(params, i)
-            mid = 0.5 * (a + b)
-            inertia = _cylinder_inertia(arm.link_mass[i], arm.link_radius, arm.link_length[i], axis)
-            if i > 0:  # the drive's rotor (a disk on the joint axis, link-frame z): J about z, J/2 transverse
-                j_rot = arm.rotor_inertia  # (a physical tensor: PyBullet zeroes one that breaks the triangle rule)
-                inertia = (inertia[0] + 0.5 * j_rot, inertia[1] + 0.5 * j_rot, inertia[2] + j_rot)
-            # PyBullet's capsule (and cylinder) lies along the local z axis of its origin.
-            cap_rpy = (0.0, 0.0, 0.0) if abs(axis[2]) > 0.5 else (math.copysign(math.pi / 2, -axis[1]), 0.0, 0.0)
-            geom = f'<geometry><capsule radius="{arm.link_radius:.12g}" length="{arm.link_length[i]:.12g}"/></geometry>'
-            shape = (
-                f'<visual><origin xyz="{_fmt(mid)}" rpy="{_fmt(cap_rpy)}"/>{geom}<material name="arm"/></visual>'
-                f'<collision><origin xyz="{_fmt(mid)}" rpy="{_fmt(cap_rpy)}"/>{geom}</collision>'
-            )
-            inertial = _inertial(arm.link_mass[i], mid, inertia)
-            parts.append(f'<link name="{side}_link{i}">{inertial}{shape if shapes else ""}</link>')
-            if i == 0:
-                parts.append(_fixed(f"{side}_mount", "vehicle", f"{side}_link0", base, mount_rpy))
-            else:
-                lo, hi = arm.q_min[i - 1], arm.q_max[i - 1]
-                parts.append(
-                    f'<joint name="{side}_joint{i}" type="revolute"><parent link="{side}_link{i - 1}"/>'
-                    f'<child link="{side}_link{i}"/>'
-                    f'<origin xyz="0 0 {arm.dh_d[i - 1]:.12g}" rpy="{arm.dh_alpha[i - 1]:.12g} 0 0"/>'
-                    f'<axis xyz="0 0 1"/><limit lower="{lo:.12g}" upper="{hi:.12g}" '
-                    f'effort="{arm.tau_max[i - 1]:.12g}" velocity="{arm.qdot_max[i - 1]:.12g}"/>'
-                    f'<dynamics damping="{arm.joint_friction:.12g}" friction="0"/></joint>'
-                )
-        p_ee, r_ee = ee_offset(params)
-        parts.append(_tiny_link(f"{side}_ee"))
-        parts.append(_fixed(f"{side}_ee_joint", f"{side}_link6", f"{side}_ee", p_ee, rot_to_rpy(r_ee)))
-        p_g, r_g = grasp_offset(params, side)
-        parts.append(_tiny_link(f"{side}_grasp"))
-        parts.append(_fixed(f"{side}_grasp_joint", f"{side}_ee", f"{side}_grasp", p_g, rot_to_rpy(r_g)))
+        parts.extend(_arm_parts(params, side, shapes))
     parts.append("</robot>")
     return "\n".join(parts)
 

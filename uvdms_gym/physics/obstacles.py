@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from uvdms_gym.utils.validation import finite_vector
+
 SHAPES = ("sphere", "capsule")
 MAX_OBSTACLE_SPEED = 2.0
 """Largest speed of an obstacle (constant velocity or between waypoints), m/s."""
@@ -34,18 +36,6 @@ STATE_COLS = 11
 """Columns of :func:`obstacle_states`: position (3), velocity (3), radius, half length, axis (3)."""
 POS, VEL, RADIUS, HALF_LENGTH, AXIS = slice(0, 3), slice(3, 6), 6, 7, slice(8, 11)
 """Column selectors of :func:`obstacle_states`."""
-
-
-def _finite_vector(value: Any, n: int, name: str) -> tuple[float, ...]:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be {n} numbers, got {value!r}") from None
-    if arr.shape != (n,):
-        raise ValueError(f"{name} must be {n} numbers, got {value!r}")
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return tuple(float(x) for x in arr)
 
 
 def _finite_number(value: Any, name: str) -> float:
@@ -90,16 +80,16 @@ class Obstacle:
             raise ValueError(f"a capsule obstacle needs length > 0, got {self.length!r}")
         if self.shape == "sphere" and length != 0.0:
             raise ValueError(f"a sphere obstacle has no length, got length={self.length!r}")
-        axis = np.array(_finite_vector(self.axis, 3, "obstacle axis"))
+        axis = finite_vector(self.axis, 3, "obstacle axis")
         norm = float(np.linalg.norm(axis))
         if norm < 1e-9:
             raise ValueError(f"obstacle axis must be non-zero, got {self.axis!r}")
-        velocity = _finite_vector(self.velocity, 3, "obstacle velocity")
-        waypoints = tuple(_finite_vector(w, 4, "obstacle waypoint (t, x, y, z)") for w in self.waypoints)
+        velocity = tuple(finite_vector(self.velocity, 3, "obstacle velocity").tolist())
+        waypoints = tuple(tuple(finite_vector(w, 4, "obstacle waypoint (t, x, y, z)").tolist()) for w in self.waypoints)
         object.__setattr__(self, "radius", radius)
         object.__setattr__(self, "length", length)
         object.__setattr__(self, "axis", tuple(float(x) for x in axis / norm))
-        object.__setattr__(self, "position", _finite_vector(self.position, 3, "obstacle position"))
+        object.__setattr__(self, "position", tuple(finite_vector(self.position, 3, "obstacle position").tolist()))
         object.__setattr__(self, "velocity", velocity)
         object.__setattr__(self, "waypoints", waypoints)
         self._check_motion()

@@ -12,7 +12,7 @@ matter here [D]:
 * It does not draw debug lines (``addUserDebugLine``). The task's reference is drawn with visual-only bodies
   (:class:`ReferenceMarkers`): a visual shape, no collision shape, mass 0 (a fixed base), nothing attached. Such a
   body takes part in no contact, closest-point query or constraint, so the physics, the distances and the
-  observations are the same bit for bit with and without rendering (``tests/uvdms_gym/test_render_markers.py``).
+  observations are the same bit for bit with and without rendering (``tests/uvdms_gym/physics/test_render_markers.py``).
   They exist only in a simulator that an ``rgb_array`` environment has rendered (created at its first frame).
 
 What is drawn (:class:`ReferenceScene`, built by the environment in NED): the reference paths as magenta tubes

@@ -5,195 +5,60 @@ vehicle base with the virtual ``added_mass`` link, the frame plates and both 6-j
 :func:`uvdms_gym.physics.model.build_urdf` with ``URDF_USE_INERTIA_FROM_FILE``. Every public quantity is NED/FRD
 (:mod:`uvdms_gym.physics.frames`); PyBullet's world is z-up (``p_W = diag(1, -1, -1) p_NED``).
 
-Physics set-up [D]:
+Physics set-up [D] (gravity, damping, the constraint solver, the physics step, and why): the module docstring of
+:mod:`uvdms_gym.physics.body`. The gripped object and its closed chain: :mod:`uvdms_gym.physics.grasp`; contact
+counts: :mod:`uvdms_gym.physics.contacts`; the state and its sanity bounds: :mod:`uvdms_gym.physics.state`.
 
-* gravity ``(0, 0, -9.81)`` in the z-up world, default joint motors disabled, linear/angular damping 0
-  on every link (PyBullet's default 0.04 would add an unmodelled damping), joint damping and friction 0;
-  no self-collision flag: links pass through each other, contacts are *reported* by distance queries.
-* joints in torque control; joint limits are PyBullet's URDF joint-limit constraints.
-* constraints (joint limits, the two grasp welds) are solved by PyBullet's direct MLCP solver
-  (``CONSTRAINT_SOLVER_LCP_DANTZIG``) with error reduction :data:`CONSTRAINT_ERP` = 0.8. The default
-  iterative solver (PGS, 50 iterations, ERP 0.2) converges poorly on the closed chain (a 9.9 kg object,
-  added mass included, between two arms whose distal links weigh 1.2-1.6 kg): 3-6 mm of grasp error
-  under moderate motion, and no better with 1000 iterations. The direct solver meets the velocity
-  constraints exactly; what remains is the second-order drift of the position integration
-  (``~ w^2 r dt^2`` per step), removed at 80 % per step: 0.2 mm and 0.02 deg at joint rates up to
-  5 rad/s (tested: < 1 mm, < 0.5 deg). Its cost is that of PGS within about 15 %: a physics step with the
-  gripped object costs about 45 µs instead of 12 µs, the closed chain's constraint solve either way.
-* ``physics_dt = 0.01 s`` by default: the hydrodynamic forces are explicit, and the stiffest explicit
-  term is the one-step-lagged residual added mass (ratio 0.24, independent of ``dt``, see
-  :mod:`uvdms_gym.physics.hydro`); the damping terms are far below their explicit limit ``dt d / m < 2`` (vehicle
-  ``0.01 * 290 / 130``, links ``< 0.1`` below 10 m/s); the 1-DOF surge, heave and yaw responses match
-  their ODEs within about 1 % (the surge residue is the pitch coupling of the low centre of gravity,
-  unchanged at ``dt = 0.002``); the grasp welds stay within 0.2 mm (tested). Smaller ``dt`` costs
-  proportionally more and buys little; larger ``dt`` grows the grasp drift as ``dt^2``.
-* cost (``uvdms bench sim``, same states, median): bare ``stepSimulation`` 18-24 µs, one physics step with
-  hydrodynamics 2.7x that (3.2x before the compiled link loop), the rest being the state read, the
-  arithmetic and the 15 force calls.
-* caution for controllers: at straight arms the roll joints 1, 3, 5 have tiny effective inertias
-  (``1 / (M^-1)_ii`` = 4e-4 to 8e-4 kg m^2), so torques near ``tau_max`` spin them beyond
-  :data:`QDOT_LIMIT` within one step (:class:`PhysicsError`).
-
-Per physics step (:meth:`UVDMSSim.step` runs ``n_substeps`` of them with the same ``tau``): one
-``getLinkStates`` call reads the body origin (the ``added_mass`` link sits there) and the 12 moving links
-with ``computeLinkVelocity=1, computeForwardKinematics=1``; the vehicle's loads are evaluated in plain float
-arithmetic, the 12 links' in one compiled call (:func:`uvdms_gym.physics.hydro.link_forces_world`); the vehicle
-wrench (control ``tau_v`` plus hydrodynamics, converted from the body frame) is applied at the body origin as
-a force and a torque in ``WORLD_FRAME``, each link's drag and buoyancy at its midpoint; joint torques via
-``TORQUE_CONTROL``; then ``stepSimulation``. PyBullet clears external forces *and* joint torques after every
-``stepSimulation``, so all are reapplied every physics step. Every PyBullet state query copies its whole
-state buffer, so the state is read once per physics state: the sanity check at the end of :meth:`step`
-caches its read, and :meth:`state`, the object queries and the first substep's velocity loop reuse it until
-the next ``stepSimulation`` or reset (``docs/ARCHITECTURE.md``, Performance). With an ocean current
-(:meth:`UVDMSSim.set_current`) the same loads act on the velocities relative to the water; without one the step
-runs exactly the formulas above (one flag test per load group, no extra arithmetic).
+The physics step (:meth:`UVDMSSim.step`, the hot path) is in :mod:`uvdms_gym.physics.stepping`, with what it does
+per physics step and why it reads the state once per physics state.
 
 Failures are never silent: an invalid ``tau`` raises :class:`ValueError`, saturation is reported in
-:class:`StepInfo`, and a state that is non-finite or beyond the sanity bounds :data:`NU_LIMIT`,
-:data:`QDOT_LIMIT`, :data:`POSITION_LIMIT` raises :class:`PhysicsError` (the simulator must then be
+:class:`~uvdms_gym.physics.state.StepInfo`, and a state that is non-finite or beyond the sanity bounds of
+:mod:`uvdms_gym.physics.state` raises :class:`~uvdms_gym.physics.state.PhysicsError` (the simulator must then be
 reset).
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 import sys
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from types import MappingProxyType, TracebackType
 
 import numpy as np
 import pybullet as pb
 from pybullet_utils import bullet_client
 
-from uvdms_gym.physics import frames, model, render
+from uvdms_gym.physics import frames, render
+from uvdms_gym.physics.body import configure_engine, load_body
+from uvdms_gym.physics.contacts import ContactMonitor
+from uvdms_gym.physics.grasp import Grasp, RigidGrasp
 from uvdms_gym.physics.hydro import (
     HydroCoefficients,
     HydroScale,
-    hydro_coefficients,
     link_forces_world,
-    link_table,
 )
-from uvdms_gym.physics.obstacle_bodies import OBJECT_GROUP, OBSTACLE_GROUP, ROBOT_GROUP, ObstacleBodies
+from uvdms_gym.physics.obstacle_bodies import ObstacleBodies
 from uvdms_gym.physics.obstacles import Obstacle
-from uvdms_gym.physics.params import ARM_SIDES, GRAVITY, JOINT_NAMES, UVDMSParams
+from uvdms_gym.physics.params import UVDMSParams
+from uvdms_gym.physics.state import (
+    SimState,
+    base_state,
+    state_from_raw,
+)
+from uvdms_gym.physics.stepping import Stepping
+from uvdms_gym.physics.water import Water
 from uvdms_gym.utils.display import require_display
 from uvdms_gym.utils.io import quiet_c_stream
+from uvdms_gym.utils.validation import finite_vector
 
-NU_LIMIT = 50.0
-"""Sanity bound on every component of ``nu`` (m/s, rad/s); beyond it the state is a blow-up."""
-QDOT_LIMIT = 100.0
-"""Sanity bound on every joint rate, rad/s."""
-POSITION_LIMIT = 1.0e4
-"""Sanity bound on the vehicle's and the object's NED position, m."""
-MAX_JOINT_VELOCITY = 10.0 * QDOT_LIMIT
-"""PyBullet's joint-rate clamp (default 100 rad/s, a silent non-physical cap) is raised above
-:data:`QDOT_LIMIT` so that the sanity check, not the clamp, decides."""
-GRASP_MAX_FORCE = 1.0e6
-"""Maximum force of each grasp constraint (PyBullet's default 500 N could let the chain slip), N."""
-GRASP_TOLERANCE = (1.0e-3, math.radians(0.5))
-"""Largest position (m) and angle (rad) mismatch between the two grasp frames accepted by
-``reset(..., with_object=True)``: the object is welded to both, so they must coincide."""
-MIN_VIRTUAL_MASS = model.TINY_MASS
-"""Floor on the virtual added-mass link's mass and inertia when :attr:`HydroScale.added_mass` is 0."""
-
-CONSTRAINT_ERP = 0.8
-"""Error reduction parameter of the (non-contact) constraints: the fraction of a position error of the
-grasp welds and joint limits removed per physics step [D] (PyBullet's default 0.2 leaves several times
-more drift, see the module docstring)."""
-CONSTRAINT_CFM = 1.0e-9
-"""Global constraint force mixing: a tiny regularisation for the direct solver at singular (e.g.
-straight-arm) configurations of the closed chain."""
-
-_WORLD = pb.WORLD_FRAME
-_TORQUE = pb.TORQUE_CONTROL
 _get_link_states = pb.getLinkStates
-_apply_force = pb.applyExternalForce
-_apply_torque = pb.applyExternalTorque
-_motor_array = pb.setJointMotorControlArray
-_step_simulation = pb.stepSimulation
-_base_pose = pb.getBasePositionAndOrientation
-_base_velocity = pb.getBaseVelocity
 _joint_states = pb.getJointStates
-_closest_points = pb.getClosestPoints
-_contact_points = pb.getContactPoints
-_perform_collision_detection = pb.performCollisionDetection
-_chain = itertools.chain.from_iterable
-_fromiter = np.fromiter
 _arctan2 = np.arctan2
 _arcsin = np.arcsin
 
 
-class PhysicsError(RuntimeError):
-    """The simulation blew up: a state became non-finite or left the documented sanity bounds.
-
-    Raised by :meth:`UVDMSSim.step` instead of ever returning NaN; the simulator must be reset.
-    """
-
-
-@dataclass(frozen=True)
-class SimState:
-    """State of the system in NED/FRD (docs/MODEL.md section 1).
-
-    Attributes:
-        eta: vehicle pose ``[x y z phi theta psi]`` (NED position of the body origin, ZYX Euler).
-        nu: body velocity ``[u v w p q r]`` at the body origin (FRD).
-        q: joint angles ``[q_l; q_r]`` (12; empty for a bare vehicle).
-        qdot: joint rates, same order.
-        t: simulated time since the last reset, s.
-    """
-
-    eta: np.ndarray
-    nu: np.ndarray
-    q: np.ndarray
-    qdot: np.ndarray
-    t: float
-
-    @property
-    def zeta(self) -> np.ndarray:
-        """System velocity ``[nu; qdot]`` (18)."""
-        return np.concatenate([self.nu, self.qdot])
-
-
-@dataclass(frozen=True)
-class StepInfo:
-    """What :meth:`UVDMSSim.step` applied.
-
-    Attributes:
-        tau: the generalized force actually applied (after saturation), ``[tau_v (6); tau_q (12)]``.
-        saturated: boolean mask, ``True`` where the requested component exceeded ``params.tau_max``.
-        t: simulated time after the step, s.
-        n_substeps: number of physics steps taken.
-    """
-
-    tau: np.ndarray
-    saturated: np.ndarray
-    t: float
-    n_substeps: int
-
-    @property
-    def any_saturated(self) -> bool:
-        """Whether any component was saturated."""
-        return True in self.saturated.tolist()  # (a list scan: ndarray.any() costs several times more)
-
-
-def _vector(value: object, n: int, name: str) -> np.ndarray:
-    """Validate a finite float vector of length ``n`` (``ValueError`` naming the problem)."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a numeric array of shape ({n},): {exc}") from None
-    if arr.shape != (n,):
-        raise ValueError(f"{name} must have shape ({n},), got shape {arr.shape}")
-    if np.isnan(arr).any():
-        raise ValueError(f"{name} contains NaN at indices {np.flatnonzero(np.isnan(arr)).tolist()}")
-    if np.isinf(arr).any():
-        raise ValueError(f"{name} contains inf at indices {np.flatnonzero(np.isinf(arr)).tolist()}")
-    return arr
-
-
-class UVDMSSim:
+class UVDMSSim(Stepping):
     """PyBullet simulation of the UVDMS with hydrodynamics (the benchmark's plant).
 
     Args:
@@ -250,65 +115,29 @@ class UVDMSSim:
         """Load the body and configure PyBullet (called once by the constructor)."""
         self._cid: int = self._client._client
         c = self._client
-        c.setGravity(0.0, 0.0, -GRAVITY)
-        with quiet_c_stream(sys.stdout):  # switching the solver prints two lines on the C stdout
-            c.setPhysicsEngineParameter(
-                fixedTimeStep=self._dt,
-                constraintSolverType=pb.CONSTRAINT_SOLVER_LCP_DANTZIG,
-                globalCFM=CONSTRAINT_CFM,
-                erp=CONSTRAINT_ERP,
-            )
-        path = model.write_urdf(model.build_urdf(self._params, arms=self._arms, hull_collision=self._outer))
-        # With self_collision, contacts between non-adjacent links are simulated (physical contact forces) and
-        # count_contacts() reads them from the contact manifold PyBullet builds during each step.
-        flags = pb.URDF_USE_INERTIA_FROM_FILE
-        if self._self_collision:
-            flags |= pb.URDF_USE_SELF_COLLISION | pb.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
-        self._body: int = c.loadURDF(str(path), flags=flags)
-        names = {"vehicle": -1}
-        for j in range(c.getNumJoints(self._body)):
-            names[c.getJointInfo(self._body, j)[12].decode()] = j
-        self._link_index = MappingProxyType(names)
-        joint_names = JOINT_NAMES if self._arms else ()
-        by_joint = {c.getJointInfo(self._body, j)[1].decode(): j for j in range(c.getNumJoints(self._body))}
-        self._joints: list[int] = [by_joint[n] for n in joint_names]
+        configure_engine(c, self._dt)
+        robot = load_body(c, self._params, arms=self._arms, outer=self._outer, self_collision=self._self_collision)
+        self._body, self._link_index, self._joints = robot
+        names = self._link_index
         self._n_joints = len(self._joints)
         self._tau_max = np.asarray(self._params.tau_max, dtype=float)[: 6 + self._n_joints]
-        if self._joints:
-            c.setJointMotorControlArray(self._body, self._joints, pb.VELOCITY_CONTROL, forces=[0.0] * self._n_joints)
-        for link in names.values():
-            c.changeDynamics(self._body, link, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0)
-        for j in self._joints:  # gear-train viscous friction (params.ArmParams.joint_friction)
-            c.changeDynamics(self._body, j, jointDamping=self._params.arm.joint_friction)
-        for j in self._joints:  # PyBullet silently clamps joint rates at 100 rad/s: let PhysicsError see them
-            c.changeDynamics(self._body, j, maxJointVelocity=MAX_JOINT_VELOCITY)
         self._am_link = names["added_mass"]
         # moving links in the order of q (their link index equals their joint index)
         self._state_links = [self._am_link, *self._joints]
         self._r_g = np.array(self._params.vehicle.r_g, dtype=float)
-        if self._outer:  # the robot's collision group, explicitly (obstacle_bodies.py)
-            for link in names.values():
-                c.setCollisionFilterGroupMask(self._body, link, ROBOT_GROUP, ROBOT_GROUP | OBSTACLE_GROUP)
-        self._obj: int | None = None
+        self._grasp: Grasp = RigidGrasp(
+            c, self._body, self._link_index, self._params, physics_dt=self._dt, collision=self._outer
+        )
+        self._contacts = ContactMonitor(c, robot, self._params, self_collision=self._self_collision)
         self._obstacle_bodies = ObstacleBodies(c)
         self._markers: render.ReferenceMarkers | None = None  # created by show_reference (rendering only)
         self._has_obstacles = False
-        self._grasp_constraints: list[int] = []
-        self._contact_pairs: set[tuple[int, int]] = set()
-        self._needs_collision_pass = True
         self._t = 0.0
         self._raw: tuple | None = None  # cached raw state read, see _read_state
-        self._raw_obj: tuple | None = None  # the same for the object, see _read_object
-        self._nu_prev = (0.0, 0.0, 0.0)  # previous substep's (relative) body velocity, for the lagged added mass
-        self._obj_p_prev = (0.0, 0.0, 0.0)
-        self._has_current = False  # the no-current path evaluates exactly the formulas without a current
-        self._current_ned = (0.0, 0.0, 0.0)
-        self._current_world = (0.0, 0.0, 0.0)
-        self._scale = HydroScale()
-        self._hydro: HydroCoefficients = hydro_coefficients(self._params, self._scale, arms=self._arms)
+        self._water = wa = Water(c, self._body, self._am_link, self._params, arms=self._arms)
         self.set_hydro_scale(hydro_scale or HydroScale())
         # compile (or load from numba's disk cache) the link-force kernel now rather than in the first step
-        link_forces_world(np.zeros(7 * self._link_table.shape[0]), self._link_table, self._link_forces)
+        link_forces_world(np.zeros(7 * wa.link_table.shape[0]), wa.link_table, wa.link_forces)
         self.reset(np.zeros(6))
 
     # ------------------------------------------------------------------ properties
@@ -331,7 +160,12 @@ class UVDMSSim:
     @property
     def object_id(self) -> int | None:
         """PyBullet unique id of the gripped object, or ``None``."""
-        return self._obj
+        return self._grasp.object_id
+
+    @property
+    def grasp(self) -> Grasp:
+        """The gripped object and its closed chain (a :class:`~uvdms_gym.physics.grasp.RigidGrasp`)."""
+        return self._grasp
 
     @property
     def link_index(self) -> MappingProxyType[str, int]:
@@ -361,17 +195,17 @@ class UVDMSSim:
     @property
     def hydro_scale(self) -> HydroScale:
         """The current model-mismatch factors."""
-        return self._scale
+        return self._water.scale
 
     @property
     def hydro(self) -> HydroCoefficients:
         """The hydrodynamic coefficients in use."""
-        return self._hydro
+        return self._water.hydro
 
     @property
     def current(self) -> np.ndarray:
         """The ocean current ``v_c`` (NED, m/s; zeros without a current), see :meth:`set_current`."""
-        return np.array(self._current_ned)
+        return np.array(self._water.current_ned)
 
     @property
     def closed(self) -> bool:
@@ -423,25 +257,11 @@ class UVDMSSim:
         self._check_open()
         if not isinstance(scale, HydroScale):
             raise TypeError(f"scale must be a HydroScale, got {type(scale).__name__}")
-        self._scale = scale
-        self._hydro = h = hydro_coefficients(self._params, scale, arms=self._arms)
-        self._raw = self._raw_obj = None
-        self._client.changeDynamics(
-            self._body,
-            self._am_link,
-            mass=max(h.rigid_added_mass, MIN_VIRTUAL_MASS),
-            localInertiaDiagonal=[max(i, MIN_VIRTUAL_MASS) for i in h.rigid_added_inertia],
-        )
-        # the weight cancellation follows the mass actually set (floored), its centroid shift is negligible
-        self._up_force = h.up_force + (max(h.rigid_added_mass, MIN_VIRTUAL_MASS) - h.rigid_added_mass) * GRAVITY
-        self._up_centroid = h.up_centroid
-        # the vehicle's constants as one flat tuple (one unpacking per physics step instead of attribute lookups)
-        self._vehicle_consts = (*h.d_lin, *h.d_quad, *h.a_res, self._up_force, *self._up_centroid)
-        self._link_table = link_table(h)
-        self._link_forces = np.empty((self._link_table.shape[0], 3))
-        self._n_link_state = 7 * self._link_table.shape[0]  # [orientation xyzw, velocity] per link
-        if self._obj is not None:
-            self._set_object_dynamics()
+        self._raw = None
+        self._grasp.invalidate()
+        self._water.set_scale(scale)
+        if self._grasp.object_id is not None:
+            self._grasp.set_dynamics(self._water.hydro)
 
     def set_current(self, v_c_ned: Sequence[float] | np.ndarray | None) -> None:
         """Set a uniform, irrotational ocean current ``v_c`` (NED, m/s); ``None`` or zeros: no current.
@@ -463,39 +283,14 @@ class UVDMSSim:
             ValueError: not a finite 3-vector.
         """
         self._check_open()
-        v = (0.0, 0.0, 0.0) if v_c_ned is None else tuple(_vector(v_c_ned, 3, "current").tolist())
-        if v == self._current_ned:
+        v = (0.0, 0.0, 0.0) if v_c_ned is None else tuple(finite_vector(v_c_ned, 3, "current").tolist())
+        dv_world = self._water.set_current(v)
+        if dv_world is None:
             return
-        old_world = np.array(self._current_world)
-        self._current_ned = v
-        self._current_world = tuple(frames.ned_to_world(np.array(v)).tolist())
-        self._has_current = v != (0.0, 0.0, 0.0)
-        self._shift_lag_states(np.array(self._current_world) - old_world)
-
-    def _shift_lag_states(self, dv_world: np.ndarray) -> None:
-        """Re-express the lagged added-mass states relative to a current changed by ``dv_world`` (z-up world)."""
         _, quat, _, _, _ = self._read_state()
-        dv_body = frames.quat_xyzw_to_rot(np.array(quat)).T @ dv_world  # R_WB^T dv_W = R_NB^T dv_NED
-        self._nu_prev = tuple((np.array(self._nu_prev) - dv_body).tolist())
-        if self._obj is not None:
-            _, oquat, _, _ = self._read_object()
-            e = frames.quat_xyzw_to_rot(np.array(oquat))[:, 1]  # object axis (its y) in the world
-            dp = self._hydro.obj_added_mass * float(dv_world @ e) * e
-            self._obj_p_prev = tuple((np.array(self._obj_p_prev) - dp).tolist())
-
-    def _set_object_dynamics(self) -> None:
-        o, h = self._params.obj, self._hydro
-        m = o.mass
-        i_t = m * (3.0 * o.radius**2 + o.length**2) / 12.0
-        i_ax = 0.5 * m * o.radius**2
-        self._client.changeDynamics(
-            self._obj,
-            -1,
-            mass=m + h.obj_added_mass,
-            localInertiaDiagonal=[i_t + h.obj_added_inertia, i_ax, i_t + h.obj_added_inertia],
-            linearDamping=0.0,
-            angularDamping=0.0,
-        )
+        self._water.shift_lag(dv_world, quat)
+        if self._grasp.object_id is not None:
+            self._grasp.shift_lag(dv_world, self._water.hydro)
 
     # ------------------------------------------------------------------ reset / state
     def reset(
@@ -516,8 +311,8 @@ class UVDMSSim:
             qdot: joint rates (default 0).
             with_object: create the cylinder at the ``right_grasp`` frame, moving with it, and weld it to
                 both ``left_grasp`` and ``right_grasp`` (two fixed constraints). The two grasp frames must
-                coincide within :data:`GRASP_TOLERANCE` (e.g. equal joint angles, as at ``q = 0``).
-                Without it, any existing object and its constraints are removed.
+                coincide within :data:`~uvdms_gym.physics.grasp.GRASP_TOLERANCE` (e.g. equal joint angles, as at
+                ``q = 0``). Without it, any existing object and its constraints are removed.
 
         Outer obstacles (:meth:`set_obstacles`) are removed too, before the object, so that a caller that sets them
         again after the reset (as ``uvdms/TransportObstacles-v1`` does for every episode) builds the bodies in the
@@ -528,159 +323,39 @@ class UVDMSSim:
         """
         self._check_open()
         nj = self._n_joints
-        eta = _vector(eta, 6, "eta")
-        nu = np.zeros(6) if nu is None else _vector(nu, 6, "nu")
-        q = np.zeros(nj) if q is None else _vector(q, nj, "q")
-        qdot = np.zeros(nj) if qdot is None else _vector(qdot, nj, "qdot")
+        eta = finite_vector(eta, 6, "eta")
+        nu = np.zeros(6) if nu is None else finite_vector(nu, 6, "nu")
+        q = np.zeros(nj) if q is None else finite_vector(q, nj, "q")
+        qdot = np.zeros(nj) if qdot is None else finite_vector(qdot, nj, "qdot")
         if with_object and not self._arms:
             raise ValueError("with_object=True needs the arms (arms=False was given)")
         if self._has_obstacles:  # removed before the object, re-added after it: the same body order every episode
             self._obstacle_bodies.clear()
             self._has_obstacles = False
-        self._remove_object()
+        self._grasp.detach()
         c = self._client
-        r_wb = frames.body_rot_ned_to_world(frames.euler_to_rot(eta[3:]))
-        r_g_w = r_wb @ self._r_g
-        p_com = frames.ned_to_world(eta[:3]) + r_g_w
-        w_w = r_wb @ nu[3:]
-        v_com = r_wb @ nu[:3] + np.cross(w_w, r_g_w)
-        c.resetBasePositionAndOrientation(self._body, p_com.tolist(), frames.rot_to_quat_xyzw(r_wb).tolist())
+        p_com, quat, v_com, w_w, r_wb = base_state(eta, nu, self._r_g)
+        c.resetBasePositionAndOrientation(self._body, p_com.tolist(), quat.tolist())
         c.resetBaseVelocity(self._body, v_com.tolist(), w_w.tolist())
         for k, j in enumerate(self._joints):
             c.resetJointState(self._body, j, float(q[k]), float(qdot[k]))
         self._t = 0.0
-        self._raw = self._raw_obj = None
-        self._nu_prev = (float(nu[0]), float(nu[1]), float(nu[2]))
-        if self._has_current:  # the lag state is the relative velocity nu_r = nu - R_NB^T v_c
-            r_nb = frames.body_rot_world_to_ned(r_wb)
-            self._nu_prev = tuple((nu[:3] - r_nb.T @ np.array(self._current_ned)).tolist())
+        self._raw = None
+        self._grasp.invalidate()
+        self._water.reset_lag(nu, r_wb)
         if with_object:
-            self._create_object()
-        self._needs_collision_pass = True
+            self._grasp.attach(self._water.hydro, self._water.current)
+        self._contacts.needs_pass = True
         return self.state()
-
-    def _remove_object(self) -> None:
-        for cid in self._grasp_constraints:
-            self._client.removeConstraint(cid)
-        self._grasp_constraints = []
-        if self._obj is not None:
-            self._client.removeBody(self._obj)
-            self._obj = None
-
-    def _create_object(self) -> None:
-        c = self._client
-        grasp = {}
-        for side in ARM_SIDES:
-            ls = c.getLinkState(
-                self._body, self._link_index[f"{side}_grasp"], computeLinkVelocity=1, computeForwardKinematics=1
-            )
-            grasp[side] = ls
-        (pl, ol), (pr, orr) = (grasp["left"][4:6]), (grasp["right"][4:6])
-        dp = float(np.linalg.norm(np.subtract(pl, pr)))
-        r_rel = frames.quat_xyzw_to_rot(np.array(ol)).T @ frames.quat_xyzw_to_rot(np.array(orr))
-        dang = float(np.arccos(np.clip((np.trace(r_rel) - 1.0) / 2.0, -1.0, 1.0)))
-        if dp > GRASP_TOLERANCE[0] or dang > GRASP_TOLERANCE[1]:
-            raise ValueError(
-                f"with_object=True: the grasp frames differ by {dp * 1e3:.3f} mm and {math.degrees(dang):.3f} deg "
-                f"(tolerance {GRASP_TOLERANCE[0] * 1e3:.1f} mm, {math.degrees(GRASP_TOLERANCE[1]):.1f} deg); "
-                "give joint angles at which both grippers hold the object (e.g. q_left == q_right)"
-            )
-        path = model.write_urdf(model.build_object_urdf(self._params, collision=self._outer))
-        self._obj = c.loadURDF(str(path), basePosition=pr, baseOrientation=orr, flags=pb.URDF_USE_INERTIA_FROM_FILE)
-        if self._outer:  # the object collides with outer obstacles only, never with the arms holding it
-            c.setCollisionFilterGroupMask(self._obj, -1, OBJECT_GROUP, OBSTACLE_GROUP)
-        else:
-            c.setCollisionFilterGroupMask(self._obj, -1, 0, 0)
-        self._set_object_dynamics()
-        c.resetBaseVelocity(self._obj, grasp["right"][6], grasp["right"][7])
-        for side in ARM_SIDES:
-            cid = c.createConstraint(
-                self._body,
-                self._link_index[f"{side}_grasp"],
-                self._obj,
-                -1,
-                pb.JOINT_FIXED,
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0, 1.0],
-                [0.0, 0.0, 0.0, 1.0],
-            )
-            c.changeConstraint(cid, maxForce=GRASP_MAX_FORCE)
-            self._grasp_constraints.append(cid)
-        self._obj_p_prev = self._object_axial_momentum()
-
-    def _object_axial_momentum(self) -> tuple[float, float, float]:
-        """Axial added momentum ``m_a (v_r . e) e`` of the object (world frame; ``v_r = v - v_c``)."""
-        _, (qx, qy, qz, qw) = _base_pose(self._obj, self._cid)
-        (vx, vy, vz), _ = _base_velocity(self._obj, self._cid)
-        if self._has_current:  # relative to the water
-            cx, cy, cz = self._current_world
-            vx, vy, vz = vx - cx, vy - cy, vz - cz
-        ex, ey, ez = 2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw)
-        k = self._hydro.obj_added_mass * (vx * ex + vy * ey + vz * ez)
-        return (k * ex, k * ey, k * ez)
-
-    def _read_state(self) -> tuple:
-        """Raw PyBullet state ``(p_com, quat, v_com, w, joint_states)``, read once per physics state.
-
-        The read is cached until the state changes (a physics step or a reset): :meth:`step` reads it for its
-        sanity check, and the :meth:`state` that follows, and the velocity loop of the next step's first
-        substep, reuse it instead of querying PyBullet again.
-        """
-        raw = self._raw
-        if raw is None:
-            cid, body = self._cid, self._body
-            p_com, quat = _base_pose(body, cid)
-            v_com, w_w = _base_velocity(body, cid)
-            js = _joint_states(body, self._joints, cid) if self._joints else ()
-            raw = self._raw = (p_com, quat, v_com, w_w, js)
-        return raw
-
-    def _read_object(self) -> tuple:
-        """Raw PyBullet object state ``(p, quat, v, w)`` (world frame), cached like :meth:`_read_state`."""
-        raw = self._raw_obj
-        if raw is None:
-            obj = self._require_object()
-            p, quat = _base_pose(obj, self._cid)
-            v, w = _base_velocity(obj, self._cid)
-            raw = self._raw_obj = (p, quat, v, w)
-        return raw
 
     def state(self) -> SimState:
         """The current state in NED/FRD, converted from PyBullet's base (COM) pose and velocity.
 
-        (Double precision: ``getLinkStates`` would be one query but returns single-precision values.)
-        The conversion is written in scalars around the few numpy calls whose rounding it must keep (the
-        3x3 matrix products and the inverse trigonometric functions give the same bits as
-        :mod:`uvdms_gym.physics.frames`; plain Python products and ``math.atan2`` would differ in the last bit).
+        (Double precision: ``getLinkStates`` would be one query but returns single-precision values;
+        :func:`uvdms_gym.physics.state.state_from_raw` converts.)
         """
         self._check_open()
-        (px, py, pz), (x, y, z, w), (vx, vy, vz), (wx, wy, wz), js = self._read_state()
-        # R_WB, the expressions of frames.quat_xyzw_to_rot
-        r_wb = np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-            ]
-        )
-        rx, ry, rz = (r_wb @ self._r_g).tolist()  # r_G in world axes
-        # Euler angles of R_NB = S R_WB (frames.rot_to_euler); the +0.0 keeps the signed zeros of the product
-        (r00, _, _), (r10, _, _), (r20, r21, r22) = r_wb.tolist()
-        phi, psi = _arctan2(np.array([0.0 - r21, 0.0 - r10]), np.array([0.0 - r22, r00 + 0.0])).tolist()
-        theta = -float(_arcsin(min(max(0.0 - r20, -1.0), 1.0)))
-        eta = np.array([px - rx, -(py - ry), -(pz - rz), phi, theta, psi])
-        # v_origin = v_com - w x r_g
-        v = np.array([vx - (wy * rz - wz * ry), vy - (wz * rx - wx * rz), vz - (wx * ry - wy * rx)])
-        r_bw = r_wb.T
-        nu = np.concatenate([r_bw @ v, r_bw @ np.array([wx, wy, wz])])
-        if js:
-            q = np.array([s[0] for s in js])
-            qdot = np.array([s[1] for s in js])
-        else:
-            q = qdot = np.zeros(0)
-        return SimState(eta=eta, nu=nu, q=q, qdot=qdot, t=self._t)
+        return state_from_raw(self._read_state(), self._r_g, self._t)
 
     def link_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """NED position and rotation matrix (``R_N,link``) of a link frame (e.g. ``"right_grasp"``)."""
@@ -693,12 +368,6 @@ class UVDMSSim:
         r_w = frames.quat_xyzw_to_rot(np.array(ls[5]))
         return frames.world_to_ned(np.array(ls[4])), frames.body_rot_world_to_ned(r_w)
 
-    def _require_object(self) -> int:
-        self._check_open()
-        if self._obj is None:
-            raise RuntimeError("no object: reset(..., with_object=True) first")
-        return self._obj
-
     def object_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Object pose: NED position of its centre (3) and ZYX Euler angles ``[phi, theta, psi]`` (3)."""
         p, rpy, _ = self.object_pose_rotation()
@@ -706,13 +375,13 @@ class UVDMSSim:
 
     def object_position(self) -> np.ndarray:
         """NED position of the object's centre (3)."""
-        p, _, _, _ = self._read_object()
-        return np.array([p[0], -p[1], -p[2]])  # frames.world_to_ned
+        self._check_open()
+        return self._grasp.position()
 
     def object_rotation(self) -> np.ndarray:
         """Object orientation as a rotation matrix ``R_N,object`` (NED)."""
-        _, quat, _, _ = self._read_object()
-        return frames.body_rot_world_to_ned(frames.quat_xyzw_to_rot(quat))
+        self._check_open()
+        return self._grasp.rotation()
 
     def object_pose_rotation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`object_pose` and :meth:`object_rotation` from one conversion: ``(p, rpy, R_N,object)``.
@@ -727,26 +396,17 @@ class UVDMSSim:
 
     def object_velocity(self) -> np.ndarray:
         """Object twist ``[v; w]`` (6): velocity of its centre and angular velocity, both in NED."""
-        _, _, v, w = self._read_object()
-        return np.concatenate([frames.world_to_ned(np.array(v)), frames.world_to_ned(np.array(w))])
+        self._check_open()
+        return self._grasp.velocity()
 
     def grasp_forces(self) -> np.ndarray:
         """Wrenches exerted by the end effectors on the object, ``(2, 6)`` rows ``[left; right]``.
 
-        Each row is ``[force (3); moment (3)]`` in NED, about the object's centre (the grasp point), from
-        the last physics step's constraint impulses (``getConstraintState``, impulse / dt). These are the
-        paper's ``F_e``. Zeros without an object.
+        Each row is ``[force (3); moment (3)]`` in NED about the object's centre, the paper's ``F_e``
+        (:meth:`uvdms_gym.physics.grasp.RigidGrasp.forces`). Zeros without an object.
         """
         self._check_open()
-        out = np.zeros((2, 6))
-        for k, cid in enumerate(self._grasp_constraints):
-            f = np.array(self._client.getConstraintState(cid), dtype=float)
-            side = ARM_SIDES[k]
-            ls = self._client.getLinkState(self._body, self._link_index[f"{side}_grasp"], computeForwardKinematics=1)
-            r_w = frames.quat_xyzw_to_rot(np.array(ls[5]))  # angular rows act about the grasp frame's axes
-            out[k, :3] = frames.S @ (_GRASP_SIGN * f[:3])
-            out[k, 3:] = frames.S @ (r_w @ (_GRASP_SIGN * f[3:6]))
-        return out
+        return self._grasp.forces()
 
     def zeta(self) -> np.ndarray:
         """System velocity ``[nu; qdot]`` (a cheaper :meth:`state` for velocity loops)."""
@@ -762,39 +422,15 @@ class UVDMSSim:
         return out
 
     def count_contacts(self, pairs: Sequence[tuple[str, str]] | None = None) -> int:
-        """Number of touching robot-part pairs (PyBullet's closest-point or contact report).
+        """Number of touching robot-part pairs (:meth:`uvdms_gym.physics.contacts.ContactMonitor.count`).
 
         Args:
             pairs: link-name pairs to check (e.g. the pairs whose exact distance is near contact); default: all
                 monitored pairs, i.e. right-arm vs left-arm links and arm links 1-6 vs frame plates (97 pairs,
                 the pairs the 18 distances of docs/MODEL.md section 4 watch).
-
-        Without simulated self-collision each pair is one ``getClosestPoints`` query with a zero distance
-        threshold (about 2 µs a pair). With it, the pairs are read from the contact manifold of the last step.
         """
         self._check_open()
-        li, b, cid = self._link_index, self._body, self._cid
-        if pairs is None:
-            if not self._contact_pairs:
-                plates = [li[f"plate_{pl.name}"] for pl in self._params.plates]
-                n = self._params.arm.n_links if self._arms else 0
-                monitored = {(li[f"right_link{i}"], li[f"left_link{j}"]) for i in range(n) for j in range(n)}
-                monitored |= {(li[f"{s}_link{i}"], p) for s in ARM_SIDES for i in range(1, n) for p in plates}
-                self._contact_pairs = monitored
-            idx = self._contact_pairs
-        else:
-            try:
-                idx = {(li[a], li[c]) for a, c in pairs}
-            except KeyError as exc:
-                raise ValueError(f"unknown link name {exc.args[0]!r} in pairs") from None
-        if not self._self_collision:
-            return sum(1 for a, c in idx if _closest_points(b, b, 0.0, a, c, physicsClientId=cid))
-        if self._needs_collision_pass:
-            _perform_collision_detection(cid)
-            self._needs_collision_pass = False
-        both = idx | {(c, a) for a, c in idx}
-        touching = {(cp[3], cp[4]) for cp in _contact_points(b, b, physicsClientId=cid) if cp[8] <= 0.0} & both
-        return len({tuple(sorted(pair)) for pair in touching})
+        return self._contacts.count(pairs)
 
     def render_rgb(
         self, width: int = 320, height: int = 240, *, camera_yaw_deg: float = render.CAMERA_YAW_OFFSET_DEG
@@ -864,248 +500,4 @@ class UVDMSSim:
         A part is a link name (``"vehicle"``: the hull) or ``"object"``; an obstacle is its index in :attr:`obstacles`.
         """
         self._check_open()
-        ids, cid, n = self._obstacle_bodies.body_ids, self._cid, 0
-        for part, k in pairs:
-            body, link = (self._require_object(), -1) if part == "object" else (self._body, self._link_index[part])
-            n += bool(_closest_points(body, ids[k], 0.0, link, -1, physicsClientId=cid))
-        return n
-
-    # ------------------------------------------------------------------ stepping
-    def bare_step(self) -> None:
-        """One ``stepSimulation`` with no hydrodynamics and no inputs (for benchmarks; advances ``t``)."""
-        _step_simulation(self._cid)
-        self._raw = self._raw_obj = None
-        self._t += self._dt
-        if self._has_obstacles:
-            self._obstacle_bodies.place(self._t)
-
-    def step(
-        self,
-        tau: np.ndarray,
-        n_substeps: int = 1,
-        feedback: Callable[[np.ndarray], np.ndarray] | None = None,
-    ) -> StepInfo:
-        """Apply the generalized force ``tau`` for ``n_substeps`` physics steps.
-
-        Args:
-            tau: ``[tau_v (6, body-frame wrench about the body origin); tau_q left (6); tau_q right (6)]``
-                (6 components for the bare vehicle). Saturated at ``params.tau_max``.
-            n_substeps: number of physics steps (``>= 1``) with this input.
-            feedback: optional ``zeta -> tau`` law evaluated at every physics step on the velocity the step
-                reads anyway (a velocity loop at the physics rate without a second state query). ``tau`` is
-                then only the input of a controller that ignores it (pass zeros); the returned ``tau`` is the
-                last substep's and ``saturated`` the union over substeps.
-
-        Returns:
-            What was applied (saturated components are reported, never silently clipped).
-
-        Raises:
-            ValueError: ``tau`` has the wrong shape or contains NaN/inf; bad ``n_substeps``.
-            PhysicsError: the state became non-finite or left the sanity bounds (reset required).
-        """
-        self._check_open()
-        tau_max = self._tau_max
-        try:
-            tau = np.array(tau, dtype=float)  # a copy: the caller's array is never modified
-        except (TypeError, ValueError):
-            pass  # _vector below names the problem
-        if not isinstance(tau, np.ndarray) or tau.shape != tau_max.shape:
-            tau = _vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
-        if int(n_substeps) != n_substeps or n_substeps < 1:
-            raise ValueError(f"n_substeps must be an integer >= 1, got {n_substeps!r}")
-        within = np.abs(tau) <= tau_max  # False for NaN/inf and for saturated components
-        saturated = ~within
-        if False in within.tolist():  # (a list scan: ndarray.all() costs several times more on 18 entries)
-            if not np.isfinite(tau).all():
-                tau = _vector(tau, tau_max.size, "tau")  # raises the detailed ValueError
-            tau = np.clip(tau, -tau_max, tau_max)
-        tau_list = tau.tolist()
-        tau_v, tau_q = tau_list[:6], tau_list[6:]
-        self._fb_saturated = saturated
-        substep = self._substep
-        for _ in range(int(n_substeps)):
-            substep(tau_v, tau_q, feedback)
-        self._needs_collision_pass = False
-        if feedback is not None:
-            tau, saturated = self._fb_tau, self._fb_saturated
-        self._check_state()
-        return StepInfo(tau=tau, saturated=saturated, t=self._t, n_substeps=int(n_substeps))
-
-    def _feedback(
-        self, feedback: Callable[[np.ndarray], np.ndarray], nu: tuple[float, ...]
-    ) -> tuple[list[float], list[float]]:
-        """Evaluate a per-substep feedback law at ``zeta = [nu; qdot]``; validate and saturate its output.
-
-        ``qdot`` comes from the cached state read when there is one (the first substep of a step follows the
-        previous step's state check), else from one ``getJointStates``.
-        """
-        if self._joints:
-            raw = self._raw
-            js = raw[4] if raw is not None else _joint_states(self._body, self._joints, self._cid)
-            z = np.array([*nu, *[s[1] for s in js]])
-        else:
-            z = np.array(nu)
-        t = np.asarray(feedback(z), dtype=float)
-        tau_max = self._tau_max
-        if t.shape != tau_max.shape:
-            raise ValueError(f"feedback must return a finite tau of shape {tau_max.shape}, got {t!r}")
-        within = np.abs(t) <= tau_max  # False for NaN/inf and for saturated components
-        if False in within.tolist():
-            if not np.isfinite(t).all():
-                raise ValueError(f"feedback must return a finite tau of shape {tau_max.shape}, got {t!r}")
-            t = np.clip(t, -tau_max, tau_max)
-            self._fb_saturated = self._fb_saturated | ~within
-        self._fb_tau = t
-        t_list = t.tolist()
-        return t_list[:6], t_list[6:]
-
-    def _substep(
-        self, tau_v: list[float], tau_q: list[float], feedback: Callable[[np.ndarray], np.ndarray] | None = None
-    ) -> None:
-        """One physics step: read state, evaluate hydrodynamics (see :mod:`uvdms_gym.physics.hydro`), apply, step.
-
-        The vehicle in plain float arithmetic on the tuples PyBullet returns (numpy's per-call overhead exceeds
-        the arithmetic on these 3-vectors), the links in one compiled call; both in the operation order of
-        :mod:`uvdms_gym.physics.hydro`'s reference functions.
-        """
-        cid, body = self._cid, self._body
-        st = _get_link_states(body, self._state_links, 1, 1, cid)
-        origin, (qx, qy, qz, qw), _, _, _, _, (vx, vy, vz), (wx, wy, wz) = st[0]
-        # R_WB of the body (the added_mass link's frame is the body frame at the origin)
-        xx, yy, zz, xy, xz, yz = qx * qx, qy * qy, qz * qz, qx * qy, qx * qz, qy * qz
-        sx, sy, sz = qw * qx, qw * qy, qw * qz
-        r00, r01, r02 = 1.0 - 2.0 * (yy + zz), 2.0 * (xy - sz), 2.0 * (xz + sy)
-        r10, r11, r12 = 2.0 * (xy + sz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - sx)
-        r20, r21, r22 = 2.0 * (xz - sy), 2.0 * (yz + sx), 1.0 - 2.0 * (xx + yy)
-        # body velocity nu = R^T v (velocity of the origin, angular velocity)
-        u = r00 * vx + r10 * vy + r20 * vz
-        v = r01 * vx + r11 * vy + r21 * vz
-        w = r02 * vx + r12 * vy + r22 * vz
-        p = r00 * wx + r10 * wy + r20 * wz
-        q = r01 * wx + r11 * wy + r21 * wz
-        r = r02 * wx + r12 * wy + r22 * wz
-        if not abs(u) + abs(v) + abs(w) + abs(p) + abs(q) + abs(r) < 6.0 * NU_LIMIT:
-            self._fail(f"body velocity out of bounds or non-finite: nu = {[u, v, w, p, q, r]}")
-        if feedback is not None:
-            tau_v, tau_q = self._feedback(feedback, (u, v, w, p, q, r))
-        if self._has_current:  # from here on (u, v, w) is relative to the water: nu_r = nu - [R_NB^T v_c; 0]
-            kx, ky, kz = self._current_world  # R_WB^T v_c,W = R_NB^T v_c,NED
-            u, v, w = (
-                u - (r00 * kx + r10 * ky + r20 * kz),
-                v - (r01 * kx + r11 * ky + r21 * kz),
-                w - (r02 * kx + r12 * ky + r22 * kz),
-            )
-        # vehicle: damping + residual added mass (hydro.vehicle_wrench, inlined) + control
-        inv_dt = self._inv_dt
-        u0, v0, w0 = self._nu_prev
-        self._nu_prev = (u, v, w)
-        dl0, dl1, dl2, dl3, dl4, dl5, dq0, dq1, dq2, dq3, dq4, dq5, a1, a2, a3, up, cx, cy, cz = self._vehicle_consts
-        p1, p2, p3 = a1 * u, a2 * v, a3 * w
-        t0, t1, t2, t3, t4, t5 = tau_v
-        fx = t0 - (dl0 + dq0 * abs(u)) * u - a1 * (u - u0) * inv_dt + (p2 * r - p3 * q)
-        fy = t1 - (dl1 + dq1 * abs(v)) * v - a2 * (v - v0) * inv_dt + (p3 * p - p1 * r)
-        fz = t2 - (dl2 + dq2 * abs(w)) * w - a3 * (w - w0) * inv_dt + (p1 * q - p2 * p)
-        mx = t3 - (dl3 + dq3 * abs(p)) * p + (p2 * w - p3 * v)
-        my = t4 - (dl4 + dq4 * abs(q)) * q + (p3 * u - p1 * w)
-        mz = t5 - (dl5 + dq5 * abs(r)) * r + (p1 * v - p2 * u)
-        # upward hydrostatic force up at its body-fixed centroid c (world z up)
-        ox = r00 * cx + r01 * cy + r02 * cz
-        oy = r10 * cx + r11 * cy + r12 * cz
-        apply_force = _apply_force
-        apply_force(
-            body,
-            -1,
-            (r00 * fx + r01 * fy + r02 * fz, r10 * fx + r11 * fy + r12 * fz, r20 * fx + r21 * fy + r22 * fz + up),
-            origin,
-            _WORLD,
-            cid,
-        )
-        _apply_torque(
-            body,
-            -1,
-            (
-                r00 * mx + r01 * my + r02 * mz + oy * up,
-                r10 * mx + r11 * my + r12 * mz - ox * up,
-                r20 * mx + r21 * my + r22 * mz,
-            ),
-            _WORLD,
-            cid,
-        )
-        # arm links: buoyancy at the midpoint (= COM) + Morison drag (hydro.link_forces_world, compiled)
-        if tau_q:
-            links = st[1:]
-            forces = self._link_forces
-            states = _fromiter(_chain([ls[1] + ls[6] for ls in links]), float, self._n_link_state)
-            if self._has_current:  # Morison drag on the midpoint velocity relative to the water
-                states.reshape(-1, 7)[:, 4:] -= self._current_world
-            link_forces_world(states, self._link_table, forces)
-            world = _WORLD
-            for link, force, ls in zip(self._joints, forces.tolist(), links):
-                apply_force(body, link, force, ls[0], world, cid)
-            _motor_array(body, self._joints, _TORQUE, forces=tau_q, physicsClientId=cid)
-        if self._obj is not None:
-            self._object_hydro()
-        _step_simulation(cid)
-        self._raw = self._raw_obj = None
-        self._t += self._dt
-        if self._has_obstacles:
-            self._obstacle_bodies.place(self._t)
-
-    def _object_hydro(self) -> None:
-        """Apply the object's hydrodynamic wrench (:func:`uvdms_gym.physics.hydro.object_wrench`, inlined)."""
-        cid, obj, h = self._cid, self._obj, self._hydro
-        pos, (qx, qy, qz, qw) = _base_pose(obj, cid)
-        (vx, vy, vz), _ = _base_velocity(obj, cid)
-        if self._has_current:  # every term below acts on the velocity relative to the water
-            cx, cy, cz = self._current_world
-            vx, vy, vz = vx - cx, vy - cy, vz - cz
-        ex, ey, ez = 2.0 * (qx * qy - qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qx * qw)
-        vt = vx * ex + vy * ey + vz * ez
-        k = h.obj_added_mass * vt
-        p_ax = (k * ex, k * ey, k * ez)  # axial added momentum
-        p0x, p0y, p0z = self._obj_p_prev
-        self._obj_p_prev = p_ax
-        inv_dt = self._inv_dt
-        # Morison drag (hydro.morison_force), lift = buoyancy + weight cancel of the added mass, + dP_ax/dt
-        nx, ny, nz = vx - vt * ex, vy - vt * ey, vz - vt * ez
-        kvn = h.obj_kn * math.sqrt(nx * nx + ny * ny + nz * nz)
-        kvt = h.obj_kt * abs(vt) * vt
-        lift = h.obj_buoyancy + h.obj_added_mass * GRAVITY
-        force = (
-            (-kvn * nx - kvt * ex) + lift * 0.0 + (p_ax[0] - p0x) * inv_dt,
-            (-kvn * ny - kvt * ey) + lift * 0.0 + (p_ax[1] - p0y) * inv_dt,
-            (-kvn * nz - kvt * ez) + lift * 1.0 + (p_ax[2] - p0z) * inv_dt,
-        )
-        moment = (k * (vy * ez - vz * ey), k * (vz * ex - vx * ez), k * (vx * ey - vy * ex))
-        _apply_force(obj, -1, force, pos, _WORLD, cid)
-        _apply_torque(obj, -1, moment, _WORLD, cid)
-
-    def _fail(self, message: str) -> None:
-        raise PhysicsError(f"simulation blew up at t = {self._t:.4f} s: {message}; reset() required")
-
-    def _check_state(self) -> None:
-        """Raise :class:`PhysicsError` if the state is non-finite or beyond the documented sanity bounds."""
-        pos, _, vel, ang, js = self._read_state()  # cached for the state() that usually follows
-        # cheap conservative pre-check on PyBullet's COM velocity (components below NU_LIMIT / 2 imply
-        # |nu_i| <= sqrt(3) NU_LIMIT / 2 + |w| |r_G| < NU_LIMIT); the exact check only if it fails
-        if not (max(map(abs, (*vel, *ang))) < 0.5 * NU_LIMIT and max(map(abs, pos)) < 0.5 * POSITION_LIMIT):
-            st = self.state()
-            if not (np.isfinite(st.eta).all() and np.isfinite(st.nu).all()):
-                self._fail(f"non-finite state: eta = {st.eta}, nu = {st.nu}")
-            if np.abs(st.nu).max() > NU_LIMIT:
-                self._fail(f"|nu| > {NU_LIMIT}: nu = {st.nu}")
-            if np.abs(st.eta[:3]).max() > POSITION_LIMIT:
-                self._fail(f"|position| > {POSITION_LIMIT}: eta = {st.eta}")
-        if js:
-            qdot = [s[1] for s in js]
-            if not max(map(abs, qdot)) <= QDOT_LIMIT:
-                self._fail(f"|qdot| > {QDOT_LIMIT} or non-finite: qdot = {qdot}")
-        if self._obj is not None:
-            p, _, v, w = self._read_object()
-            if not (max(map(abs, (*v, *w))) < NU_LIMIT + QDOT_LIMIT and max(map(abs, p)) < POSITION_LIMIT):
-                self._fail(f"object state out of bounds or non-finite: position {p}, velocity {v}, {w}")
-
-
-_GRASP_SIGN = -1.0
-"""``getConstraintState`` reports the constraint force on the parent (the grasp link); the force on the
-object (the child) is its opposite (checked against the object's momentum balance in the tests)."""
+        return self._contacts.count_obstacles(pairs, self._obstacle_bodies.body_ids, self._grasp.require)

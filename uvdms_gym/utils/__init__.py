@@ -7,4 +7,5 @@
 * :mod:`~uvdms_gym.utils.display`: whether PyBullet's GUI can open;
 * :mod:`~uvdms_gym.utils.jit`: the one numba entry point;
 * :mod:`~uvdms_gym.utils.legacy`: the module paths removed in 0.4.0, failing in one line naming their homes.
+* :mod:`~uvdms_gym.utils.validation`: the one check of a finite float vector.
 """

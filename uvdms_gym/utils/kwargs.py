@@ -121,7 +121,7 @@ def env_family(env_id: str) -> str:
     """The environment id without its version (``uvdms/CircleTrack-v1`` -> ``uvdms/CircleTrack``).
 
     The versions of a uvdms task share dynamics, task, observations and costs and differ only in the reward
-    (``uvdms_gym/envs/v1.py``). A ``module:`` prefix is ignored.
+    (``uvdms_gym/envs/bounded_reward.py``). A ``module:`` prefix is ignored.
     """
     from gymnasium.envs.registration import parse_env_id
 

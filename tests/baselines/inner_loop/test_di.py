@@ -211,7 +211,7 @@ def test_cascade_campc_nndi_avoids_collision_on_the_nominal_plant():
     from baselines.inner_loop.cascade import CascadeController
     from baselines.mpc.campc import make_mpc_controller
     from uvdms_gym import distances
-    from uvdms_gym.envs.tasks import make_circle_task
+    from uvdms_gym.envs.references import make_circle_task
 
     task = make_circle_task(1)
     truth = UVDMSNominalModel()

@@ -358,7 +358,7 @@ def _kinematic_loop(task_name: str, collision: bool, t_end: float):
 
     from baselines.mpc.campc import make_mpc_controller
     from uvdms_gym import distances
-    from uvdms_gym.envs.tasks import make_circle_task, make_transport_task
+    from uvdms_gym.envs.references import make_circle_task, make_transport_task
     from uvdms_gym.physics.frames import quat_xyzw_to_rot, rot_to_euler
     from uvdms_gym.physics.kinematics import KinematicModel
 

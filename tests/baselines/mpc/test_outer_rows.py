@@ -9,7 +9,7 @@ from baselines.controllers import OUTER_ROWS, make_baseline
 from baselines.mpc.campc import make_mpc_controller
 from baselines.paper.obstacle_figure import obstacle_checks, run_obstacle_experiment
 from uvdms_gym.distances.outer import compute_outer_distances, outer_distance_jacobian
-from uvdms_gym.envs.tasks import make_transport_task
+from uvdms_gym.envs.references import make_transport_task
 from uvdms_gym.envs.transport import vehicle_pose_for_object
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.obstacles import Obstacle, obstacle_states

@@ -56,7 +56,7 @@ def test_same_seed_same_trajectory_in_process_and_across_processes(env_id):
     b = _rollout_digest(env_id, 3, **kwargs)
     assert a == b
     code = (
-        f"import sys; sys.path.insert(0, {os.getcwd()!r}); from tests.uvdms_gym.test_envs import _rollout_digest; "
+        f"import sys; sys.path.insert(0, {os.getcwd()!r}); from tests.uvdms_gym.envs.test_envs import _rollout_digest; "
         f"print(_rollout_digest({env_id!r}, 3, **{kwargs!r}))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=os.getcwd())
@@ -208,7 +208,7 @@ def test_velocity_loop_inverse_diagonal_matches_numpy_inverse():
 
 def test_transport_orientation_errors_match_frames_rot_error():
     """errors_pose's float-arithmetic rotation errors equal frames.rot_error of the Euler references."""
-    from uvdms_gym.envs.base import POS_SCALE, errors_pose
+    from uvdms_gym.envs.tracking import POS_SCALE, errors_pose
     from uvdms_gym.physics.frames import euler_to_rot, rot_error
 
     rng = np.random.default_rng(3)

@@ -4,7 +4,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from uvdms_gym.envs import tasks
+from uvdms_gym.envs import references
 from uvdms_gym.physics import frames
 from uvdms_gym.physics.model import mount_rotation, rot_to_rpy
 from uvdms_gym.physics.params import GRAVITY, UVDMSParams
@@ -92,7 +92,7 @@ def test_parameter_hydrostatics_match_the_spec():
 
 
 def test_circle_reference_geometry():
-    task = tasks.make_circle_task(1)
+    task = references.make_circle_task(1)
     t = np.linspace(0, task.period, 101)
     y = task.reference(t)
     assert y.shape == (101, 6)
@@ -110,27 +110,27 @@ def test_circle_reference_geometry():
 
 def test_circle_infeasible_requests_raise():
     with pytest.raises(ValueError, match="radius"):
-        tasks.make_circle_task(1, radius=0.0)
+        references.make_circle_task(1, radius=0.0)
     with pytest.raises(ValueError, match="radius"):
-        tasks.make_circle_task(1, radius=-0.1)
+        references.make_circle_task(1, radius=-0.1)
     with pytest.raises(ValueError, match="left_center"):
-        tasks.make_circle_task(1, left_center=(1.0, float("nan"), 3.0))
+        references.make_circle_task(1, left_center=(1.0, float("nan"), 3.0))
     with pytest.raises(ValueError, match="within"):
-        tasks.make_circle_task(1, left_center=(2.4, 0.1, 3.08), right_center=(2.4, 0.2, 3.08))
+        references.make_circle_task(1, left_center=(2.4, 0.1, 3.08), right_center=(2.4, 0.2, 3.08))
     bases = (np.array(UVDMSParams().arm_base_left), np.array(UVDMSParams().arm_base_right))
     with pytest.raises(ValueError, match="reach"):
-        tasks.make_circle_task(1, right_center=(6.0, 0.25, 3.08), arm_bases_body=bases)
+        references.make_circle_task(1, right_center=(6.0, 0.25, 3.08), arm_bases_body=bases)
     with pytest.raises(ValueError, match="unknown circle case"):
-        tasks.make_circle_task(3)
-    tasks.make_circle_task(2, arm_bases_body=bases)  # the paper's cases are feasible
+        references.make_circle_task(3)
+    references.make_circle_task(2, arm_bases_body=bases)  # the paper's cases are feasible
 
 
 def test_random_circles_are_seeded_and_feasible():
     bases = (np.array(UVDMSParams().arm_base_left), np.array(UVDMSParams().arm_base_right))
-    a = [tasks.make_circle_task("random", np.random.default_rng(7), arm_bases_body=bases) for _ in range(2)]
+    a = [references.make_circle_task("random", np.random.default_rng(7), arm_bases_body=bases) for _ in range(2)]
     assert np.array_equal(a[0].right_center, a[1].right_center) and a[0].radius == a[1].radius
     for seed in range(50):
-        tasks.make_circle_task("random", np.random.default_rng(seed), arm_bases_body=bases)
+        references.make_circle_task("random", np.random.default_rng(seed), arm_bases_body=bases)
 
 
 def test_mixed_circles_draw_the_paper_cases_and_random_circles_in_equal_parts():
@@ -138,17 +138,17 @@ def test_mixed_circles_draw_the_paper_cases_and_random_circles_in_equal_parts():
     drawn = []
     for seed in range(300):
         rng = np.random.default_rng(seed)
-        task = tasks.make_circle_task("mix", rng, arm_bases_body=bases)
-        pick = tasks.MIXED_CASES[int(np.random.default_rng(seed).integers(3))]  # the draw, made independently
+        task = references.make_circle_task("mix", rng, arm_bases_body=bases)
+        pick = references.MIXED_CASES[int(np.random.default_rng(seed).integers(3))]  # the draw, made independently
         replay = np.random.default_rng(seed)
         replay.integers(3)
-        expected = tasks.make_circle_task(pick, replay, arm_bases_body=bases)
+        expected = references.make_circle_task(pick, replay, arm_bases_body=bases)
         assert np.array_equal(task.right_center, expected.right_center) and task.radius == expected.radius
         drawn.append(pick)
     counts = {case: drawn.count(case) for case in (1, 2, "random")}
     assert all(70 <= n <= 130 for n in counts.values()), counts  # 100 each expected (binomial sd 8)
     with pytest.raises(ValueError, match="'mix' needs"):
-        tasks.make_circle_task("mix", arm_bases_body=bases)
+        references.make_circle_task("mix", arm_bases_body=bases)
     env = gym.make("uvdms/CircleTrack-v1", case="mix")
     try:
         radii = set()
@@ -164,7 +164,7 @@ def test_transport_reference_kernel_equals_scipy_spline_bit_for_bit():
     """The compiled evaluation gives the bits of scipy's CubicSpline at the clipped times, edges and NaN included."""
     rng = np.random.default_rng(5)
     for goal in ("paper", "random"):
-        task = tasks.make_transport_task(goal, rng)
+        task = references.make_transport_task(goal, rng)
         mt = task.move_time
         t = np.concatenate([rng.uniform(-5.0, mt + 10.0, 2000), [0.0, -0.0, mt / 2, mt, np.nextafter(mt, 0), np.nan]])
         expected = task._spline(np.clip(t, 0.0, mt))
@@ -177,7 +177,7 @@ def test_transport_reference_kernel_equals_scipy_spline_bit_for_bit():
 
 
 def test_transport_reference_passes_waypoints_and_holds():
-    task = tasks.make_transport_task()
+    task = references.make_transport_task()
     start, goal = task.reference(0.0), task.reference(task.move_time)
     assert np.allclose(start, [2, 1, 30, 0, 0, 0])
     assert np.allclose(goal, [3, 0.5, 28, 0, 0, np.pi / 2])
@@ -187,9 +187,9 @@ def test_transport_reference_passes_waypoints_and_holds():
     assert np.allclose((task.reference(h) - task.reference(0.0)) / h, 0.0, atol=1e-3)
     assert np.allclose((task.reference(task.move_time) - task.reference(task.move_time - h)) / h, 0, atol=1e-3)
     with pytest.raises(ValueError, match="goal_pose"):
-        tasks.make_transport_task(goal_pose=(1, 2, 3))
+        references.make_transport_task(goal_pose=(1, 2, 3))
     with pytest.raises(ValueError, match="unknown goal"):
-        tasks.make_transport_task(goal="moon")
-    r1 = tasks.make_transport_task("random", np.random.default_rng(3))
-    r2 = tasks.make_transport_task("random", np.random.default_rng(3))
+        references.make_transport_task(goal="moon")
+    r1 = references.make_transport_task("random", np.random.default_rng(3))
+    r2 = references.make_transport_task("random", np.random.default_rng(3))
     assert np.array_equal(r1.goal, r2.goal)

@@ -13,7 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from distance_helpers import (
+from scipy.optimize import minimize_scalar
+
+from tests.support.distances import (
     PARAMS,
     SegmentsOnly,
     check_against_reference,
@@ -21,8 +23,6 @@ from distance_helpers import (
     ref_point_rect,
     ref_point_segment,
 )
-from scipy.optimize import minimize_scalar
-
 from uvdms_gym import distances as D
 
 

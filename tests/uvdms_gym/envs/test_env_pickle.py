@@ -1,21 +1,27 @@
 """Environments pickle and deep-copy the Gymnasium way, and reset after close (uvdms_gym/envs/base.py).
 
 A copy is a new environment built from the same constructor arguments (``gymnasium.utils.EzPickle``), with its own
-PyBullet client: stepping or closing it leaves the original alone. State is not copied, as in Gymnasium. The
-simulator itself (``UVDMSSim``) refuses to be pickled or copied, since a copy would share its client.
+PyBullet client: stepping or closing it leaves the original alone. During an episode the copy replays it (the
+generator after the reset's seeding and the actions since), so it is in the original's state and steps at once, as
+the Gymnasium wrappers around it (which pickle their own flags) claim; a copy of a closed or never-reset environment
+says in one line that it must be reset. The simulator itself (``UVDMSSim``) refuses to be pickled or copied, since a
+copy would share its client.
 """
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import gc
 import pickle
 import warnings
+from collections.abc import Iterator
 
 import cloudpickle
 import gymnasium as gym
 import numpy as np
 import pytest
+from gymnasium.error import ResetNeeded
 from stable_baselines3.common.env_checker import check_env
 
 import uvdms_gym
@@ -71,6 +77,46 @@ def test_a_copy_is_an_independent_environment(env_id, how):
     finally:
         original.close()
         fresh.close()
+
+
+@contextlib.contextmanager
+def _closing(env: gym.Env) -> Iterator[gym.Env]:
+    try:
+        yield env
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("env_id", uvdms_gym.ENV_IDS)
+@pytest.mark.parametrize("how", sorted(COPIES))
+def test_a_copy_made_during_an_episode_steps_on_from_the_originals_state(env_id, how):
+    """The newcomer's defect: a copy came back with its wrappers marked as reset and failed deep inside ``step``."""
+    with _closing(gym.make(env_id, **KWARGS[env_id])) as original:
+        actions = _actions(original, 2 * STEPS)
+        original.reset()  # no seed: the copy must carry the generator, not a seed
+        for a in actions[:STEPS]:
+            original.step(a)
+        with _closing(COPIES[how](original)) as duplicate:
+            assert duplicate.unwrapped.t == original.unwrapped.t
+            for a in actions[STEPS:]:
+                got, want = duplicate.step(a), original.step(a)
+                np.testing.assert_array_equal(got[0], want[0])
+                assert got[1:4] == want[1:4]  # reward, terminated, truncated (the wrappers' step count included)
+
+
+@pytest.mark.parametrize("env_id", uvdms_gym.ENV_IDS)
+@pytest.mark.parametrize("how", sorted(COPIES))
+def test_a_copy_without_an_episode_asks_for_reset_in_one_line(env_id, how):
+    with _closing(gym.make(env_id, **KWARGS[env_id])) as env:
+        env.reset(seed=SEED)
+        env.step(env.action_space.sample())
+        env.close()  # the wrappers still say "reset", the copy is a fresh environment
+        with _closing(COPIES[how](env)) as duplicate:
+            with pytest.raises(ResetNeeded, match=r"call reset\(\) before step\(\)") as err:
+                duplicate.step(env.action_space.sample())
+            assert "\n" not in str(err.value)
+            duplicate.reset(seed=SEED)
+            duplicate.step(env.action_space.sample())
 
 
 @pytest.mark.parametrize("env_id", uvdms_gym.ENV_IDS)

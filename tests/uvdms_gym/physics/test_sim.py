@@ -9,7 +9,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from scipy.integrate import solve_ivp
-from sim_helpers import (
+
+from tests.support.sim import (
     com_acceleration_world,
     com_velocity_world,
     mass_matrix,
@@ -17,11 +18,11 @@ from sim_helpers import (
     random_state,
     reference_acceleration,
 )
-
 from uvdms_gym.physics import frames, model
 from uvdms_gym.physics.hydro import HydroScale
 from uvdms_gym.physics.params import GRAVITY, JOINT_NAMES, UVDMSParams
-from uvdms_gym.physics.sim import PhysicsError, UVDMSSim
+from uvdms_gym.physics.sim import UVDMSSim
+from uvdms_gym.physics.state import PhysicsError
 
 P = UVDMSParams()
 # Bare vehicle with buoyancy equal to weight: no net heave force, so 1-DOF responses can be isolated.

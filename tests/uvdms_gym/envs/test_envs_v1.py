@@ -1,4 +1,4 @@
-"""The v1 environments: v0's dynamics and costs with the bounded reward of ``uvdms_gym.envs.v1``."""
+"""The v1 environments: v0's dynamics and costs with the bounded reward of ``uvdms_gym.envs.bounded_reward``."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from uvdms_gym.distances import velocity_damper
-from uvdms_gym.envs.v1 import V1_WEIGHTS
+from uvdms_gym.envs.bounded_reward import V1_WEIGHTS
 from uvdms_gym.physics.params import D1, D2
 
 PAIRS = (("uvdms/CircleTrack-v0", "uvdms/CircleTrack-v1"), ("uvdms/Transport-v0", "uvdms/Transport-v1"))

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-from sim_helpers import mass_matrix, pin_config, random_state
 
+from tests.support.sim import mass_matrix, pin_config, random_state
 from uvdms_gym.physics import frames, model
 from uvdms_gym.physics.hydro import HydroScale
 from uvdms_gym.physics.params import GRAVITY, UVDMSParams

@@ -13,13 +13,13 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
-from sim_helpers import com_acceleration_world, com_velocity_world, random_state, reference_acceleration
 from test_sim import P_NEUTRAL
 
 import uvdms_gym
+from tests.support.sim import com_acceleration_world, com_velocity_world, random_state, reference_acceleration
 from uvdms_gym.physics import current as current_mod
 from uvdms_gym.physics import frames, hydro, model
-from uvdms_gym.physics import sim as sim_mod
+from uvdms_gym.physics import grasp as grasp_mod
 from uvdms_gym.physics.params import GRAVITY, UVDMSParams
 from uvdms_gym.physics.sim import UVDMSSim
 
@@ -127,10 +127,10 @@ def test_object_loads_with_a_current_match_object_wrench(sim_nc, monkeypatch):
     sim.reset(np.r_[0, 0, 10, 0.1, -0.2, 0.3], np.array([0.2, 0.1, -0.1, 0.2, -0.3, 0.1]), with_object=True)
     sim.step(np.zeros(18))
     applied = []
-    monkeypatch.setattr(sim_mod, "_apply_force", lambda *args: applied.append(args[2]))
-    monkeypatch.setattr(sim_mod, "_apply_torque", lambda *args: applied.append(args[2]))
-    p_prev = np.array(sim._obj_p_prev)
-    sim._object_hydro()
+    monkeypatch.setattr(grasp_mod, "_apply_force", lambda *args: applied.append(args[2]))
+    monkeypatch.setattr(grasp_mod, "_apply_torque", lambda *args: applied.append(args[2]))
+    p_prev = np.array(sim.grasp.lagged_momentum)
+    sim.grasp.apply_hydro(sim.hydro, tuple(frames.ned_to_world(v_c).tolist()))
     c, obj = sim.client, sim.object_id
     _, quat = c.getBasePositionAndOrientation(obj)
     vel, _ = c.getBaseVelocity(obj)

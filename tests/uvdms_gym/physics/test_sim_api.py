@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pybullet as pb
 import pytest
-from sim_helpers import random_state
 
+from tests.support.sim import random_state
 from uvdms_gym.physics import frames
 from uvdms_gym.physics.params import UVDMSParams
-from uvdms_gym.physics.sim import NU_LIMIT, PhysicsError, StepInfo, UVDMSSim
+from uvdms_gym.physics.sim import UVDMSSim
+from uvdms_gym.physics.state import NU_LIMIT, PhysicsError, StepInfo
 
 P = UVDMSParams()
 

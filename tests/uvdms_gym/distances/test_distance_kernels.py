@@ -15,15 +15,15 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 import pytest
-from distance_helpers import (
+from pybullet_utils import bullet_client
+
+import uvdms_gym
+from tests.support.distances import (
     PARAMS,
     SegmentsOnly,
     check_against_reference,
     random_state,
 )
-from pybullet_utils import bullet_client
-
-import uvdms_gym
 from uvdms_gym import distances as D
 from uvdms_gym.distances import pybullet_queries as DP
 from uvdms_gym.physics import frames, model

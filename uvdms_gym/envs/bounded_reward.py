@@ -1,4 +1,4 @@
-"""``uvdms/CircleTrack-v1`` and ``uvdms/Transport-v1``: the v0 tasks with a reward that cannot be gamed.
+"""The reward of ``uvdms/CircleTrack-v1`` and ``uvdms/Transport-v1`` (:class:`BoundedReward`): v0's tasks, not gamed.
 
 Same dynamics, tasks, observations, costs, episode ends and time limits as v0; only the reward differs.
 
@@ -6,7 +6,7 @@ Why: every v0 reward term is <= 0, so a policy that ends the episode early (a co
 shorter negative sum than one that keeps going, and ending early is the return-maximising policy unless
 training adds an alive bonus. Under the v1 reward every step's reward is >= 0 and bounded, and a contact costs a
 penalty on top of ending the episode, so at equal tracking running to the time limit always scores more than
-ending early (``tests/uvdms_gym/test_envs_v1.py`` checks it on a policy that drives an arm into the frame).
+ending early (``tests/uvdms_gym/envs/test_envs_v1.py`` checks it on a policy that drives an arm into the frame).
 
 v1 reward, the sum of the terms reported in ``info`` (``e_p``: position tracking error in m, ``e_o``: orientation
 error in rad, ``a``: the clipped action, ``S``: the velocity-damper shape of the 18 clearances, 1 beyond
@@ -35,8 +35,6 @@ import numpy as np
 
 from uvdms_gym.distances import velocity_damper
 from uvdms_gym.envs.base import ACTION_DIM, UVDMSEnv
-from uvdms_gym.envs.circle import CircleTrackEnv
-from uvdms_gym.envs.transport import TransportEnv
 from uvdms_gym.physics.params import D1, D2
 
 V1_WEIGHTS: dict[str, float] = {
@@ -55,7 +53,7 @@ PRECISION_SCALE = 0.01
 """Default ``precision_scale`` (m) of the optional narrow tracking term (off unless ``precision_weight > 0``)."""
 
 
-class _BoundedReward(UVDMSEnv):
+class BoundedReward(UVDMSEnv):
     """The v1 reward over any v0 task (a mixin placed before the task class)."""
 
     rewards_orientation = True
@@ -104,47 +102,3 @@ class _BoundedReward(UVDMSEnv):
                 w["precision"] * math.exp(-info["tracking_error"] / self.precision_scale) if w["precision"] else 0.0
             ),
         }
-
-
-class CircleTrackV1Env(_BoundedReward, CircleTrackEnv):
-    """``uvdms/CircleTrack-v1``: :class:`~uvdms_gym.envs.circle.CircleTrackEnv` with the bounded v1 reward.
-
-    ## Rewards
-    ``reward = reward_track + reward_orientation + reward_effort + reward_proximity + reward_contact`` with
-    ``reward_track = track_weight * exp(-e / track_scale)`` (``e``: mean end-effector position error, m),
-    ``reward_orientation = 0``, ``reward_effort = effort_weight * (1 - |action|^2 / 18)``,
-    ``reward_proximity = proximity_weight * mean_i S(d_i)`` (velocity-damper shape: 1 beyond 0.12 m, 0 inside
-    0.05 m) and ``reward_contact = -contact_weight`` on a step with physical contact (which ends the episode).
-    Every term but the contact penalty lies in ``[0, weight]``, so at equal tracking running to the time limit
-    always beats ending the episode early. Defaults: :data:`V1_WEIGHTS`, ``track_scale = 0.05 m``. The optional
-    ``reward_precision = precision_weight * exp(-e / precision_scale)`` (default weight 0, scale 0.01 m) is a
-    narrow second tracking term for training with a wide ``track_scale``.
-
-    Everything else (dynamics, task, observation, costs, episode end, ``max_episode_steps = 500``) is v0's.
-
-    ## Version History
-    * v1: bounded non-negative per-step reward and a contact penalty (v0: every term <= 0). Release 0.3.0 adds
-      the optional keywords ``precision_weight`` and ``precision_scale`` (a narrow tracking term, off by
-      default: the default reward is unchanged).
-    * v0: initial release.
-    """
-
-    rewards_orientation = False
-
-
-class TransportV1Env(_BoundedReward, TransportEnv):
-    """``uvdms/Transport-v1``: :class:`~uvdms_gym.envs.transport.TransportEnv` with the bounded v1 reward.
-
-    ## Rewards
-    As :class:`CircleTrackV1Env`, with ``e`` the object's position error and
-    ``reward_orientation = orientation_weight * exp(-e_o / orientation_scale)`` (``e_o``: the object's
-    orientation error, rad; ``orientation_scale`` default 5 degrees).
-
-    Everything else (dynamics, task, observation, costs, episode end, ``max_episode_steps = 600``) is v0's.
-
-    ## Version History
-    * v1: bounded non-negative per-step reward and a contact penalty (v0: every term <= 0). Release 0.3.0 adds
-      the optional keywords ``precision_weight`` and ``precision_scale`` (a narrow tracking term, off by
-      default: the default reward is unchanged).
-    * v0: initial release.
-    """

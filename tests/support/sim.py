@@ -7,7 +7,8 @@ import pinocchio as pin
 
 from uvdms_gym.physics import frames, hydro, model
 from uvdms_gym.physics.params import UVDMSParams
-from uvdms_gym.physics.sim import SimState, UVDMSSim
+from uvdms_gym.physics.sim import UVDMSSim
+from uvdms_gym.physics.state import SimState
 
 P = UVDMSParams()
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-HERE = Path(__file__).resolve().parents[1]  # tests/
+HERE = Path(__file__).resolve().parents[2]  # tests/
 _RECORDER = HERE.parent / "benchmarks" / "record_v0_reference.py"
 _spec = importlib.util.spec_from_file_location("record_v0_reference", _RECORDER)
 recorder = importlib.util.module_from_spec(_spec)
