@@ -177,7 +177,7 @@ class Stepping:
         t_list = t.tolist()
         return t_list[:6], t_list[6:]
 
-    # hot path (over 80 lines): one function so that every physics step runs without a Python call per load group
+    # hot path: over 80 lines, one function so that every physics step runs without a Python call per load group
     def _substep(
         self, tau_v: list[float], tau_q: list[float], feedback: Callable[[np.ndarray], np.ndarray] | None = None
     ) -> None:
