@@ -14,14 +14,19 @@
 * :mod:`baselines.bench` — timings (:func:`~baselines.bench.benchmark_all`: ``uvdms bench mpc``) and the OSQP replay;
 * :mod:`baselines.cli` — registers ``uvdms reproduce``.
 
-The names below are re-exported here (``from baselines import KinematicMPC``).
+The names below are re-exported here (``from baselines import KinematicMPC``). The module paths before the grouping
+(``baselines.campc``, ...) fail in one line naming their new home (:mod:`baselines.legacy`).
 """
 
 from baselines.inner_loop.cascade import CascadeController, CascadeOutput
 from baselines.inner_loop.di import DIConfig, DIOutput, DynamicInversionController, UVDMSNominalModel
+from baselines.legacy import REGROUPED as _REGROUPED
 from baselines.mpc.campc import MPCController, make_mpc_controller, task_config
 from baselines.mpc.config import MPCConfig, MPCProblem, MPCStepRecord, QPMatrices
 from baselines.mpc.kinematic import KinematicMPC
+from uvdms_gym.utils.legacy import install_moved_finder, regrouped_message
+
+install_moved_finder(_REGROUPED, regrouped_message)
 
 __all__ = [
     "CascadeController",

@@ -17,7 +17,7 @@ import warnings
 from gymnasium.envs.registration import register, registry
 
 from uvdms_gym.physics.params import UVDMSParams
-from uvdms_gym.utils.legacy import MOVED, install_moved_finder
+from uvdms_gym.utils.legacy import MOVED, REGROUPED, install_moved_finder, regrouped_message
 
 __version__ = "0.4.0"
 __all__ = ["ENV_IDS", "UVDMSParams", "__version__"]
@@ -43,3 +43,4 @@ warnings.filterwarnings("ignore", message=r".*The environment uvdms/\S+ is out o
 # The module paths before the package was grouped into subpackages (uvdms_gym.sim, uvdms_gym.params, ...) fail in
 # one line naming their new home (uvdms_gym/utils/legacy.py; the aliases of 0.3.0 were removed in 0.4.0).
 install_moved_finder(MOVED)
+install_moved_finder(REGROUPED, regrouped_message)

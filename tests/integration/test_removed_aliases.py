@@ -150,3 +150,23 @@ def test_a_run_whose_checkpoints_were_pickled_under_the_old_module_path_resumes(
     assert train(resume_dir=run_dir, total_timesteps=64, progress=False) == run_dir
     assert latest_checkpoint(run_dir).num_timesteps == 192
     assert _pickled_module(run_dir / "final_model.zip") == "agents.algos.ppo_lagrangian"
+
+
+def regrouped_tables() -> dict[str, str]:
+    """The module paths 0.4.0 moved without an alias, of every package that keeps such a table."""
+    import baselines.legacy
+
+    return {**legacy.REGROUPED, **baselines.legacy.REGROUPED}
+
+
+@pytest.mark.parametrize("old", sorted(regrouped_tables()))
+def test_a_path_the_regrouping_moved_fails_in_one_line_naming_where_its_names_live(old):
+    import baselines  # noqa: F401  (installs its finder)
+
+    new = regrouped_tables()[old]
+    with pytest.raises(ModuleNotFoundError) as excinfo:
+        importlib.import_module(old)
+    assert str(excinfo.value) == f"{old} was moved in 0.4.0: import from {new}" and excinfo.value.name == old
+    homes = [word.strip(",") for word in new.split() if "." in word and word[0].isalpha()]
+    for home in homes:  # every module the message names exists
+        assert importlib.util.find_spec(home) is not None, home

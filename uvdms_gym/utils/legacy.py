@@ -7,6 +7,11 @@ removed the aliases. A package keeps a table ``{old module: new module}`` of wha
 ``import uvdms_gym.sim`` raises ``ModuleNotFoundError: uvdms_gym.sim was moved to uvdms_gym.physics.sim in 0.3.0
 and the alias removed in 0.4.0; import uvdms_gym.physics.sim``.
 
+The modules that 0.4.0 moved when it regrouped ``uvdms_gym.envs``, ``baselines`` and ``leaderboard`` (no alias was
+ever kept for them) fail the same way, with :func:`regrouped_message` (:data:`REGROUPED`, and the tables of
+``baselines`` and ``leaderboard``): ``import baselines.campc`` raises ``ModuleNotFoundError: baselines.campc was
+moved in 0.4.0: import from baselines.mpc.campc``.
+
 Files pickled before a move (trusted SB3 zips that name a class by its old module) load inside
 :func:`old_modules_aliased`, which makes the old names aliases of the new modules for the time of the load only.
 """
@@ -19,7 +24,7 @@ import importlib.abc
 import importlib.machinery
 import sys
 import types
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 
 MOVED_IN = "0.3.0"
 """The release that moved the modules of the tables (and kept the old paths as deprecated aliases)."""
@@ -44,10 +49,28 @@ MOVED: dict[str, str] = {
 }
 """Old module paths of ``uvdms_gym`` (aliases in 0.3.0, removed in 0.4.0) -> their homes."""
 
+REGROUPED_IN = "0.4.0"
+"""The release that regrouped ``baselines``, ``leaderboard`` and ``uvdms_gym.envs`` (no aliases were kept)."""
+
+REGROUPED: dict[str, str] = {
+    "uvdms_gym.envs.v1": (
+        "uvdms_gym.envs.circle (CircleTrackV1Env), uvdms_gym.envs.transport (TransportV1Env) and "
+        "uvdms_gym.envs.bounded_reward (BoundedReward)"
+    ),
+    "uvdms_gym.envs.errors": "uvdms_gym.envs.tracking",
+    "uvdms_gym.envs.tasks": "uvdms_gym.envs.references",
+}
+"""Module paths of ``uvdms_gym`` that 0.4.0 moved without an alias -> where their names live now."""
+
 
 def moved_message(old: str, new: str) -> str:
     """The one line that answers an import of ``old``: where it lives now and which release removed the alias."""
     return f"{old} was moved to {new} in {MOVED_IN} and the alias removed in {REMOVED_IN}; import {new}"
+
+
+def regrouped_message(old: str, new: str) -> str:
+    """The one line that answers an import of ``old``, moved by the regrouping of 0.4.0: where its names live now."""
+    return f"{old} was moved in {REGROUPED_IN}: import from {new}"
 
 
 class MovedModuleFinder(importlib.abc.MetaPathFinder):
@@ -57,8 +80,9 @@ class MovedModuleFinder(importlib.abc.MetaPathFinder):
     exists is never shadowed.
     """
 
-    def __init__(self, table: Mapping[str, str]) -> None:
+    def __init__(self, table: Mapping[str, str], message: Callable[[str, str], str] = moved_message) -> None:
         self.table = dict(table)
+        self.message = message
 
     def find_spec(
         self, fullname: str, path: Sequence[str] | None = None, target: types.ModuleType | None = None
@@ -71,13 +95,19 @@ class MovedModuleFinder(importlib.abc.MetaPathFinder):
         new = self.table.get(fullname)
         if new is None:
             return None
-        raise ModuleNotFoundError(moved_message(fullname, new), name=fullname)
+        raise ModuleNotFoundError(self.message(fullname, new), name=fullname)
 
 
-def install_moved_finder(table: Mapping[str, str]) -> None:
-    """Put a :class:`MovedModuleFinder` for ``table`` at the end of ``sys.meta_path`` (once per table)."""
+def install_moved_finder(table: Mapping[str, str], message: Callable[[str, str], str] = moved_message) -> None:
+    """Put a :class:`MovedModuleFinder` for ``table`` at the end of ``sys.meta_path`` (once per table).
+
+    Args:
+        table: Old module path -> its new home.
+        message: The one line for an old path (:func:`moved_message`, or :func:`regrouped_message` for the
+            modules 0.4.0 moved).
+    """
     if not any(isinstance(f, MovedModuleFinder) and f.table == dict(table) for f in sys.meta_path):
-        sys.meta_path.append(MovedModuleFinder(table))
+        sys.meta_path.append(MovedModuleFinder(table, message))
 
 
 @contextlib.contextmanager

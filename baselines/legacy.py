@@ -1,0 +1,20 @@
+"""The module paths ``baselines`` had before 0.4.0 grouped it by family: importing one fails in one line.
+
+``import baselines.campc`` raises ``ModuleNotFoundError: baselines.campc was moved in 0.4.0: import from
+baselines.mpc.campc`` (:mod:`uvdms_gym.utils.legacy`); ``import baselines`` installs the finder.
+"""
+
+from __future__ import annotations
+
+REGROUPED: dict[str, str] = {
+    "baselines.campc": "baselines.mpc.campc",
+    "baselines.di": "baselines.inner_loop.di",
+    "baselines.cascade": "baselines.inner_loop.cascade",
+    "baselines.reproduce": "baselines.paper.reproduce",
+    "baselines.figures": "baselines.paper.figures",
+    "baselines.obstacle_figure": "baselines.paper.obstacle_figure",
+    "baselines.evaluate": "uvdms_gym.evaluation (run_episode, summarize, ...) and leaderboard.registry (evaluate)",
+}
+"""Old module path of ``baselines`` -> where its names live now (``baselines.mpc`` and ``baselines.safety`` are
+packages now: ``baselines.mpc.kinematic``, ``baselines.mpc.config``, ``baselines.mpc.solver``,
+``baselines.mpc.damper``; ``baselines.safety.filter``)."""
