@@ -5,7 +5,7 @@ the action in the environment's normalised space ``[-1, 1]^18``; re-exported her
 ``last_record`` (a dict with ``status``, ``iterations``, ``max_slack``, ``wall_us`` and more) after each
 ``predict`` (``hold``, with no QP, an empty one). Trained agents follow the same protocol
 (:class:`agents.export.AgentController`); resolving a name *or* an agent path
-to a controller is the composition layer's job (:mod:`leaderboard.registry`).
+to a controller is the composition layer's job (:mod:`leaderboard.suite.registry`).
 
 Named baselines (:data:`BASELINES`; :func:`make_controller`):
 
@@ -337,7 +337,7 @@ def make_controller(spec: str, env: Any, **kwargs: Any) -> Controller:
     """A named baseline for ``env`` (:func:`make_baseline`).
 
     Deprecated for agent paths since 0.2: ``baselines`` does not import ``agents``; resolve a name *or* a path
-    with :func:`leaderboard.registry.make_controller`.
+    with :func:`leaderboard.suite.registry.make_controller`.
 
     Raises:
         ValueError: ``spec`` is not a baseline name (the message names the registry), or an action-mode mismatch.
@@ -345,6 +345,6 @@ def make_controller(spec: str, env: Any, **kwargs: Any) -> Controller:
     if spec not in BASELINES:
         raise ValueError(
             f"unknown baseline {spec!r}; choose one of {sorted(BASELINES)}, or load an agent path with "
-            "leaderboard.registry.make_controller"
+            "leaderboard.suite.registry.make_controller"
         )
     return make_baseline(spec, env, **kwargs)

@@ -16,7 +16,7 @@ old name                 new home
 ``EPISODE_KEYS``         :data:`uvdms_gym.evaluation.EPISODE_KEYS` (also ``TRAJECTORY_KEYS``,
                          ``CIRCLE_SUCCESS_RMSE``)
 ``write_json_atomic``    :func:`uvdms_gym.utils.io.write_json_atomic`
-``evaluate``             :func:`leaderboard.registry.evaluate` (baseline names and agent paths); the
+``evaluate``             :func:`leaderboard.running.evaluate.evaluate` (baseline names and agent paths); the
                          alias here takes baseline names only, since ``baselines`` may not import ``agents``
 =======================  ===========================================================================
 """
@@ -55,26 +55,28 @@ def __getattr__(name: str) -> Any:
 
 
 def evaluate(controller_spec: str, env_id: str, env_kwargs: dict | None = None, *args: Any, **options: Any) -> dict:
-    """Deprecated: evaluate a named baseline; use :func:`leaderboard.registry.evaluate` (agents too).
+    """Deprecated: evaluate a named baseline; use :func:`leaderboard.running.evaluate.evaluate` (agents too).
 
     The baseline's ``action_mode`` is filled into ``env_kwargs`` when not given (an explicit, different one
     raises ``ValueError``). Further arguments (``episodes``, ``seed``, ``out``, ``save_trajectory``, ``progress``)
-    and the result as :func:`leaderboard.registry.evaluate`; ``trust`` is accepted and unused.
+    and the result as :func:`leaderboard.running.evaluate.evaluate`; ``trust`` is accepted and unused.
 
     Raises:
-        ValueError: ``controller_spec`` is not a baseline name (agents: :func:`leaderboard.registry.evaluate`),
+        ValueError: ``controller_spec`` is not a baseline name (agents: :func:`leaderboard.running.evaluate.evaluate`),
             ``episodes < 1``, or an action-mode mismatch.
     """
     from baselines.controllers import BASELINES, make_baseline
     from uvdms_gym.evaluation import evaluate_controller
 
     warnings.warn(
-        "baselines.evaluate.evaluate is deprecated; use leaderboard.registry.evaluate", DeprecationWarning, stacklevel=2
+        "baselines.evaluate.evaluate is deprecated; use leaderboard.running.evaluate.evaluate",
+        DeprecationWarning,
+        stacklevel=2,
     )
     if controller_spec not in BASELINES:
         raise ValueError(
             f"baselines.evaluate.evaluate takes a baseline name ({', '.join(BASELINES)}), got {controller_spec!r}; "
-            "evaluate agents with leaderboard.registry.evaluate or `uvdms evaluate`"
+            "evaluate agents with leaderboard.running.evaluate.evaluate or `uvdms evaluate`"
         )
     kwargs = dict(env_kwargs or {})
     kwargs.setdefault("action_mode", BASELINES[controller_spec]["action_mode"])

@@ -2,7 +2,7 @@
 
 Residual agents and the safety filter (:mod:`uvdms_gym.residual`) compose the policy with controllers of
 ``baselines``, which ``agents`` never imports: the composition layer injects them as :class:`ActionComponents`
-(``uvdms train`` passes ``leaderboard.registry.ACTION_COMPONENTS``), and :class:`EnvFactory` holds the resulting
+(``uvdms train`` passes ``leaderboard.suite.registry.ACTION_COMPONENTS``), and :class:`EnvFactory` holds the resulting
 picklable factories.
 
 Seed scheme (``seed`` = ``--seed``; segment k = 0 for a fresh run, k = 1, 2, ... for each ``--resume``):

@@ -31,8 +31,8 @@ from agents.training.train import main as agents_train_main
 from agents.training.train import run_dir_for
 from baselines.controllers import make_baseline
 from baselines.safety import SafetyFilter
-from leaderboard.entries import resolve_entries
-from leaderboard.registry import (
+from leaderboard.suite.entries import resolve_entries
+from leaderboard.suite.registry import (
     BaselineFactory,
     SafetyFilterFactory,
     evaluate,

@@ -1,4 +1,4 @@
-"""``uvdms evaluate`` of a multi-seed entry folder, and of shipped names from any directory (leaderboard.evaluate)."""
+"""``uvdms evaluate`` of a multi-seed entry folder, and of shipped names from any directory (running/evaluate.py)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from leaderboard.cache import compact_result
-from leaderboard.registry import evaluate
-from leaderboard.stats import aggregate_runs
+from leaderboard.running.cache import compact_result
+from leaderboard.running.evaluate import evaluate
+from leaderboard.stats.metrics import aggregate_runs
 from uvdms_cli.main import main
 
 REPO = Path(__file__).resolve().parents[2]

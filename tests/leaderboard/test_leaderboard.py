@@ -12,8 +12,13 @@ import numpy as np
 import pytest
 
 import leaderboard as lb
-import leaderboard.cache
-import leaderboard.runner
+import leaderboard.running.cache
+import leaderboard.running.runner
+from leaderboard.running.cache import cache_key, cache_material
+from leaderboard.running.jobs import DEFAULT_BACKEND, Backend
+from leaderboard.suite.agent_files import training_seeds
+from leaderboard.suite.entries import agent_entry, check_seed_disjointness
+from leaderboard.suite.tasks import SEED_BASE, evaluation_seeds
 from uvdms_cli.main import main as uvdms_main
 from uvdms_gym.utils.io import _umask, mirror_file, write_json_atomic
 
@@ -92,7 +97,7 @@ def fake_run_episode(env, controller, seed, save_trajectory):
     return result
 
 
-FAKE = lb.Backend(make_env=fake_make_env, make_controller=fake_make_controller, run_episode=fake_run_episode)
+FAKE = Backend(make_env=fake_make_env, make_controller=fake_make_controller, run_episode=fake_run_episode)
 BASELINE_ENTRIES = lb.resolve_entries(["baselines"])
 
 
@@ -204,21 +209,21 @@ def test_mirror_file_copies_keeps_itself_and_removes_a_stale_copy(tmp_path):
 
 def test_cache_key_depends_on_entry_task_seed_and_version(monkeypatch):
     entry, task = BASELINE_ENTRIES[0], TINY_TASKS[0]
-    base = lb.cache_key(lb.cache_material(entry, task, 1, False))
-    assert base == lb.cache_key(lb.cache_material(entry, task, 1, False))
-    assert base != lb.cache_key(lb.cache_material(entry, task, 2, False))
-    assert base != lb.cache_key(lb.cache_material(entry, TINY_TASKS[1], 1, False))
-    assert base != lb.cache_key(lb.cache_material(BASELINE_ENTRIES[1], task, 1, False))
-    monkeypatch.setattr(leaderboard.cache, "PACKAGE_VERSION", "9.9.9")
-    assert base != lb.cache_key(lb.cache_material(entry, task, 1, False))
+    base = cache_key(cache_material(entry, task, 1, False))
+    assert base == cache_key(cache_material(entry, task, 1, False))
+    assert base != cache_key(cache_material(entry, task, 2, False))
+    assert base != cache_key(cache_material(entry, TINY_TASKS[1], 1, False))
+    assert base != cache_key(cache_material(BASELINE_ENTRIES[1], task, 1, False))
+    monkeypatch.setattr(leaderboard.running.cache, "PACKAGE_VERSION", "9.9.9")
+    assert base != cache_key(cache_material(entry, task, 1, False))
 
 
 def test_baseline_cache_key_depends_on_the_proxsuite_build(monkeypatch):
     entry, task = BASELINE_ENTRIES[0], TINY_TASKS[0]
     assert entry.kind == "baseline"
-    base = lb.cache_key(lb.cache_material(entry, task, 1, False))
-    monkeypatch.setattr(leaderboard.cache, "PROXSUITE_BUILD", "proxsuite_pywrap_avx512")
-    assert base != lb.cache_key(lb.cache_material(entry, task, 1, False))
+    base = cache_key(cache_material(entry, task, 1, False))
+    monkeypatch.setattr(leaderboard.running.cache, "PROXSUITE_BUILD", "proxsuite_pywrap_avx512")
+    assert base != cache_key(cache_material(entry, task, 1, False))
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -245,29 +250,29 @@ def _agent_folder(root: Path, name: str, seed: int, env_kwargs=None) -> Path:
 
 def test_training_seeds_are_read_and_evaluation_seeds_are_disjoint(tmp_path):
     folder = _agent_folder(tmp_path, "sac_case1", seed=7)
-    assert lb.training_seeds(folder) == {7, 8, 1007, 1008, 1_000_007}
-    entry = lb.agent_entry(folder, trust=True)
+    assert training_seeds(folder) == {7, 8, 1007, 1008, 1_000_007}
+    entry = agent_entry(folder, trust=True)
     assert entry.env_id == CIRCLE and entry.track == "velocity"
     assert entry.training_seeds == {7, 8, 1007, 1008, 1_000_007}
-    seeds = lb.evaluation_seeds(10)
-    assert min(seeds) >= lb.SEED_BASE
-    lb.check_seed_disjointness(seeds, [entry])
+    seeds = evaluation_seeds(10)
+    assert min(seeds) >= SEED_BASE
+    check_seed_disjointness(seeds, [entry])
     # the agents.training.train scheme (seed + 1000 k + i, eval seed + 1_000_000 + i) never reaches SEED_BASE for seeds
     # < 1e9
-    assert 999_999_999 + 1_000_000 + 1000 < lb.SEED_BASE
+    assert 999_999_999 + 1_000_000 + 1000 < SEED_BASE
 
 
 def test_clashing_seed_is_refused(tmp_path):
-    folder = _agent_folder(tmp_path, "sac_clash", seed=lb.SEED_BASE + 1)
-    entry = lb.agent_entry(folder, trust=True)
+    folder = _agent_folder(tmp_path, "sac_clash", seed=SEED_BASE + 1)
+    entry = agent_entry(folder, trust=True)
     with pytest.raises(ValueError, match="disjoint"):
-        lb.check_seed_disjointness(lb.evaluation_seeds(5), [entry])
+        check_seed_disjointness(evaluation_seeds(5), [entry])
     with pytest.raises(ValueError, match="disjoint"):
         _run(tmp_path, entries=[entry], episodes=3)
 
 
 def test_agent_track_and_tasks_follow_its_config(tmp_path):
-    torque = lb.agent_entry(_agent_folder(tmp_path, "ppo_torque", 1, {"action_mode": "torque"}), trust=True)
+    torque = agent_entry(_agent_folder(tmp_path, "ppo_torque", 1, {"action_mode": "torque"}), trust=True)
     assert torque.track == "torque"
     assert torque.runs_on(TINY_TASKS[0])
     assert not torque.runs_on(lb.Task("transport", "T", "uvdms/Transport-v0"))
@@ -327,7 +332,7 @@ def test_weights_only_submission_evaluates_and_ranks_without_trust(tmp_path, tin
         episodes=2,
         progress=False,
         plots=False,
-        backend=lb.DEFAULT_BACKEND,  # the real environment, make_controller and run_episode
+        backend=DEFAULT_BACKEND,  # the real environment, make_controller and run_episode
         trust=False,
     )
     rows = {r.entry.name: r for r in result.rows}
@@ -361,7 +366,7 @@ def test_pickle_zip_from_outside_the_repo_is_refused_without_trust(tmp_path, tin
 # Command line (fake backend)
 # ------------------------------------------------------------------------------------------------------
 def test_cli_prints_ranked_tables_and_reuses_the_cache(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(leaderboard.runner, "DEFAULT_BACKEND", FAKE)
+    monkeypatch.setattr(leaderboard.running.runner, "DEFAULT_BACKEND", FAKE)
     argv = ["leaderboard", "--quick", "--entries", "campc", "campc-nndi", "--tasks", "case1", "case2"]
     argv += ["--out", str(tmp_path / "out"), "--no-progress", "--no-plots", "--agents-dir", str(tmp_path)]
     CALLS.clear()
@@ -379,8 +384,8 @@ def test_cli_prints_ranked_tables_and_reuses_the_cache(tmp_path, monkeypatch, ca
 
 
 def test_agents_of_another_env_version_run_the_tasks_on_their_version():
-    from leaderboard.entries import Entry
-    from leaderboard.tasks import TASKS, env_family
+    from leaderboard.suite.entries import Entry
+    from leaderboard.suite.tasks import TASKS, env_family
 
     by_name = {t.name: t for t in TASKS}
     circle, transport = by_name["case1"], by_name["transport"]
@@ -396,7 +401,7 @@ def test_agents_of_another_env_version_run_the_tasks_on_their_version():
     assert base.task_spec(transport)["env_id"] == "uvdms/Transport-v0"
     with pytest.raises(ValueError, match="another environment"):
         circle.spec("velocity", "uvdms/Transport-v1")
-    material = lb.cache.cache_material(v1, circle, 2_000_000_000, False)
+    material = cache_material(v1, circle, 2_000_000_000, False)
     assert material["task"]["env_id"] == "uvdms/CircleTrack-v1"
 
 
@@ -409,7 +414,7 @@ def test_a_v1_agent_runs_its_version_and_the_table_says_whose_return_it_is(tmp_p
         seen.append((Path(controller.spec).name, env.spec_["env_id"]))
         return _fake_episode(env, controller, seed, save_trajectory)
 
-    backend = lb.Backend(make_env=FAKE.make_env, make_controller=FAKE.make_controller, run_episode=recording_episode)
+    backend = Backend(make_env=FAKE.make_env, make_controller=FAKE.make_controller, run_episode=recording_episode)
     _agent_folder(tmp_path / "agents" / "sac_v1", 5, env_id="uvdms/CircleTrack-v1")
     entries = lb.resolve_entries(["agents", "mpc"], agents_dir=tmp_path / "agents", trust=True)
     result = lb.run_leaderboard(

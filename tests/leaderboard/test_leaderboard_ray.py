@@ -19,9 +19,10 @@ import pytest
 from ray_support import descendants_matching, in_background
 
 import leaderboard as lb
-from leaderboard.cache import read_cached
-from leaderboard.distributed import agent_files, materialise
-from leaderboard.jobs import plan_jobs
+from leaderboard.running.cache import read_cached
+from leaderboard.running.distributed import agent_files, materialise
+from leaderboard.running.jobs import plan_jobs
+from leaderboard.suite.tasks import evaluation_seeds
 from uvdms_cli.main import main
 
 REPO = Path(__file__).resolve().parents[2]
@@ -79,7 +80,7 @@ def test_two_node_cluster(tmp_path, ray_processes):
         assert sorted((row["entry"], row["episodes"]) for row in rows) == [("mpc", "2"), ("sac-circle-case1-v0", "2")]
         entries = lb.resolve_entries(["mpc", str(SHIPPED_SAC)])
         tasks = [replace(t, max_episode_steps=6) for t in lb.TASKS if t.name == "case1"]
-        check_cache(out / "cache", plan_jobs(entries, tasks, lb.evaluation_seeds(2), out / "cache"))
+        check_cache(out / "cache", plan_jobs(entries, tasks, evaluation_seeds(2), out / "cache"))
     finally:
         cluster.shutdown()
 
@@ -89,7 +90,7 @@ def test_a_killed_worker_is_retried_and_every_episode_is_cached_once(tmp_path, r
     tasks = [t for t in lb.TASKS if t.name == "case2"]
     tasks = [replace(t, max_episode_steps=60) for t in tasks]
     cache = tmp_path / "ray" / "cache"
-    jobs = plan_jobs(entries, tasks, lb.evaluation_seeds(3), cache)
+    jobs = plan_jobs(entries, tasks, evaluation_seeds(3), cache)
     thread, outcome = in_background(
         lambda: lb.run_leaderboard(
             entries,

@@ -17,8 +17,8 @@ from test_leaderboard import CALLS, FAKE, TINY_TASKS
 from test_multiseed import _multi_seed
 
 import leaderboard as lb
-import leaderboard.cache
-import leaderboard.reuse
+import leaderboard.running.cache
+import leaderboard.running.reuse
 
 EPISODES = 3
 
@@ -74,8 +74,8 @@ def test_documents_record_each_episode_cache_key(tmp_path, entries):
     episode = doc["tasks"]["case2"]["episodes"][4]  # training seed 1, second evaluation seed
     member = next(e for e in entries if e.name == "sac_multi").members[1]
     task = TINY_TASKS[1]
-    material = leaderboard.cache.cache_material(member, task, episode["seed"], False)
-    assert episode["training_seed"] == 1 and episode["cache_key"] == leaderboard.cache.cache_key(material)
+    material = leaderboard.running.cache.cache_material(member, task, episode["seed"], False)
+    assert episode["training_seed"] == 1 and episode["cache_key"] == leaderboard.running.cache.cache_key(material)
 
 
 def test_an_entry_with_another_model_is_not_reused(tmp_path, entries):
@@ -103,7 +103,7 @@ def _strip_keys(out: Path) -> None:
 def test_keyless_documents_are_matched_on_name_checksum_version_and_seeds_with_a_warning(tmp_path, entries, caplog):
     first = _run(tmp_path / "first", entries)
     _strip_keys(tmp_path / "first")
-    with caplog.at_level(logging.WARNING, logger="leaderboard.reuse"):
+    with caplog.at_level(logging.WARNING, logger="leaderboard.running.reuse"):
         second = _run(tmp_path / "second", entries, reuse_from=tmp_path / "first")
     assert second.computed == _trajectory_jobs(entries)
     assert lb.markdown_tables(second) == lb.markdown_tables(first)
@@ -120,7 +120,7 @@ def test_keyless_documents_of_another_package_version_or_checksum_are_not_used(t
     second = _run(tmp_path / "second", entries, reuse_from=tmp_path / "first")
     runs_per_task = len(TINY_TASKS) * EPISODES - sum(t.trajectory for t in TINY_TASKS)
     assert second.computed == _trajectory_jobs(entries) + runs_per_task  # sac_multi's seed 0 only
-    monkeypatch.setattr(leaderboard.reuse, "PACKAGE_VERSION", "9.9.9")
+    monkeypatch.setattr(leaderboard.running.reuse, "PACKAGE_VERSION", "9.9.9")
     third = _run(tmp_path / "third", entries, reuse_from=tmp_path / "first")
     assert third.reused == 0
 

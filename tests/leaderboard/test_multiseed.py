@@ -20,7 +20,14 @@ import pytest
 from scipy import stats as sps
 
 import leaderboard as lb
-from leaderboard.result import LeaderboardResult
+from leaderboard.output.plots import write_learning_curves
+from leaderboard.running.jobs import Backend
+from leaderboard.stats.intervals import bootstrap_ci, iqm, stratified_bootstrap_ci
+from leaderboard.stats.metrics import aggregate, aggregate_runs, learning_curve_stats, run_matrix
+from leaderboard.stats.ranking import RankedRow, rank_rows
+from leaderboard.stats.result import LeaderboardResult
+from leaderboard.suite.entries import agent_entry, check_seed_disjointness, find_agent_folders
+from leaderboard.suite.tasks import SEED_BASE, TRACKS, evaluation_seeds
 
 REPO = Path(__file__).resolve().parents[2]
 CIRCLE = "uvdms/CircleTrack-v0"
@@ -39,21 +46,21 @@ FEW = 999
 @pytest.mark.parametrize("shape", [(3, 10), (4, 7), (5, 1), (2, 2), (3, 20)])
 def test_iqm_is_the_pooled_25_percent_trimmed_mean(shape):
     x = np.random.default_rng(sum(shape)).lognormal(size=shape)
-    assert lb.iqm(x) == pytest.approx(sps.trim_mean(x, 0.25, axis=None), rel=1e-14)
+    assert iqm(x) == pytest.approx(sps.trim_mean(x, 0.25, axis=None), rel=1e-14)
     pooled = np.sort(x.ravel())
     cut = int(0.25 * pooled.size)  # scipy's rule: int(proportion * n) values off each end
-    assert lb.iqm(x) == pytest.approx(pooled[cut : pooled.size - cut].mean(), rel=1e-14)
+    assert iqm(x) == pytest.approx(pooled[cut : pooled.size - cut].mean(), rel=1e-14)
 
 
 def test_iqm_ignores_outliers_and_missing_values():
     x = np.array([[1.0, 2.0, 3.0, 4.0], [5.0, 6.0, 7.0, 8.0]])
-    assert lb.iqm(x) == 4.5  # the middle four of eight
+    assert iqm(x) == 4.5  # the middle four of eight
     spoiled = x.copy()
     spoiled[0, 0], spoiled[1, 3] = -1e9, 1e9  # a diverged episode at each end
-    assert lb.iqm(spoiled) == 4.5 and spoiled.mean() != 4.5
+    assert iqm(spoiled) == 4.5 and spoiled.mean() != 4.5
     with_nan = np.array([[1.0, math.nan], [2.0, 3.0]])
-    assert lb.iqm(with_nan) == sps.trim_mean([1.0, 2.0, 3.0], 0.25)
-    assert math.isnan(lb.iqm([]))
+    assert iqm(with_nan) == sps.trim_mean([1.0, 2.0, 3.0], 0.25)
+    assert math.isnan(iqm([]))
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -77,15 +84,15 @@ def _loop_resampling(x: np.ndarray, statistic, seed: int, n_resamples: int) -> t
 def test_interval_matches_an_independent_resampling_with_the_same_seed(estimator):
     x = np.random.default_rng(1).normal(0.05, 0.02, size=(3, 8))
     x[1, 2] = math.nan  # an episode without a value: its column resamples the other two runs
-    stat = lb.stratified_bootstrap_ci(x, estimator=estimator, n_resamples=FEW, seed=123)
+    stat = stratified_bootstrap_ci(x, estimator=estimator, n_resamples=FEW, seed=123)
     statistic = (lambda v: sps.trim_mean(v, 0.25)) if estimator == "iqm" else np.mean
     low, high = _loop_resampling(x, statistic, 123, FEW)
     assert stat.n == 23 and stat.estimator == estimator
     assert stat.mean == pytest.approx(statistic(x[np.isfinite(x)]), rel=1e-14)
     assert (stat.low, stat.high) == pytest.approx((low, high), rel=1e-12)
     assert stat.low <= stat.mean <= stat.high
-    assert lb.stratified_bootstrap_ci(x, estimator=estimator, n_resamples=FEW, seed=123) == stat
-    assert lb.stratified_bootstrap_ci(x, estimator=estimator, n_resamples=FEW, seed=124) != stat
+    assert stratified_bootstrap_ci(x, estimator=estimator, n_resamples=FEW, seed=123) == stat
+    assert stratified_bootstrap_ci(x, estimator=estimator, n_resamples=FEW, seed=124) != stat
 
 
 def test_interval_agrees_with_rliables_stratified_bootstrap_scheme():
@@ -101,7 +108,7 @@ def test_interval_agrees_with_rliables_stratified_bootstrap_scheme():
         indices = rng.choice(num_runs, x.shape, replace=True)  # rliable: np.random.choice(num_runs, args_shape)
         estimates[b] = sps.trim_mean(x[indices, task_index], 0.25, axis=None)  # rliable: metrics.aggregate_iqm
     low, high = np.percentile(estimates, [2.5, 97.5])  # rliable's default method='percentile'
-    ours = lb.stratified_bootstrap_ci(x, n_resamples=n_resamples)
+    ours = stratified_bootstrap_ci(x, n_resamples=n_resamples)
     width = high - low
     assert ours.mean == sps.trim_mean(x, 0.25, axis=None)
     assert abs(ours.low - low) < 0.05 * width and abs(ours.high - high) < 0.05 * width  # Monte Carlo error only
@@ -110,26 +117,26 @@ def test_interval_agrees_with_rliables_stratified_bootstrap_scheme():
 def test_interval_reflects_the_spread_between_training_seeds():
     # a deterministic task: each run repeats one episode, the runs differ
     runs = np.array([[0.010] * 6, [0.020] * 6, [0.035] * 6])
-    stat = lb.stratified_bootstrap_ci(runs)
+    stat = stratified_bootstrap_ci(runs)
     assert stat.low < stat.mean < stat.high and stat.low >= 0.010 and stat.high <= 0.035
     for row in runs:  # every run on its own has a zero-width interval over its episodes
-        assert lb.bootstrap_ci(row).half_width == 0.0
-    same = lb.stratified_bootstrap_ci(np.full((3, 4), 0.02))
+        assert bootstrap_ci(row).half_width == 0.0
+    same = stratified_bootstrap_ci(np.full((3, 4), 0.02))
     assert (same.low, same.mean, same.high) == (0.02, 0.02, 0.02)
-    one = lb.stratified_bootstrap_ci([[0.5, math.nan], [math.nan, math.nan]])
+    one = stratified_bootstrap_ci([[0.5, math.nan], [math.nan, math.nan]])
     assert one.n == 1 and one.mean == 0.5 and math.isnan(one.low)
-    assert lb.stratified_bootstrap_ci(np.full((2, 2), math.nan)).n == 0
+    assert stratified_bootstrap_ci(np.full((2, 2), math.nan)).n == 0
     with pytest.raises(ValueError, match="matrix"):
-        lb.stratified_bootstrap_ci([1.0, 2.0])
+        stratified_bootstrap_ci([1.0, 2.0])
     with pytest.raises(ValueError, match="estimator"):
-        lb.stratified_bootstrap_ci(runs, estimator="median")
+        stratified_bootstrap_ci(runs, estimator="median")
 
 
 def test_interval_covers_the_point_on_skewed_small_samples():
     rng = np.random.default_rng(3)
     for _ in range(20):
         x = rng.exponential(size=(int(rng.integers(2, 5)), int(rng.integers(1, 6))))
-        stat = lb.stratified_bootstrap_ci(x, n_resamples=FEW)
+        stat = stratified_bootstrap_ci(x, n_resamples=FEW)
         assert stat.low <= stat.mean <= stat.high
 
 
@@ -143,18 +150,18 @@ def test_aggregate_runs_rates_are_pooled_rates_and_the_rest_iqms():
         [_episode(1, rmse=0.03, success=True, contacts=2), _episode(2, rmse=None, success=True)],
         [_episode(2, rmse=0.05, success=True), _episode(1, rmse=0.04, success=True)],  # order does not matter
     ]
-    stats = lb.aggregate_runs(runs)
+    stats = aggregate_runs(runs)
     assert stats["success"].mean == pytest.approx(5 / 6) and stats["success"].estimator == "mean"
     assert stats["contact_free"].mean == pytest.approx(5 / 6)
     assert stats["contact_free_success"].mean == pytest.approx(4 / 6)
     assert stats["rmse_pos"].estimator == "iqm" and stats["rmse_pos"].n == 5
     assert stats["rmse_pos"].mean == pytest.approx(sps.trim_mean([0.01, 0.02, 0.03, 0.04, 0.05], 0.25))
     assert stats["rmse_ori"].n == 0
-    matrix = lb.run_matrix(runs, "rmse_pos")
+    matrix = run_matrix(runs, "rmse_pos")
     assert matrix[2].tolist() == [0.04, 0.05] and math.isnan(matrix[1, 1])
     assert stats["rmse_pos"].to_json()["estimator"] == "iqm" and "estimator" not in stats["success"].to_json()
     with pytest.raises(ValueError, match="two episodes"):
-        lb.run_matrix([[_episode(1, rmse=0.1, success=True)] * 2], "rmse_pos")
+        run_matrix([[_episode(1, rmse=0.1, success=True)] * 2], "rmse_pos")
 
 
 def test_learning_curve_stats_over_seeds():
@@ -165,12 +172,12 @@ def test_learning_curve_stats_over_seeds():
         [{"num_timesteps": 100, "success_rate": None}, {"num_timesteps": 200, "success_rate": 0.6},
          {"num_timesteps": 300, "success_rate": 1.0}],
     ]  # fmt: skip
-    steps, stats = lb.learning_curve_stats(curves, "success_rate")
+    steps, stats = learning_curve_stats(curves, "success_rate")
     assert steps == [100, 200]  # 300 is not in every curve
     assert stats[0].mean == pytest.approx(0.1) and stats[0].n == 3  # the missing value is left out
     assert stats[1].mean == pytest.approx(np.mean([0.5, 0.7, 0.9, 0.6]))
     assert all(s.low <= s.mean <= s.high for s in stats)
-    single = lb.learning_curve_stats(curves[:1], "success_rate")[1]
+    single = learning_curve_stats(curves[:1], "success_rate")[1]
     assert [s.mean for s in single] == [0.0, 0.5] and math.isnan(single[1].low)
 
 
@@ -204,8 +211,8 @@ def _multi_seed(root: Path, name: str = "sac_multi", seeds=(0, 1, 2), **kwargs) 
 def test_multi_seed_folder_is_one_entry_with_a_member_per_seed(tmp_path):
     folder = _multi_seed(tmp_path, seeds=(0, 1, 10))
     single = _agent_folder(tmp_path / "sac_single", 5)
-    assert lb.find_agent_folders(tmp_path) == [folder, single]
-    entry = lb.agent_entry(folder, trust=True)
+    assert find_agent_folders(tmp_path) == [folder, single]
+    entry = agent_entry(folder, trust=True)
     assert entry.multi_seed and entry.name == "sac_multi" and entry.label == "sac_multi (3 seeds)"
     assert [m.name for m in entry.members] == ["sac_multi/seed_0", "sac_multi/seed_1", "sac_multi/seed_10"]
     assert [m.training_seed for m in entry.members] == [0, 1, 10]
@@ -216,7 +223,7 @@ def test_multi_seed_folder_is_one_entry_with_a_member_per_seed(tmp_path):
     filtered = entry.filtered()
     assert filtered.name == "sac_multi+filter" and all(m.safety_filter for m in filtered.members)
     assert filtered.members[0].name == "sac_multi+filter/seed_0"
-    plain = lb.agent_entry(single, trust=True)
+    plain = agent_entry(single, trust=True)
     assert not plain.multi_seed and plain.runs() == (plain,) and plain.label == "sac_single"
 
 
@@ -232,7 +239,7 @@ def test_a_residual_entry_trained_with_the_filter_is_named_as_a_single_agent_wou
 
 def test_two_seeds_are_accepted_with_a_warning(tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="uvdms.leaderboard"):
-        entry = lb.agent_entry(_multi_seed(tmp_path, seeds=(3, 4)), trust=True)
+        entry = agent_entry(_multi_seed(tmp_path, seeds=(3, 4)), trust=True)
     assert len(entry.members) == 2 and "at least 3" in caplog.text
 
 
@@ -273,14 +280,14 @@ def test_identical_seed_folders_are_refused(tmp_path):
     (first / "config.yml").write_text(json.dumps({"algo": "sac", "env_id": CIRCLE, "config": {}}))
     shutil.copytree(first, folder / "seed_2")
     with pytest.raises(ValueError, match="sac_multi/seed_1 and sac_multi/seed_2 hold identical model files"):
-        lb.agent_entry(folder, trust=True)
+        agent_entry(folder, trust=True)
 
 
 def test_a_clashing_training_seed_names_its_seed_folder(tmp_path):
-    folder = _multi_seed(tmp_path, seeds=(0, lb.SEED_BASE + 1))
-    entry = lb.agent_entry(folder, trust=True)
-    with pytest.raises(ValueError, match=rf"sac_multi/seed_{lb.SEED_BASE + 1}.*disjoint"):
-        lb.check_seed_disjointness(lb.evaluation_seeds(3), [entry])
+    folder = _multi_seed(tmp_path, seeds=(0, SEED_BASE + 1))
+    entry = agent_entry(folder, trust=True)
+    with pytest.raises(ValueError, match=rf"sac_multi/seed_{SEED_BASE + 1}.*disjoint"):
+        check_seed_disjointness(evaluation_seeds(3), [entry])
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -343,7 +350,7 @@ def _fake_episode(env, controller, seed, save_trajectory):
     return result
 
 
-FAKE = lb.Backend(make_env=_fake_env, make_controller=_fake_controller, run_episode=_fake_episode)
+FAKE = Backend(make_env=_fake_env, make_controller=_fake_controller, run_episode=_fake_episode)
 
 
 def _write_curve(folder: Path, seed: int, levels: list[float]) -> None:
@@ -376,13 +383,13 @@ def test_multi_seed_entry_is_one_row_aggregated_over_its_seeds(tmp_path):
     multi = rows["sac_multi", "case1"]
     assert len(multi.episodes) == 12 and {ep["training_seed"] for ep in multi.episodes} == {0, 1, 2}
     by_seed = [[ep for ep in multi.episodes if ep["training_seed"] == k] for k in (0, 1, 2)]
-    assert multi.stats == lb.aggregate_runs(by_seed)
+    assert multi.stats == aggregate_runs(by_seed)
     assert multi.stats["rmse_pos"].estimator == "iqm"
-    assert multi.stats["rmse_pos"].mean == pytest.approx(lb.iqm([ep["rmse_pos"] for ep in multi.episodes]))
+    assert multi.stats["rmse_pos"].mean == pytest.approx(iqm([ep["rmse_pos"] for ep in multi.episodes]))
     assert multi.stats["success"].mean == np.mean([ep["success"] for ep in multi.episodes])
     assert multi.stats["rmse_pos"].low < multi.stats["rmse_pos"].mean < multi.stats["rmse_pos"].high
     plain = rows["sac_single", "case1"]
-    assert plain.stats == lb.aggregate(plain.episodes) and "training_seed" not in plain.episodes[0]
+    assert plain.stats == aggregate(plain.episodes) and "training_seed" not in plain.episodes[0]
 
     tables = lb.markdown_tables(result)
     assert "| sac_multi (3 seeds) |" in tables and "| 3 × 4 |" in tables and "| sac_single |" in tables
@@ -420,12 +427,12 @@ def test_learning_curve_plot_skips_a_broken_curve(tmp_path, caplog):
     folder = _multi_seed(tmp_path, seeds=(0, 1))
     _write_curve(folder / "seed_0", 0, [0.3, 0.2])
     (folder / "seed_1" / "learning_curve.json").write_text("{not json")
-    entry = lb.agent_entry(folder, trust=True)
+    entry = agent_entry(folder, trust=True)
     with caplog.at_level(logging.WARNING, logger="uvdms.leaderboard"):
-        written = lb.write_learning_curves([entry], tmp_path / "plots")
+        written = write_learning_curves([entry], tmp_path / "plots")
     assert [p.name for p in written] == ["learning_curves_sac_multi.png"] and written[0].stat().st_size > 0
     assert "learning curve skipped" in caplog.text and "1 of 2 training seeds" in caplog.text
-    assert lb.write_learning_curves([lb.resolve_entries(["campc"])[0]], tmp_path / "plots") == []
+    assert write_learning_curves([lb.resolve_entries(["campc"])[0]], tmp_path / "plots") == []
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -472,16 +479,16 @@ def test_committed_leaderboard_is_reproduced_from_its_episodes():
             if seeds:  # a multi-seed entry: its own aggregation (IQM, stratified bootstrap) over seeds x episodes
                 runs = [[e for e in cell["episodes"] if e["training_seed"] == k] for k in seeds]
                 assert all(len(run) == len(runs[0]) > 0 for run in runs), (doc["name"], name)
-                stats = lb.aggregate_runs(runs)
+                stats = aggregate_runs(runs)
             else:
-                stats = lb.aggregate(cell["episodes"])
+                stats = aggregate(cell["episodes"])
             # equal to rounding: the bootstrap's sums may round differently on another CPU (1e-15 seen)
             assert _close({m: s.to_json() for m, s in stats.items()}, cell["stats"]), (doc["name"], name)
-            rows.append(lb.RankedRow(entry, tasks[name], stats, cell["episodes"]))
+            rows.append(RankedRow(entry, tasks[name], stats, cell["episodes"]))
     assert len(rows) > 20
     ranked = []
-    for track in lb.TRACKS:
+    for track in TRACKS:
         for task in lb.TASKS:
-            ranked += lb.rank_rows([r for r in rows if r.entry.track == track and r.task is task])
+            ranked += rank_rows([r for r in rows if r.entry.track == track and r.task is task])
     result = LeaderboardResult(ranked, [], lb.TASKS, [], 0, 0, [], root)
     assert lb.markdown_tables(result) in (root / "leaderboard.md").read_text(encoding="utf-8")

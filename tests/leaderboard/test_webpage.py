@@ -3,8 +3,8 @@
 A small output folder is made with the fake backend of ``test_multiseed`` (no physics, a few seconds with its
 plots): the four baselines, a three-seed residual agent with learning curves (and its ``+filter`` twin) and a
 single agent whose folder name is HTML (``sac<b>&"q"``). The page is parsed with :mod:`html.parser` and checked
-against the CSV, cell by cell, with the intervals formatted independently of :mod:`leaderboard.webpage`. The page's
-behaviour in a browser: ``test_webpage_browser.py``.
+against the CSV, cell by cell, with the intervals formatted independently of :mod:`leaderboard.output.webpage`. The
+page's behaviour in a browser: ``test_webpage_browser.py``.
 """
 
 from __future__ import annotations
@@ -21,9 +21,10 @@ import pytest
 from test_multiseed import CALLS, FAKE, TINY_TASKS, _agent_folder, _multi_seed, _write_curve
 
 import leaderboard as lb
-import leaderboard.registry
-from leaderboard.stats import METRICS
-from leaderboard.webpage import PAGE_NAME, metric_cell_text, write_index_html
+import leaderboard.suite.registry
+from leaderboard.output.webpage import PAGE_NAME, metric_cell_text, write_index_html
+from leaderboard.stats.metrics import METRICS
+from leaderboard.suite.entries import slugify
 from uvdms_cli.main import main as uvdms_main
 
 REPO = Path(__file__).resolve().parents[2]
@@ -46,7 +47,7 @@ def board(tmp_path_factory) -> Path:
     entries = lb.resolve_entries(["baselines", str(multi), f"{multi}+filter", str(single)], trust=True)
     CALLS.clear()
     with pytest.MonkeyPatch.context() as patch:  # the fake environment cannot host the real safety filter
-        patch.setattr(leaderboard.registry, "with_safety_filter", lambda controller, env: controller)
+        patch.setattr(leaderboard.suite.registry, "with_safety_filter", lambda controller, env: controller)
         lb.run_leaderboard(entries, out_dir=root / "out", tasks=TINY_TASKS, episodes=3, progress=False, backend=FAKE)
     return root / "out"
 
@@ -150,7 +151,7 @@ def test_every_text_from_the_folder_is_escaped(board):
     page = (board / PAGE_NAME).read_text(encoding="utf-8")
     assert HTML_NAME not in page and "<b>" not in page
     assert html.escape(HTML_NAME) in page  # shown as text, in the table and its detail view
-    assert (board / "entries" / f"{lb.slugify(HTML_NAME)}.json").is_file()
+    assert (board / "entries" / f"{slugify(HTML_NAME)}.json").is_file()
     row = next(r for (_t, _k, e), r in page_rows(page).items() if e == HTML_NAME)
     assert row["cells"][1]["text"] == HTML_NAME  # the parser unescapes what the browser will show
 
@@ -162,12 +163,12 @@ def test_detail_views_show_composition_seeds_training_and_learning_curve(board):
     assert all(f"seed_{k}" in residual for k in (0, 1, 2))
     assert "trained with sac" in residual and "recorded in entries/" in residual
     assert f'data-plot="plots/learning_curves_{RESIDUAL}.png"' in residual
-    twin = _template(page, lb.slugify(RESIDUAL + "+filter"))
+    twin = _template(page, slugify(RESIDUAL + "+filter"))
     assert "evaluated with the safety filter" in twin
     assert f'data-plot="plots/learning_curves_{RESIDUAL}.png"' in twin  # one training, one plot, embedded once
     assert page.count(f'"plots/learning_curves_{RESIDUAL}.png":') == 1
     assert "the baseline controller campc" in _template(page, "campc")
-    assert "No learning curve recorded" in _template(page, lb.slugify(HTML_NAME))
+    assert "No learning curve recorded" in _template(page, slugify(HTML_NAME))
     kinds = {r["attrs"]["data-entry"]: r["attrs"]["data-kind"] for r in page_rows(page).values()}
     assert kinds == {
         **{b: "baseline" for b in ("mpc", "campc", "campc-di", "campc-nndi")},

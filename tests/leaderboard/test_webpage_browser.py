@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from leaderboard.entries import slugify
+from leaderboard.suite.entries import slugify
 from uvdms_cli.main import main as uvdms_main
 
 REPO = Path(__file__).resolve().parents[2]

@@ -1,8 +1,8 @@
 """Running the leaderboard: the episodes to compute (cached), in this process or a process pool, then ranking.
 
-:func:`run_leaderboard` is the entry point; the episodes are :mod:`leaderboard.jobs` (the :class:`Backend` there
+:func:`run_leaderboard` is the entry point; the episodes are :mod:`leaderboard.running.jobs` (the :class:`Backend` there
 says how environments, controllers and episodes are made, so that tests can substitute fakes), the result a
-:class:`leaderboard.result.LeaderboardResult`.
+:class:`leaderboard.stats.result.LeaderboardResult`.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
-from leaderboard.cache import CorruptCacheError, read_cached
-from leaderboard.entries import Entry, check_seed_disjointness
-from leaderboard.jobs import (
+from leaderboard.output.report import write_outputs
+from leaderboard.running.cache import CorruptCacheError, read_cached
+from leaderboard.running.jobs import (
     DEFAULT_BACKEND,
     Backend,
     Job,
@@ -27,17 +27,18 @@ from leaderboard.jobs import (
     store_result,
     worker_setup,
 )
-from leaderboard.report import write_outputs
-from leaderboard.result import LeaderboardResult
-from leaderboard.reuse import CACHE_KEY_FIELD, check_reuse_dir, reusable_results
-from leaderboard.stats import RankedRow, aggregate, aggregate_runs, rank_rows
-from leaderboard.tasks import DEFAULT_EPISODES, TASKS, TRACKS, Task, evaluation_seeds
+from leaderboard.running.reuse import CACHE_KEY_FIELD, check_reuse_dir, reusable_results
+from leaderboard.stats.metrics import aggregate, aggregate_runs
+from leaderboard.stats.ranking import RankedRow, rank_rows
+from leaderboard.stats.result import LeaderboardResult
+from leaderboard.suite.entries import Entry, check_seed_disjointness
+from leaderboard.suite.tasks import DEFAULT_EPISODES, TASKS, TRACKS, Task, evaluation_seeds
 from uvdms_gym.utils.provenance import timing_record
 
 log = logging.getLogger("uvdms.leaderboard")
 
 EXECUTORS: tuple[str, ...] = ("local", "ray")
-"""Where episodes run: this machine's processes, or Ray tasks (:mod:`leaderboard.distributed`)."""
+"""Where episodes run: this machine's processes, or Ray tasks (:mod:`leaderboard.running.distributed`)."""
 
 
 def _execute(
@@ -54,7 +55,7 @@ def _execute(
     if not todo:  # everything cached: no worker, no Ray instance
         return
     if executor == "ray":
-        from leaderboard.distributed import DEFAULT_MAX_RETRIES, run_on_ray
+        from leaderboard.running.distributed import DEFAULT_MAX_RETRIES, run_on_ray
 
         retries = DEFAULT_MAX_RETRIES if max_retries is None else max_retries
         yield from run_on_ray(todo, backend, trust, address=address, num_cpus=num_cpus, max_retries=retries)
@@ -92,8 +93,8 @@ def _execute(
 def row_for(entry: Entry, task: Task, episodes: Mapping[Entry, Sequence[dict[str, Any]]]) -> RankedRow:
     """The (unranked) row of ``entry`` on ``task`` from the episodes of each of its runs (:meth:`Entry.runs`).
 
-    A single agent or baseline aggregates its episodes (:func:`leaderboard.stats.aggregate`); a multi-seed entry
-    its (training seed x episode) matrix (:func:`leaderboard.stats.aggregate_runs`), and its row's episodes are
+    A single agent or baseline aggregates its episodes (:func:`leaderboard.stats.metrics.aggregate`); a multi-seed entry
+    its (training seed x episode) matrix (:func:`leaderboard.stats.metrics.aggregate_runs`), and its row's episodes are
     those of every seed, each with its ``training_seed``.
     """
     if not entry.multi_seed:
@@ -141,13 +142,13 @@ def run_leaderboard(
             substitute a fake one).
         command: The command line, recorded in ``leaderboard.md``.
         executor: ``local`` (this process, or a pool of ``jobs`` processes) or ``ray`` (one Ray task per
-            episode, :mod:`leaderboard.distributed`; ``jobs`` is then unused).
+            episode, :mod:`leaderboard.running.distributed`; ``jobs`` is then unused).
         address: Ray cluster to join (``ray`` executor; ``None`` starts a local instance).
         num_cpus: CPUs of the local Ray instance (``ray`` executor without ``address``; default: every core).
         max_retries: Re-runs of an episode whose Ray worker dies (default
-            :data:`leaderboard.distributed.DEFAULT_MAX_RETRIES`).
+            :data:`leaderboard.running.distributed.DEFAULT_MAX_RETRIES`).
         reuse_from: A previous leaderboard output folder whose recorded episodes are reused for the episodes not
-            in the cache (:mod:`leaderboard.reuse`); they are stored in the cache and count as ``reused``.
+            in the cache (:mod:`leaderboard.running.reuse`); they are stored in the cache and count as ``reused``.
 
     Returns:
         The ranked rows and run statistics.

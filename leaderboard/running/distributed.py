@@ -8,7 +8,7 @@ installed but neither a shared filesystem nor write access to the driver's folde
 
 Controllers reach the workers as data:
 
-* a baseline as its name (the worker builds it with :func:`leaderboard.registry.make_controller`);
+* a baseline as its name (the worker builds it with :func:`leaderboard.suite.registry.make_controller`);
 * an agent as its weights-only export (:mod:`agents.export.weights`: ``agent.json``, ``policy.pt``,
   ``normalization.npz``), read or exported once by the driver (an SB3 zip is loaded there, with ``--trust``
   where it needs it, and exported) and put in the object store once per entry as ``{file name: bytes}``. A
@@ -33,7 +33,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from leaderboard.entries import Entry
+from leaderboard.suite.entries import Entry
 
 log = logging.getLogger("uvdms.leaderboard")
 
@@ -48,7 +48,7 @@ def agent_files(entry: Entry, trust: bool) -> dict[str, bytes]:
     """The weights-only export of an agent entry as ``{file name: bytes}`` (what the object store carries).
 
     A weights-only export is read as it is; any other agent (a run directory, a shipped agent or an SB3 zip)
-    is loaded here, in the driver (``trust`` as for :func:`leaderboard.registry.load_agent`), and exported to a
+    is loaded here, in the driver (``trust`` as for :func:`leaderboard.suite.registry.load_agent`), and exported to a
     temporary folder with :func:`agents.export.weights.export_controller` first.
 
     Raises:
@@ -59,7 +59,7 @@ def agent_files(entry: Entry, trust: bool) -> dict[str, bytes]:
     if entry.weights_only:
         return _read_folder(Path(entry.spec))
     from agents.export.weights import export_controller
-    from leaderboard.registry import load_agent
+    from leaderboard.suite.registry import load_agent
 
     agent = load_agent(entry.spec, trust=trust)
     with tempfile.TemporaryDirectory(prefix="uvdms-export-") as tmp:
@@ -93,12 +93,12 @@ def _remove_materialised() -> None:
 
 
 def ray_episode(job: Any, backend: Any, trust: bool, files: Mapping[str, bytes] | None) -> dict[str, Any]:
-    """Body of one Ray task: the episode of ``job`` (:func:`leaderboard.jobs.compute_job`) in a worker.
+    """Body of one Ray task: the episode of ``job`` (:func:`leaderboard.running.jobs.compute_job`) in a worker.
 
     ``files`` is the agent's weights-only export (``None`` for a baseline); the job's entry is pointed at the
     folder it is written to. Nothing is written to the cache here.
     """
-    from leaderboard.jobs import compute_job, worker_setup
+    from leaderboard.running.jobs import compute_job, worker_setup
 
     worker_setup()
     if files is not None:
@@ -124,8 +124,8 @@ def run_on_ray(
     """Run the episodes of ``todo`` as Ray tasks and yield ``(job, result)`` as each finishes.
 
     Args:
-        todo: :class:`leaderboard.jobs.Job` s to compute.
-        backend: :class:`leaderboard.jobs.Backend` (module-level callables: Ray pickles them by reference).
+        todo: :class:`leaderboard.running.jobs.Job` s to compute.
+        backend: :class:`leaderboard.running.jobs.Backend` (module-level callables: Ray pickles them by reference).
         trust: Allow unpickling agents outside ``trained_agents/`` (in the driver only, for the export).
         address: Ray cluster address (``None``: a local instance of ``num_cpus`` CPUs).
         num_cpus: CPUs of the local instance (default: every core of this machine).

@@ -12,8 +12,8 @@ import numpy as np
 
 import uvdms_gym
 from baselines.mpc import PROXSUITE_BUILD
-from leaderboard.entries import Entry
-from leaderboard.tasks import Task
+from leaderboard.suite.entries import Entry
+from leaderboard.suite.tasks import Task
 from uvdms_gym.utils.io import to_jsonable
 
 PACKAGE_VERSION = uvdms_gym.__version__

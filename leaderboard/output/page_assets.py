@@ -1,4 +1,4 @@
-"""The style sheet and script inlined into the leaderboard page (:mod:`leaderboard.webpage`).
+"""The style sheet and script inlined into the leaderboard page (:mod:`leaderboard.output.webpage`).
 
 Both are plain text copied verbatim into ``index.html`` (no templating: nothing of the data enters them). The script
 sorts a table by the column header clicked (numbers numerically, by the cell's ``data-value``; empty cells last;

@@ -15,7 +15,8 @@ shipped agent folder or a run directory) named ``seed_<k>`` after its training s
     trained_agents/<entry>/seed_2/
 
 Its :class:`Entry` holds one member entry per seed (``<entry>/seed_<k>``), which the runner evaluates and caches
-like any agent; the leaderboard reports one row per task for the whole entry (:func:`leaderboard.stats.aggregate_runs`).
+like any agent; the leaderboard reports one row per task for the whole entry
+(:func:`leaderboard.stats.metrics.aggregate_runs`).
 """
 
 from __future__ import annotations
@@ -30,20 +31,20 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from leaderboard.agent_files import (
+from leaderboard.suite.agent_files import (
     agent_checksum,
     agent_composition,
     agent_env,
     run_seed,
     training_seeds,
 )
-from leaderboard.registry import BASELINE_ENV, DEFAULT_BASELINES, TRACK_OF, resolve_controller
-from leaderboard.tasks import TRACKS, Task, env_family
+from leaderboard.suite.registry import BASELINE_ENV, DEFAULT_BASELINES, TRACK_OF, resolve_controller
+from leaderboard.suite.tasks import TRACKS, Task, env_family
 
 log = logging.getLogger("uvdms.leaderboard")
 
 BASELINES: dict[str, str] = TRACK_OF
-"""Named baselines and their tracks (:data:`leaderboard.registry.TRACK_OF`)."""
+"""Named baselines and their tracks (:data:`leaderboard.suite.registry.TRACK_OF`)."""
 FILTER_SUFFIX = "+filter"
 """Entry-token suffix: the entry's actions go through the safety filter (:mod:`baselines.safety`)."""
 DEFAULT_ENTRIES: tuple[str, ...] = ("baselines", "agents")
@@ -124,7 +125,7 @@ class Entry:
     def runs_on(self, task: Task) -> bool:
         """Whether the entry is evaluated on ``task`` (agents: only tasks of the environment they were trained on).
 
-        Any version of the task's environment counts (:func:`leaderboard.tasks.env_family`): an agent trained
+        Any version of the task's environment counts (:func:`leaderboard.suite.tasks.env_family`): an agent trained
         on ``uvdms/CircleTrack-v1`` runs the circle tasks, on ``-v1`` (:meth:`task_spec`).
         """
         return self.env_id is None or env_family(self.env_id) == env_family(task.env_id)

@@ -1,7 +1,7 @@
 """An agent folder's plain-text records, read without unpickling: environment, composition, seeds, checksum.
 
 An agent folder (a weights-only export, a shipped folder, a run directory, or the folder of an SB3 zip) records
-its training in ``agent.json`` / ``config.yml`` / ``meta.json``; :mod:`leaderboard.entries` builds an entry from
+its training in ``agent.json`` / ``config.yml`` / ``meta.json``; :mod:`leaderboard.suite.entries` builds an entry from
 them. Nothing here loads a model.
 """
 

@@ -1,14 +1,15 @@
 """``index.html``: the leaderboard as one self-contained web page, made from the files of an output folder.
 
-:func:`write_index_html` reads (:mod:`leaderboard.page_data`) what :func:`leaderboard.report.write_outputs` wrote
-(``leaderboard.csv``, the rows and figures; ``entries/<entry>.json``, each entry's composition, seeds and training;
-``leaderboard.md``, the command line and the list of plots; ``plots/*.png``) and writes ``index.html`` beside them,
-so the page says exactly what ``leaderboard.csv`` says and can be made again for an existing folder (``uvdms
-leaderboard --page-only DIR``) without evaluating anything. The page loads nothing: style sheet and script are
-inline (:mod:`leaderboard.page_assets`), the plots are ``data:`` URIs (palette PNGs), and a Content-Security-Policy
-forbids every other source. It shows one ranked table per track and task (each cell ``mean [low, high]``, the 95 %
-interval of the CSV; sortable by any column; filterable by task, track, kind and safety filter) and a detail view
-per entry (composition, seeds, training budget and wall time where recorded, learning curve).
+:func:`write_index_html` reads (:mod:`leaderboard.output.page_data`) what
+:func:`leaderboard.output.report.write_outputs` wrote (``leaderboard.csv``, the rows and figures;
+``entries/<entry>.json``, each entry's composition, seeds and training; ``leaderboard.md``, the command line and the
+list of plots; ``plots/*.png``) and writes ``index.html`` beside them, so the page says exactly what ``leaderboard.csv``
+says and can be made again for an existing folder (``uvdms leaderboard --page-only DIR``) without evaluating anything.
+The page loads nothing: style sheet and script are inline (:mod:`~leaderboard.output.page_assets`), the plots are
+``data:`` URIs (palette PNGs), and a Content-Security-Policy forbids every other source. It shows one ranked table per
+track and task (each cell ``mean [low, high]``, the 95 % interval of the CSV; sortable by any column; filterable by
+task, track, kind and safety filter) and a detail view per entry (composition, seeds, training budget and wall time
+where recorded, learning curve).
 
 Every text from the folder is HTML-escaped (:func:`html.escape`); the embedded plot data is JSON with ``<``, ``>``
 and ``&`` escaped, so no value can close its ``<script>`` element.
@@ -23,13 +24,13 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from leaderboard.entries import FILTER_SUFFIX, slugify
-from leaderboard.entry_info import KINDS, entry_kind
-from leaderboard.page_assets import CSS, JS
-from leaderboard.page_data import PageData, plot_data_uri, read_page_data
-from leaderboard.page_data import PageError as PageError  # re-exported: raised by write_index_html
-from leaderboard.stats import METRICS, OVERLOAD_MARK, TABLE_METRICS, TIMING_METRICS
-from leaderboard.tasks import TASKS, TRACKS
+from leaderboard.output.page_assets import CSS, JS
+from leaderboard.output.page_data import PageData, plot_data_uri, read_page_data
+from leaderboard.output.page_data import PageError as PageError  # re-exported: raised by write_index_html
+from leaderboard.stats.metrics import METRICS, OVERLOAD_MARK, TABLE_METRICS, TIMING_METRICS
+from leaderboard.suite.entries import FILTER_SUFFIX, slugify
+from leaderboard.suite.entry_info import KINDS, entry_kind
+from leaderboard.suite.tasks import TASKS, TRACKS
 
 PAGE_NAME = "index.html"
 """The page's file name in the output folder (beside ``leaderboard.md``)."""

@@ -11,7 +11,7 @@ Which episode is "the same":
 * Documents that record each episode's cache key (``cache_key``, written since ``--reuse`` exists): the
   episode whose key equals the planned one. The key hashes the package version, the entry's identity (name,
   model checksum, safety filter), the environment spec the entry runs the task on, the evaluation seed, the
-  trajectory flag and, for baselines, the ProxSuite build (:func:`leaderboard.cache.cache_material`).
+  trajectory flag and, for baselines, the ProxSuite build (:func:`leaderboard.running.cache.cache_material`).
 * Older documents (no keys): the document of the entry's name with the same package version, kind and model
   checksum (for a multi-seed entry, the member's checksum under ``seeds``), then the episode of the task's name,
   the evaluation seed and the member's training seed. The environment spec and the QP solver build are not
@@ -29,16 +29,16 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from leaderboard.cache import PACKAGE_VERSION, REQUIRED_KEYS
-from leaderboard.entries import Entry
+from leaderboard.running.cache import PACKAGE_VERSION, REQUIRED_KEYS
+from leaderboard.suite.entries import Entry
 
 if TYPE_CHECKING:
-    from leaderboard.jobs import Job
+    from leaderboard.running.jobs import Job
 
 log = logging.getLogger(__name__)
 
 CACHE_KEY_FIELD = "cache_key"
-"""Episode field of the entry documents: the episode's cache key (:func:`leaderboard.cache.cache_key`)."""
+"""Episode field of the entry documents: the episode's cache key (:func:`leaderboard.running.cache.cache_key`)."""
 _EPISODE_ONLY_FIELDS = (CACHE_KEY_FIELD, "training_seed")
 """Fields the documents add to a cached result (removed again when the result is reused)."""
 
@@ -47,7 +47,7 @@ def reusable_results(jobs: Sequence[Job], entries: Sequence[Entry], reuse_dir: s
     """The results of ``jobs`` found in the leaderboard output folder ``reuse_dir``, by the job's cache path.
 
     Args:
-        jobs: Planned episodes (:func:`leaderboard.jobs.plan_jobs`); the runner passes those not in the cache.
+        jobs: Planned episodes (:func:`leaderboard.running.jobs.plan_jobs`); the runner passes those not in the cache.
         entries: The run's entries (each job's entry is one of them or one of their members).
         reuse_dir: A folder written by :func:`leaderboard.run_leaderboard` (``entries/*.json`` inside).
 

@@ -1,4 +1,4 @@
-"""What a leaderboard run computed (:func:`leaderboard.runner.run_leaderboard`), read by the report and the plots."""
+"""What a run computed (:func:`leaderboard.running.runner.run_leaderboard`), read by the report and the plots."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from leaderboard.entries import Entry
-from leaderboard.stats import RankedRow
-from leaderboard.tasks import Task
+from leaderboard.stats.ranking import RankedRow
+from leaderboard.suite.entries import Entry
+from leaderboard.suite.tasks import Task
 
 
 @dataclass

@@ -2,9 +2,9 @@
 
 A :class:`Job` is one (entry, task, evaluation seed) episode with its cache key and file; :func:`plan_jobs` lists a
 run's; :func:`compute_job` runs one in this process or a worker (the :class:`Backend` says how environments,
-controllers (:func:`leaderboard.registry.make_controller`) and episodes (:func:`uvdms_gym.evaluation.run_episode`)
+controllers (:func:`leaderboard.suite.registry.make_controller`) and episodes (:func:`uvdms_gym.evaluation.run_episode`)
 are made, so that tests can substitute fakes); :func:`store_result` is the driver's write of its result. The local
-pool (:mod:`leaderboard.runner`) and the Ray backend (:mod:`leaderboard.distributed`) both run these.
+pool (:mod:`leaderboard.running.runner`) and the Ray backend (:mod:`leaderboard.running.distributed`) both run these.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from leaderboard.cache import cache_key, cache_material, cache_path, compact_result
-from leaderboard.entries import Entry
-from leaderboard.tasks import Task
+from leaderboard.running.cache import cache_key, cache_material, cache_path, compact_result
+from leaderboard.suite.entries import Entry
+from leaderboard.suite.tasks import Task
 from uvdms_gym.utils.io import write_json_atomic
 from uvdms_gym.utils.provenance import timing_record
 
@@ -48,7 +48,7 @@ def make_env(spec: Mapping[str, Any]) -> Any:
 
 
 def _real_make_controller(spec: str, env: Any, trust: bool) -> Any:
-    from leaderboard.registry import make_controller
+    from leaderboard.suite.registry import make_controller
 
     return make_controller(spec, env, trust=trust)
 
@@ -118,7 +118,7 @@ def compute_job(job: Job, backend: Backend, trust: bool) -> dict[str, Any]:
     if controller is None:
         controller = backend.make_controller(job.entry.spec, env, trust)
         if job.entry.safety_filter:
-            from leaderboard.registry import with_safety_filter
+            from leaderboard.suite.registry import with_safety_filter
 
             controller = with_safety_filter(controller, env)
         if reusable:

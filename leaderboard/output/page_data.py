@@ -1,4 +1,4 @@
-"""Reading a leaderboard output folder for its web page (:mod:`leaderboard.webpage`).
+"""Reading a leaderboard output folder for its web page (:mod:`leaderboard.output.webpage`).
 
 ``leaderboard.csv``, the entry documents (with their composition and training details), the plots
 ``leaderboard.md`` lists, and the plots as ``data:`` URIs.
@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from leaderboard.entries import slugify
-from leaderboard.entry_info import details_from_agents_dir
+from leaderboard.suite.entries import slugify
+from leaderboard.suite.entry_info import details_from_agents_dir
 
 log = logging.getLogger("uvdms.leaderboard")
 

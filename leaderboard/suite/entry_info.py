@@ -1,7 +1,7 @@
 """What an entry is made of and how it was trained, beside its scores (entry documents and the leaderboard page).
 
-:func:`entry_details` reads an :class:`~leaderboard.entries.Entry`'s composition (base controller, residual, safety
-filter) and each run's training record (algorithm, network, budget, wall time) from its plain-text files; the
+:func:`entry_details` reads an :class:`~leaderboard.suite.entries.Entry`'s composition (base controller, residual,
+safety filter) and each run's training record (algorithm, network, budget, wall time) from its plain-text files; the
 report writes them into ``entries/<entry>.json``. :func:`details_from_agents_dir` recovers the same for an entry
 document written before these keys existed, from the agent folder, only when the folder's model files have the
 checksums the document recorded (the files that were evaluated).
@@ -14,8 +14,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from leaderboard.agent_files import agent_checksum, agent_composition, training_record
-from leaderboard.entries import FILTER_SUFFIX, Entry
+from leaderboard.suite.agent_files import agent_checksum, agent_composition, training_record
+from leaderboard.suite.entries import FILTER_SUFFIX, Entry
 
 log = logging.getLogger("uvdms.leaderboard")
 
@@ -45,7 +45,7 @@ def composition_record(kind: str, spec: str | Path, evaluated_with_filter: bool)
 def entry_details(entry: Entry) -> dict[str, Any]:
     """``{"composition": ..., "training": [one record per run]}`` of an entry (baselines: no training records).
 
-    Each training record is :func:`~leaderboard.agent_files.training_record` of a run's folder with its
+    Each training record is :func:`~leaderboard.suite.agent_files.training_record` of a run's folder with its
     ``training_seed`` (a multi-seed entry's ``k``; ``None`` for a single agent).
     """
     if entry.kind != "agent":

@@ -11,7 +11,7 @@ from gymnasium.envs.registration import parse_env_id
 from uvdms_gym.utils.kwargs import env_family  # re-exported: the one home of the versionless id
 
 SEED_BASE = 2_000_000_000
-"""Evaluation seed of episode ``i`` is ``SEED_BASE + i`` (see :mod:`leaderboard`)."""
+"""Evaluation seed of episode ``i`` is ``SEED_BASE + i`` (``docs/leaderboard.md``, Seeds)."""
 TRACKS: tuple[str, ...] = ("velocity", "torque")
 """The two tracks, by the action mode their entries command."""
 DEFAULT_EPISODES = 20

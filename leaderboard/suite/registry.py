@@ -13,7 +13,8 @@ controller is one line in :data:`CONTROLLERS`.
   of its export or run (:class:`uvdms_gym.residual.ResidualController`), and an agent trained with the safety
   filter is filtered.
 
-``uvdms evaluate`` (:func:`evaluate`) and the leaderboard (:mod:`leaderboard.runner`) resolve through here.
+``uvdms evaluate`` (:func:`leaderboard.running.evaluate.evaluate`, which evaluates what this module resolves) and
+the leaderboard (:mod:`leaderboard.running.jobs`) resolve through here.
 Training gets the same pieces injected (``agents`` does not import ``baselines``): :func:`action_components`
 returns the picklable factories :class:`BaselineFactory`, :class:`SafetyFilterFactory` and :class:`TeacherFactory`
 that ``uvdms train`` passes to :func:`agents.training.train.train`.
@@ -174,7 +175,7 @@ class TeacherFactory:
         """The action mode the teacher commands (a baseline's registered one, an agent's training env's)."""
         if self.name in TRACK_OF:
             return TRACK_OF[self.name]
-        from leaderboard.agent_files import agent_env
+        from leaderboard.suite.agent_files import agent_env
 
         _env_id, kwargs = agent_env(resolve_controller(self.name))
         return str(kwargs.get("action_mode", "velocity"))
@@ -289,96 +290,3 @@ def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) 
     agent = load_agent(path, trust=trust)
     check_agent(agent, env, spec)
     return compose_agent(agent, env)
-
-
-def evaluate(
-    controller_spec: str,
-    env_id: str,
-    env_kwargs: dict | None = None,
-    episodes: int = 5,
-    seed: int = 0,
-    *,
-    out: str | None = None,
-    save_trajectory: bool = False,
-    progress: bool = True,
-    trust: bool = False,
-    safety_filter: bool = False,
-) -> dict:
-    """Evaluate a named controller or an agent over ``episodes`` seeded episodes (seeds ``seed, seed + 1, ...``).
-
-    A named controller's required ``action_mode`` is filled into ``env_kwargs`` when not given (an explicit,
-    different one raises ``ValueError``); an agent's environment gets the ``action_mode`` the agent was trained
-    with unless given. The episodes run through :func:`uvdms_gym.evaluation.evaluate_controller`.
-
-    Args:
-        controller_spec: A baseline name (``mpc``, ``campc``, ``campc-di``, ``campc-nndi``) or a path to an agent.
-        env_id: Gymnasium id, e.g. ``"uvdms/CircleTrack-v0"``.
-        env_kwargs: ``gymnasium.make`` keyword arguments.
-        episodes: Number of episodes (>= 1).
-        seed: Seed of the first episode.
-        out: JSON file to write (atomically); ``None`` writes nothing.
-        save_trajectory: Keep each episode's time series.
-        progress: Show a tqdm progress bar.
-        trust: Allow unpickling an agent's SB3 files.
-        safety_filter: Project every velocity command onto the collision rows (:func:`with_safety_filter`); an
-            agent trained with the filter is filtered anyway (once), a residual agent gets its base composed
-            (:func:`compose_agent`).
-
-    Returns:
-        ``{"episodes": [...], "summary": {...}, "meta": {...}}`` (:func:`uvdms_gym.evaluation.evaluate_controller`).
-
-    Raises:
-        ValueError: ``episodes < 1``, unknown controller, a folder that is not an agent, a corrupt agent
-            archive, or an action-mode mismatch.
-    """
-    from uvdms_gym.evaluation import evaluate_controller
-
-    if episodes < 1:
-        raise ValueError(f"episodes must be >= 1, got {episodes}")
-    kwargs = dict(env_kwargs or {})
-    check = None
-    if controller_spec in CONTROLLERS:
-        if safety_filter and TRACK_OF[controller_spec] != "velocity":
-            raise ValueError(
-                f"--safety-filter filters velocity commands, but {controller_spec} is a {TRACK_OF[controller_spec]}-"
-                "track controller (it commands forces and torques); evaluate it without the filter, or filter a "
-                f"velocity controller ({', '.join(n for n, track in TRACK_OF.items() if track == 'velocity')})"
-            )
-        kwargs.setdefault("action_mode", TRACK_OF[controller_spec])
-
-        def factory(env: Any) -> Any:
-            controller = make_controller(controller_spec, env, trust=trust)
-            return with_safety_filter(controller, env) if safety_filter else controller
-
-    else:
-        path = Path(resolve_controller(controller_spec))
-        if not path.exists():
-            raise ValueError(f"{controller_spec!r} is neither a baseline ({', '.join(CONTROLLERS)}) nor an agent path")
-        from agents.export import check_agent
-
-        agent = load_agent(path, trust)
-        kwargs.setdefault("action_mode", (agent.env_kwargs or {}).get("action_mode", "velocity"))
-        if safety_filter and kwargs["action_mode"] != "velocity":
-            raise ValueError(
-                f"--safety-filter filters velocity commands, but {controller_spec} acts in action_mode="
-                f"{kwargs['action_mode']!r}; evaluate it without the filter"
-            )
-
-        def factory(env: Any) -> Any:
-            return compose_agent(agent, env, safety_filter=safety_filter)
-
-        def check(controller: Any, env: Any) -> None:
-            check_agent(agent, env, controller_spec)  # the agent itself, filtered or not
-
-    return evaluate_controller(
-        factory,
-        env_id,
-        kwargs,
-        episodes,
-        seed,
-        label=controller_spec,
-        out=out,
-        save_trajectory=save_trajectory,
-        progress=progress,
-        check=check,
-    )

@@ -8,13 +8,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from leaderboard.entries import Entry
-from leaderboard.stats import METRICS, learning_curve_stats
-from leaderboard.tasks import TRACKS
+from leaderboard.stats.metrics import METRICS, learning_curve_stats
+from leaderboard.suite.entries import Entry
+from leaderboard.suite.tasks import TRACKS
 from uvdms_gym.physics.params import D1, D2
 
 if TYPE_CHECKING:
-    from leaderboard.result import LeaderboardResult
+    from leaderboard.stats.result import LeaderboardResult
 
 log = logging.getLogger("uvdms.leaderboard")
 
@@ -174,8 +174,8 @@ def write_learning_curves(entries: Sequence[Entry], plot_dir: str | Path) -> lis
 
     Success rate and position RMSE of the evaluation callback's episodes against environment steps: each
     training seed's curve (thin) and, at the step counts every seed has, their mean with a 95 % bootstrap
-    interval over seeds (:func:`leaderboard.stats.learning_curve_stats`). An entry and its ``+filter`` twin share
-    one plot (the same training).
+    interval over seeds (:func:`leaderboard.stats.metrics.learning_curve_stats`). An entry and its ``+filter`` twin
+    share one plot (the same training).
 
     Returns:
         The written PNG paths.
