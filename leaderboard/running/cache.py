@@ -1,4 +1,13 @@
-"""The per-episode result cache: keys, paths, reading with corruption checks, and compact results."""
+"""The per-episode result cache: keys, paths, reading with corruption checks, and compact results.
+
+A result's key is the SHA-256 of its material (:func:`cache_material`): what decides the episode's result (the
+cache format, the entry's identity, the task spec the entry runs, the seed, the trajectory flag and, for baselines,
+the QP solver build). [D] Not the package version: a release that changes no result (a version bump, a
+refactoring) keeps every key, so nothing is recomputed; a change of the code that does change results bumps
+:data:`CACHE_FORMAT`. Keys of before 0.4 (:data:`LEGACY_FORMAT`) also hashed the package version;
+:func:`legacy_cache_key` computes them, so that ``--reuse`` (:mod:`leaderboard.running.reuse`) still finds the
+episodes of an output folder written then (``docs/leaderboard.md``, Cache).
+"""
 
 from __future__ import annotations
 
@@ -10,15 +19,16 @@ from typing import Any
 
 import numpy as np
 
-import uvdms_gym
 from baselines.mpc import PROXSUITE_BUILD
 from leaderboard.suite.entries import Entry
 from leaderboard.suite.tasks import Task
 from uvdms_gym.utils.io import to_jsonable
 
-PACKAGE_VERSION = uvdms_gym.__version__
-CACHE_FORMAT = 2
-"""Version of the cached per-episode files (2: every result carries its ``timing`` record)."""
+CACHE_FORMAT = 3
+"""Version of the cache keys and files; bump it with a change of the code that changes episode results (3: the key
+no longer hashes the package version; 2: every result carries its ``timing`` record)."""
+LEGACY_FORMAT = 2
+"""The format of the keys that hashed the package version (:func:`legacy_cache_key`)."""
 REQUIRED_KEYS: tuple[str, ...] = ("seed", "contacts", "success", "rmse_pos", "min_distance", "steps")
 """Keys a cached per-episode result must have (a file without them is treated as corrupt)."""
 
@@ -28,14 +38,13 @@ class CorruptCacheError(ValueError):
 
 
 def cache_material(entry: Entry, task: Task, seed: int, save_trajectory: bool) -> dict[str, Any]:
-    """Everything the cache key hashes (see the module docstring).
+    """Everything the cache key hashes: what decides the episode's result, not the package version (module docstring).
 
     Baselines also hash the ProxSuite build their QPs are solved with (:data:`baselines.mpc.PROXSUITE_BUILD`):
     results of another build differ in the last bits and are not reused.
     """
     material = {
         "format": CACHE_FORMAT,
-        "package_version": PACKAGE_VERSION,
         "entry": entry.identity(),
         "task": entry.task_spec(task),
         "seed": int(seed),
@@ -49,6 +58,11 @@ def cache_material(entry: Entry, task: Task, seed: int, save_trajectory: bool) -
 def cache_key(material: Mapping[str, Any]) -> str:
     """SHA-256 of the canonical JSON of ``material``."""
     return hashlib.sha256(json.dumps(material, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def legacy_cache_key(material: Mapping[str, Any], package_version: str) -> str:
+    """The key that ``material`` had before 0.4, when keys also hashed the package version of the run."""
+    return cache_key({**material, "format": LEGACY_FORMAT, "package_version": package_version})
 
 
 def cache_path(cache_dir: str | Path, entry: Entry, task: Task, seed: int, key: str) -> Path:

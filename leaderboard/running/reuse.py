@@ -9,9 +9,11 @@ that did compute it).
 Which episode is "the same":
 
 * Documents that record each episode's cache key (``cache_key``, written since ``--reuse`` exists): the
-  episode whose key equals the planned one. The key hashes the package version, the entry's identity (name,
-  model checksum, safety filter), the environment spec the entry runs the task on, the evaluation seed, the
-  trajectory flag and, for baselines, the ProxSuite build (:func:`leaderboard.running.cache.cache_material`).
+  episode whose key equals the planned one. The key hashes the entry's identity (name, model checksum, safety
+  filter), the environment spec the entry runs the task on, the evaluation seed, the trajectory flag and, for
+  baselines, the ProxSuite build (:func:`leaderboard.running.cache.cache_material`). A document written before
+  0.4, whose keys also hashed its ``package_version``, matches on that key
+  (:func:`leaderboard.running.cache.legacy_cache_key`): a version bump alone does not make an episode new.
 * Older documents (no keys): the document of the entry's name with the same package version, kind and model
   checksum (for a multi-seed entry, the member's checksum under ``seeds``), then the episode of the task's name,
   the evaluation seed and the member's training seed. The environment spec and the QP solver build are not
@@ -29,7 +31,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from leaderboard.running.cache import PACKAGE_VERSION, REQUIRED_KEYS
+import uvdms_gym
+from leaderboard.running.cache import REQUIRED_KEYS, legacy_cache_key
 from leaderboard.suite.entries import Entry
 
 if TYPE_CHECKING:
@@ -119,7 +122,10 @@ def _match(
     """``job``'s episode among ``episodes`` as a cached result (or ``None``), and whether it matched without a key."""
     keyed = [ep for ep in episodes if isinstance(ep, Mapping) and CACHE_KEY_FIELD in ep]
     if keyed:
-        hit = next((ep for ep in keyed if ep[CACHE_KEY_FIELD] == job.key), None)
+        keys = {job.key}
+        if isinstance(doc.get("package_version"), str):
+            keys.add(legacy_cache_key(job.material, doc["package_version"]))
+        hit = next((ep for ep in keyed if ep[CACHE_KEY_FIELD] in keys), None)
         return _as_result(hit), False
     if not _same_entry(job.entry, parent, doc):
         return None, False
@@ -133,7 +139,7 @@ def _match(
 
 def _same_entry(run: Entry, parent: Entry, doc: Mapping[str, Any]) -> bool:
     """Whether a keyless document describes ``run`` (a member of ``parent``, or ``parent`` itself)."""
-    if doc.get("package_version") != PACKAGE_VERSION or doc.get("name") != parent.name:
+    if doc.get("package_version") != uvdms_gym.__version__ or doc.get("name") != parent.name:
         return False
     if doc.get("kind") != parent.kind:
         return False

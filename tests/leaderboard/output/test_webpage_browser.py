@@ -20,7 +20,7 @@ import pytest
 from leaderboard.suite.entries import slugify
 from uvdms_cli.main import main as uvdms_main
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 COMMITTED = REPO / "docs" / "leaderboard"
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")

@@ -13,8 +13,8 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from test_leaderboard import CALLS, FAKE, TINY_TASKS
-from test_multiseed import _multi_seed
+from support.leaderboard_fakes import CALLS, FAKE, TINY_TASKS
+from support.multiseed_fakes import _multi_seed
 
 import leaderboard as lb
 import leaderboard.running.cache

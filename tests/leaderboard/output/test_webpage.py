@@ -1,6 +1,6 @@
 """``index.html``: the leaderboard page holds every row of ``leaderboard.csv``, loads nothing, escapes every text.
 
-A small output folder is made with the fake backend of ``test_multiseed`` (no physics, a few seconds with its
+A small output folder is made with the fake backend of ``support.multiseed_fakes`` (no physics, a few seconds with its
 plots): the four baselines, a three-seed residual agent with learning curves (and its ``+filter`` twin) and a
 single agent whose folder name is HTML (``sac<b>&"q"``). The page is parsed with :mod:`html.parser` and checked
 against the CSV, cell by cell, with the intervals formatted independently of :mod:`leaderboard.output.webpage`. The
@@ -18,7 +18,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import pytest
-from test_multiseed import CALLS, FAKE, TINY_TASKS, _agent_folder, _multi_seed, _write_curve
+from support.multiseed_fakes import CALLS, FAKE, TINY_TASKS, _agent_folder, _multi_seed, _write_curve
 
 import leaderboard as lb
 import leaderboard.suite.registry
@@ -27,7 +27,7 @@ from leaderboard.stats.metrics import METRICS
 from leaderboard.suite.entries import slugify
 from uvdms_cli.main import main as uvdms_main
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 COMMITTED = REPO / "docs" / "leaderboard"
 HTML_NAME = 'sac<b>&"q"'
 """A single agent's folder name: markup and quotes, which the page must show as text."""

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from test_leaderboard import BASELINE_ENTRIES, TINY_TASKS, _run
+from support.leaderboard_fakes import BASELINE_ENTRIES, TINY_TASKS, _run
 
 import leaderboard as lb
 import leaderboard.running.cache

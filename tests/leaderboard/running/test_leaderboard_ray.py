@@ -25,7 +25,7 @@ from leaderboard.running.jobs import plan_jobs
 from leaderboard.suite.tasks import evaluation_seeds
 from uvdms_cli.main import main
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 SHIPPED_SAC = REPO / "trained_agents" / "sac-circle-case1-v0"
 TIMING_PREFIXES = ("timing_", "controller_ms_")
 """``leaderboard.csv`` columns that measure time (everything else is a quality column)."""

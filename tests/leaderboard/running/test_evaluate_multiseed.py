@@ -12,7 +12,7 @@ from leaderboard.running.evaluate import evaluate
 from leaderboard.stats.metrics import aggregate_runs
 from uvdms_cli.main import main
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 ENTRY = REPO / "trained_agents" / "sac-circle-v1"  # plain SAC, three seeds: cheap to run
 KWARGS = ["case=2", "max_episode_steps=4"]
 

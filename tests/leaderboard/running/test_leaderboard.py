@@ -8,8 +8,8 @@ import math
 import zipfile
 from pathlib import Path
 
-import numpy as np
 import pytest
+from support.leaderboard_fakes import BASELINE_ENTRIES, CALLS, CIRCLE, FAKE, TINY_TASKS, _run
 
 import leaderboard as lb
 import leaderboard.running.cache
@@ -21,98 +21,6 @@ from leaderboard.suite.entries import agent_entry, check_seed_disjointness
 from leaderboard.suite.tasks import SEED_BASE, evaluation_seeds
 from uvdms_cli.main import main as uvdms_main
 from uvdms_gym.utils.io import _umask, mirror_file, write_json_atomic
-
-CIRCLE = "uvdms/CircleTrack-v0"
-TINY_TASKS = (
-    lb.Task("case1", "Case 1", CIRCLE, {"case": 1}, paper=True, trajectory=True, max_episode_steps=3),
-    lb.Task("case2", "Case 2", CIRCLE, {"case": 2}, paper=True, trajectory=True, max_episode_steps=3),
-)
-
-
-# ------------------------------------------------------------------------------------------------------
-# A fake backend: no physics, deterministic per (controller, task, seed) metrics, and a call counter
-# ------------------------------------------------------------------------------------------------------
-class FakeEnv:
-    def __init__(self, spec):
-        self.spec_ = dict(spec)
-        self.closed = False
-
-    def close(self):
-        self.closed = True
-
-
-class FakeController:
-    def __init__(self, name):
-        self.name = name
-
-    def reset(self, seed=None):
-        pass
-
-
-CALLS: list[tuple[str, int]] = []
-
-
-def fake_make_env(spec):
-    return FakeEnv(spec)
-
-
-def fake_make_controller(spec, env, trust):
-    return FakeController(spec)
-
-
-def fake_run_episode(env, controller, seed, save_trajectory):
-    CALLS.append((controller.name, seed))
-    rng = np.random.default_rng([seed, sum(map(ord, controller.name)), env.spec_["env_kwargs"].get("case", 0)])
-    contacts = int(rng.integers(0, 2)) if controller.name == "mpc" else 0
-    result = {
-        "seed": seed,
-        "return": float(rng.normal(-50, 5)),
-        "cost": float(contacts),
-        "contacts": contacts,
-        "zone_steps": contacts,
-        "min_distance": float(rng.uniform(0.04, 0.1)),
-        "min_distance_by_pair": rng.uniform(0.04, 0.3, 18).tolist(),
-        "rmse_pos": float(rng.uniform(0.01, 0.02) * (1 + len(controller.name))),
-        "rmse_ori": None,
-        "final_pos_error": float(rng.uniform(0, 0.1)),
-        "final_ori_error": None,
-        "success": bool(rng.uniform() < 0.8),
-        "controller_ms_median": 1.0,
-        "qp_slack_max": 0.0,
-        "steps": 3,
-        "terminated": False,
-        "truncated": True,
-        "physics_error": None,
-    }
-    if save_trajectory:
-        t = np.arange(4) * 0.04
-        result["trajectory"] = {
-            "t": t,
-            "y": np.zeros((4, 6)),
-            "y_ref": np.zeros((4, 6)),
-            "distances": rng.uniform(0.04, 0.3, (4, 18)),
-            "tau": np.zeros((4, 18)),
-            "nn_output": None,
-        }
-    return result
-
-
-FAKE = Backend(make_env=fake_make_env, make_controller=fake_make_controller, run_episode=fake_run_episode)
-BASELINE_ENTRIES = lb.resolve_entries(["baselines"])
-
-
-def _run(tmp_path, *, entries=BASELINE_ENTRIES, episodes=3, plots=False, **kwargs):
-    CALLS.clear()
-    return lb.run_leaderboard(
-        entries,
-        out_dir=tmp_path / "out",
-        tasks=TINY_TASKS,
-        episodes=episodes,
-        progress=False,
-        plots=plots,
-        backend=FAKE,
-        **kwargs,
-    )
 
 
 def _cache_files(tmp_path) -> list[Path]:
@@ -207,15 +115,28 @@ def test_mirror_file_copies_keeps_itself_and_removes_a_stale_copy(tmp_path):
     assert mirror_file(None, target) is None and not target.exists()
 
 
-def test_cache_key_depends_on_entry_task_seed_and_version(monkeypatch):
+def test_cache_key_depends_on_entry_task_seed_and_format_not_on_the_version(monkeypatch, release):
     entry, task = BASELINE_ENTRIES[0], TINY_TASKS[0]
     base = cache_key(cache_material(entry, task, 1, False))
     assert base == cache_key(cache_material(entry, task, 1, False))
     assert base != cache_key(cache_material(entry, task, 2, False))
     assert base != cache_key(cache_material(entry, TINY_TASKS[1], 1, False))
     assert base != cache_key(cache_material(BASELINE_ENTRIES[1], task, 1, False))
-    monkeypatch.setattr(leaderboard.running.cache, "PACKAGE_VERSION", "9.9.9")
+    release("9.9.9")
+    assert base == cache_key(cache_material(entry, task, 1, False))
+    monkeypatch.setattr(leaderboard.running.cache, "CACHE_FORMAT", leaderboard.running.cache.CACHE_FORMAT + 1)
     assert base != cache_key(cache_material(entry, task, 1, False))
+
+
+def test_a_version_bump_recomputes_no_cached_episode(tmp_path, release):
+    first = _run(tmp_path)
+    assert first.computed == len(CALLS) == len(BASELINE_ENTRIES) * len(TINY_TASKS) * 3
+    release("0.4.0")
+    second = _run(tmp_path)
+    assert (second.computed, second.cached, CALLS) == (0, first.computed, [])
+    assert lb.markdown_tables(second) == lb.markdown_tables(first)
+    document = json.loads((tmp_path / "out" / "entries" / "mpc.json").read_text())
+    assert document["package_version"] == "0.4.0"  # the documents still say which release wrote them
 
 
 def test_baseline_cache_key_depends_on_the_proxsuite_build(monkeypatch):
@@ -406,7 +327,7 @@ def test_agents_of_another_env_version_run_the_tasks_on_their_version():
 
 
 def test_a_v1_agent_runs_its_version_and_the_table_says_whose_return_it_is(tmp_path):
-    from test_multiseed import FAKE, TINY_TASKS, _agent_folder, _fake_episode
+    from support.multiseed_fakes import FAKE, TINY_TASKS, _agent_folder, _fake_episode
 
     seen: list[tuple[str, str]] = []
 
