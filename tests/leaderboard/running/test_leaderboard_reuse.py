@@ -19,6 +19,9 @@ from support.multiseed_fakes import _multi_seed
 import leaderboard as lb
 import leaderboard.running.cache
 import leaderboard.running.reuse
+from leaderboard.running.jobs import plan_jobs
+from leaderboard.running.reuse import reusable_results
+from leaderboard.suite.tasks import evaluation_seeds
 
 EPISODES = 3
 
@@ -110,7 +113,7 @@ def test_keyless_documents_are_matched_on_name_checksum_version_and_seeds_with_a
     assert "records no cache keys" in caplog.text and "sac_multi.json" in caplog.text
 
 
-def test_keyless_documents_of_another_package_version_or_checksum_are_not_used(tmp_path, entries, monkeypatch):
+def test_keyless_documents_of_another_package_version_or_checksum_are_not_used(tmp_path, entries, release):
     _run(tmp_path / "first", entries)
     _strip_keys(tmp_path / "first")
     path = tmp_path / "first" / "entries" / "sac_multi.json"
@@ -120,7 +123,7 @@ def test_keyless_documents_of_another_package_version_or_checksum_are_not_used(t
     second = _run(tmp_path / "second", entries, reuse_from=tmp_path / "first")
     runs_per_task = len(TINY_TASKS) * EPISODES - sum(t.trajectory for t in TINY_TASKS)
     assert second.computed == _trajectory_jobs(entries) + runs_per_task  # sac_multi's seed 0 only
-    monkeypatch.setattr(leaderboard.running.reuse, "PACKAGE_VERSION", "9.9.9")
+    release("9.9.9")  # keyless documents record neither environment spec nor solver build: kept per version
     third = _run(tmp_path / "third", entries, reuse_from=tmp_path / "first")
     assert third.reused == 0
 
@@ -137,3 +140,23 @@ def test_bad_reuse_arguments_name_the_problem(tmp_path, entries):
     (tmp_path / "first" / "entries" / "mpc.json").write_text("{truncated")
     with pytest.raises(ValueError, match=r"mpc\.json is not valid JSON"):
         _run(tmp_path / "second", entries, reuse_from=tmp_path / "first")
+
+
+COMMITTED = Path(__file__).resolve().parents[3] / "docs" / "leaderboard"
+
+
+def test_the_committed_leaderboard_is_reused_after_a_version_bump(tmp_path, release):
+    """Its documents hold the keys of 0.1.0, which hashed the version: every episode is still found after 0.4.0."""
+    documents = [json.loads(p.read_text()) for p in sorted((COMMITTED / "entries").glob("*.json"))]
+    assert {doc["package_version"] for doc in documents} == {"0.1.0"}
+    tokens = ["baselines", "agents", "campc-inner", "hold"]
+    shipped = COMMITTED.parents[1] / "trained_agents"
+    tokens += [f"{shipped / doc['spec']}+filter" for doc in documents if doc["name"].endswith("+filter")]
+    release("0.4.0")
+    entries = lb.resolve_entries(tokens)
+    assert sorted(e.name for e in entries) == sorted(doc["name"] for doc in documents)
+    jobs = plan_jobs(entries, lb.TASKS, evaluation_seeds(lb.DEFAULT_EPISODES), tmp_path / "cache")
+    found = reusable_results(jobs, entries, COMMITTED)
+    missing = [(job.entry.name, job.task.name, job.seed) for job in jobs if job.path not in found]
+    assert len(missing) == sum(job.save_trajectory for job in jobs), missing[:5]  # only those that plot a trajectory
+    assert len(found) == len(jobs) - sum(job.save_trajectory for job in jobs) > 4000
