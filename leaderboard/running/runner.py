@@ -27,6 +27,7 @@ from leaderboard.running.jobs import (
     store_result,
     worker_setup,
 )
+from leaderboard.running.lock import output_lock
 from leaderboard.running.reuse import CACHE_KEY_FIELD, check_reuse_dir, reusable_results
 from leaderboard.stats.metrics import aggregate, aggregate_runs
 from leaderboard.stats.ranking import RankedRow, rank_rows
@@ -157,59 +158,61 @@ def run_leaderboard(
         ValueError: No entries, ``episodes < 1``, evaluation seeds that clash with training seeds, an unknown
             executor, Ray options without the ``ray`` executor, or ``reuse_from`` with ``force``.
         FileNotFoundError: ``reuse_from`` is not a leaderboard output folder.
+        OutputFolderInUseError: Another run is writing ``out_dir`` (:mod:`leaderboard.running.lock`).
         ConnectionError: The Ray cluster at ``address`` cannot be reached.
     """
     backend = backend if backend is not None else DEFAULT_BACKEND
     _check_options(entries, episodes, executor, address, num_cpus, max_retries, jobs, force, reuse_from)
     out = Path(out_dir)
-    cache = _prepare_cache(Path(cache_dir) if cache_dir is not None else out / "cache")
-    seeds = evaluation_seeds(episodes)
-    check_seed_disjointness(seeds, entries)
+    with output_lock(out):  # one run per output folder: a second one refuses
+        cache = _prepare_cache(Path(cache_dir) if cache_dir is not None else out / "cache")
+        seeds = evaluation_seeds(episodes)
+        check_seed_disjointness(seeds, entries)
 
-    all_jobs = plan_jobs(entries, tasks, seeds, cache)
-    results, corrupt, todo = _read_cache(all_jobs, force)
-    n_reused = 0
-    if reuse_from is not None and todo:
-        todo, n_reused = _reuse(todo, entries, reuse_from, results)
-    n_cached = len(all_jobs) - len(todo) - n_reused
-    # the model-based baselines' episodes first: they are the long ones (an MPC QP per step), and workers that
-    # finish the short agent episodes last leave less idle time at the end (the results do not depend on order)
-    todo.sort(key=lambda job: job.entry.kind != "baseline")
-    log.info(
-        "leaderboard: %d entries, %d tasks, %d episodes each: %d cached, %d reused, %d to compute",
-        len(entries),
-        len(tasks),
-        episodes,
-        n_cached,
-        n_reused,
-        len(todo),
-    )
-    with timing_record() as run_record:  # the run's machine and load (each episode has its own record)
-        execute = functools.partial(
-            _execute,
-            backend=backend,
-            trust=trust,
-            jobs=jobs,
-            executor=executor,
-            address=address,
-            num_cpus=num_cpus,
-            max_retries=max_retries,
+        all_jobs = plan_jobs(entries, tasks, seeds, cache)
+        results, corrupt, todo = _read_cache(all_jobs, force)
+        n_reused = 0
+        if reuse_from is not None and todo:
+            todo, n_reused = _reuse(todo, entries, reuse_from, results)
+        n_cached = len(all_jobs) - len(todo) - n_reused
+        # the model-based baselines' episodes first: they are the long ones (an MPC QP per step), and workers that
+        # finish the short agent episodes last leave less idle time at the end (the results do not depend on order)
+        todo.sort(key=lambda job: job.entry.kind != "baseline")
+        log.info(
+            "leaderboard: %d entries, %d tasks, %d episodes each: %d cached, %d reused, %d to compute",
+            len(entries),
+            len(tasks),
+            episodes,
+            n_cached,
+            n_reused,
+            len(todo),
         )
-        _compute(todo, len(all_jobs), n_cached + n_reused, execute, results, progress)
-    result = LeaderboardResult(
-        rows=_ranked_rows(all_jobs, results, entries, tasks),
-        entries=list(entries),
-        tasks=tuple(tasks),
-        seeds=seeds,
-        computed=len(todo),
-        cached=n_cached,
-        reused=n_reused,
-        corrupt=corrupt,
-        out_dir=out,
-        timing=run_record,
-    )
-    write_outputs(result, command=command, plots=plots)
-    return result
+        with timing_record() as run_record:  # the run's machine and load (each episode has its own record)
+            execute = functools.partial(
+                _execute,
+                backend=backend,
+                trust=trust,
+                jobs=jobs,
+                executor=executor,
+                address=address,
+                num_cpus=num_cpus,
+                max_retries=max_retries,
+            )
+            _compute(todo, len(all_jobs), n_cached + n_reused, execute, results, progress)
+        result = LeaderboardResult(
+            rows=_ranked_rows(all_jobs, results, entries, tasks),
+            entries=list(entries),
+            tasks=tuple(tasks),
+            seeds=seeds,
+            computed=len(todo),
+            cached=n_cached,
+            reused=n_reused,
+            corrupt=corrupt,
+            out_dir=out,
+            timing=run_record,
+        )
+        write_outputs(result, command=command, plots=plots)
+        return result
 
 
 def _check_options(
