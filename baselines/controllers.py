@@ -5,7 +5,7 @@ the action in the environment's normalised space ``[-1, 1]^18``; re-exported her
 ``last_record`` (a dict with ``status``, ``iterations``, ``max_slack``, ``wall_us`` and more) after each
 ``predict`` (``hold``, with no QP, an empty one). Trained agents follow the same protocol
 (:class:`agents.export.AgentController`); resolving a name *or* an agent path
-to a controller is the composition layer's job (:mod:`leaderboard.registry`).
+to a controller is the composition layer's job (:mod:`leaderboard.suite.registry`).
 
 Named baselines (:data:`BASELINES`; :func:`make_baseline`):
 

@@ -20,8 +20,8 @@ import gymnasium as gym
 import numpy as np
 
 import uvdms_gym  # noqa: F401  (registers the ids)
-from leaderboard.registry import make_controller
-from leaderboard.tasks import SEED_BASE, select_tasks
+from leaderboard.suite.registry import make_controller
+from leaderboard.suite.tasks import SEED_BASE, select_tasks
 
 
 def episode_actions(env: gym.Env, controller: Any, seed: int) -> np.ndarray:

@@ -22,8 +22,8 @@ import gymnasium as gym
 import numpy as np
 
 import uvdms_gym  # noqa: F401  (registers the ids)
-from leaderboard.registry import make_controller
-from leaderboard.tasks import SEED_BASE, select_tasks
+from leaderboard.suite.registry import make_controller
+from leaderboard.suite.tasks import SEED_BASE, select_tasks
 from uvdms_gym.evaluation import run_episode
 from uvdms_gym.utils.provenance import load_average, machine_info
 

@@ -24,7 +24,7 @@ import numpy as np
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 from baselines.controllers import HoldStill
-from leaderboard.tasks import select_tasks
+from leaderboard.suite.tasks import select_tasks
 from uvdms_gym.evaluation import run_episode
 
 DEFAULT_ENTRY = Path("docs/leaderboard/entries/ppo-lagrangian-transport-v1.json")

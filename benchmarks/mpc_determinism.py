@@ -4,7 +4,7 @@ Two probes:
 
 * ``episodes``: fresh subprocesses run the first ``--steps`` steps of a baseline on the paper transport
   (``run_episode``, seed ``--seed``) with ``--controllers`` controllers each, after importing nothing extra
-  (``plain``) or ``scipy.stats``, ``matplotlib.pyplot``, ``torch`` and ``leaderboard.runner`` (``heavy``, what
+  (``plain``) or ``scipy.stats``, ``matplotlib.pyplot``, ``torch`` and ``leaderboard.running.runner`` (``heavy``, what
   the leaderboard's process holds). Each controller prints the SHA-256 of its actions (float64 bytes) and
   ``qp_slack_max``; bit-repeatable means one hash in every process.
 * ``replay``: records the ProxSuite QPs of one ``campc`` transport episode, then solves the same sequence on
@@ -39,7 +39,7 @@ if mode == "heavy":
     import matplotlib.pyplot  # noqa: F401
     import scipy.stats  # noqa: F401
     import torch  # noqa: F401
-    import leaderboard.runner  # noqa: F401
+    import leaderboard.running.runner  # noqa: F401
 import gymnasium as gym
 import numpy as np
 import uvdms_gym  # noqa: F401

@@ -26,8 +26,8 @@ import numpy as np
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 from baselines.controllers import make_baseline
-from leaderboard.registry import BaselineFactory
-from leaderboard.tasks import SEED_BASE, TASKS
+from leaderboard.suite.registry import BaselineFactory
+from leaderboard.suite.tasks import SEED_BASE, TASKS
 from uvdms_gym.evaluation import run_episode, summarize
 from uvdms_gym.residual import compose_residual, teacher_residual
 

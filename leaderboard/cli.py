@@ -104,8 +104,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _cmd_page_only(args: argparse.Namespace) -> int:
     """``--page-only DIR``: write ``DIR/index.html`` from the folder's files (no evaluation)."""
-    from leaderboard.entries import default_agents_dir
-    from leaderboard.webpage import write_index_html
+    from leaderboard.output.webpage import write_index_html
+    from leaderboard.suite.entries import default_agents_dir
 
     agents_dir = args.agents_dir if args.agents_dir is not None else default_agents_dir()
     path = write_index_html(args.page_only, agents_dir=agents_dir)

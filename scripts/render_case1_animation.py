@@ -26,7 +26,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 import uvdms_gym  # noqa: F401  (registers the environments)
-from leaderboard.registry import make_controller
+from leaderboard.suite.registry import make_controller
 from uvdms_gym.evaluation import run_episode
 from uvdms_gym.utils.provenance import REPO_ROOT
 

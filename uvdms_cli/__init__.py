@@ -2,7 +2,7 @@
 
 * :mod:`uvdms_cli.main`: the parser, ``uvdms demo`` and ``uvdms bench``, and the one-line error reporting;
 * :mod:`uvdms_cli.evaluate`: ``uvdms evaluate`` (a baseline name or an agent path, through
-  :mod:`leaderboard.registry`).
+  :mod:`leaderboard.suite.registry`).
 
 The other subcommands register themselves from the packages they drive (``baselines.cli``: ``reproduce``;
 ``agents.cli``: ``train``, ``export-agent``; ``leaderboard.cli``: ``leaderboard``). ``python -m uvdms_cli`` is

@@ -1,4 +1,7 @@
-"""``uvdms evaluate``: a baseline, an agent or a multi-seed entry over seeded episodes (:mod:`leaderboard.evaluate`)."""
+"""``uvdms evaluate``: a baseline, an agent or a multi-seed entry over seeded episodes.
+
+The evaluation itself: :mod:`leaderboard.running.evaluate`.
+"""
 
 from __future__ import annotations
 
@@ -46,7 +49,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from leaderboard.evaluate import evaluate_entry
+    from leaderboard.running.evaluate import evaluate_entry
     from uvdms_gym.utils.kwargs import check_make_kwargs, parse_kv
 
     env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")

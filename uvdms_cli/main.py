@@ -127,7 +127,7 @@ def _register_commands(sub: argparse._SubParsersAction) -> None:
 
 def _action_components() -> ActionComponents:
     """What ``uvdms train`` injects: the residual bases and the safety filter (built when training starts)."""
-    from leaderboard.registry import action_components
+    from leaderboard.suite.registry import action_components
 
     return action_components()
 

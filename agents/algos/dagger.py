@@ -152,7 +152,7 @@ class DAgger(TD3):
         env: The environment; its ``info`` must carry the teacher's label.
         teacher: Name of the teacher controller, built by ``uvdms train`` (recorded here for the run's record).
         teacher_margin: Metres by which ``uvdms train`` moves the teacher's collision thresholds ``d1`` and ``d2``
-            outward (``leaderboard.registry.BaselineFactory``'s ``collision_margin``): the learner imitates a
+            outward (``leaderboard.suite.registry.BaselineFactory``'s ``collision_margin``): the learner imitates a
             teacher that keeps this much clear of the collision zone, which its imitation error then may use.
 
     Raises:

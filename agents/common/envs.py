@@ -2,8 +2,8 @@
 
 Residual agents and the safety filter (:mod:`uvdms_gym.residual`) compose the policy with controllers of
 ``baselines``, which ``agents`` never imports: the composition layer injects them as :class:`ActionComponents`
-(``uvdms train`` passes ``leaderboard.registry.action_components()``), and :class:`EnvFactory` holds the resulting
-picklable factories.
+(``uvdms train`` passes ``leaderboard.suite.registry.action_components()``), and :class:`EnvFactory` holds the
+resulting picklable factories.
 
 Seed scheme (``seed`` = ``--seed``; segment k = 0 for a fresh run, k = 1, 2, ... for each ``--resume``):
 training env ``i`` of segment ``k`` is reset with seed ``seed + 1000 * k + i`` (:func:`train_env_seed`); the

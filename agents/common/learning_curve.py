@@ -17,8 +17,8 @@ points recorded after that checkpoint's step count (by an interrupted or failed 
 the new segment adds its own; the points stay sorted by step count with one point per step count.
 Environments without the uvdms tracking interface (``Pendulum-v1``) get no wrapper and write no curve.
 :func:`agents.export.weights.export_controller` and :func:`scripts.ship_agent.package_run` copy the file into the
-agent folder (:func:`copy_learning_curve`); the leaderboard plots it (:mod:`leaderboard.plots`). It is written through
-:func:`uvdms_gym.utils.io.write_json_atomic`.
+agent folder (:func:`copy_learning_curve`); the leaderboard plots it (:mod:`leaderboard.output.plots`). It is
+written through :func:`uvdms_gym.utils.io.write_json_atomic`.
 """
 
 from __future__ import annotations

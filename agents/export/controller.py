@@ -95,7 +95,7 @@ class AgentController:
             overhead.
         composition: The residual base and safety filter the agent was trained with
             (:class:`uvdms_gym.residual.ActionComposition`). A residual agent observes ``[obs; a_base]`` and its
-            output is a residual: evaluate it through ``leaderboard.registry.make_controller``, which composes the
+            output is a residual: evaluate it through ``leaderboard.suite.registry.make_controller``, which composes the
             base (and the filter) from this record.
     """
 

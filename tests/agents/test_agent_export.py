@@ -234,7 +234,7 @@ def test_agent_on_another_env_id_warns():
     import warnings
 
     from agents.export import EnvMismatchWarning, check_agent
-    from leaderboard.registry import evaluate
+    from leaderboard.running.evaluate import evaluate
 
     folder = REPO / "trained_agents" / "ppo-circle-case1-v0"
     agent = load_agent(folder)

@@ -24,7 +24,7 @@ from gymnasium import spaces
 from agents.algos.dagger import TEACHER_INFO_KEY, DAgger, TeacherReplayBuffer
 from agents.common.wrappers import KEPT_ARRAYS, ScalarInfo
 from agents.training.train import run_dir_for
-from leaderboard.registry import BaselineFactory, TeacherFactory
+from leaderboard.suite.registry import BaselineFactory, TeacherFactory
 from uvdms_cli.main import main as uvdms
 from uvdms_gym.physics.params import D1, D2
 from uvdms_gym.residual import TEACHER_KEY, ResidualAction, compose_residual, teacher_residual

@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from agents.training.train import run_dir_for
-from leaderboard.registry import TeacherFactory
+from leaderboard.suite.registry import TeacherFactory
 from uvdms_cli.main import main as uvdms
 from uvdms_gym.residual import TEACHER_KEY, ResidualController, TeacherLabel, teacher_action
 

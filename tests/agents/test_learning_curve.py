@@ -29,6 +29,9 @@ from agents.common.learning_curve import (
 )
 from agents.export import export_agent, load_agent
 from agents.training.train import train
+from leaderboard.running.jobs import DEFAULT_BACKEND
+from leaderboard.stats.metrics import aggregate_runs
+from leaderboard.suite.agent_files import agent_checksum
 from uvdms_gym.evaluation import run_episode
 
 TRANSPORT = "uvdms/Transport-v0"
@@ -156,15 +159,15 @@ def test_training_records_the_benchmark_metrics_and_resume_continues_the_curve(t
         assert json.loads((folder / LEARNING_CURVE_FILE).read_text()) == json.loads(
             (run_dir / LEARNING_CURVE_FILE).read_text()
         )
-    assert lb.agent_checksum(export) == lb.agent_checksum(export_agent(run_dir, tmp_path / "e2", trust=True))
+    assert agent_checksum(export) == agent_checksum(export_agent(run_dir, tmp_path / "e2", trust=True))
     # and the run's meta.json (seeds, versions, git, every segment's budget and wall time), outside the checksum
     meta = json.loads((run_dir / "meta.json").read_text())
     assert json.loads((export / "meta.json").read_text()) == meta
     assert [s["end_num_timesteps"] for s in meta["segments"]] == [BUDGET, 2 * BUDGET]
     assert all(s["wall_time_s"] > 0 for s in meta["segments"])
-    checksum = lb.agent_checksum(export)
+    checksum = agent_checksum(export)
     (export / "meta.json").unlink()
-    assert lb.agent_checksum(export) == checksum
+    assert agent_checksum(export) == checksum
     re_export = export_agent(export, tmp_path / "e3")  # an export of an export without the record has none
     assert not (re_export / "meta.json").exists()
 
@@ -198,12 +201,12 @@ def test_three_trained_seeds_rank_as_one_entry_with_learning_curves(tmp_path):
         episodes=2,
         progress=False,
         plots=True,
-        backend=lb.DEFAULT_BACKEND,
+        backend=DEFAULT_BACKEND,
     )
     (row,) = result.rows
     assert row.entry.name == "sac_transport" and len(row.episodes) == 6 and result.computed == 6
     by_seed = [[ep for ep in row.episodes if ep["training_seed"] == k] for k in (0, 1, 2)]
-    assert row.stats == lb.aggregate_runs(by_seed)
+    assert row.stats == aggregate_runs(by_seed)
     assert len({ep["rmse_pos"] for ep in by_seed[0]}) == 1  # a paper task: a seed repeats its episode
     assert len({run[0]["rmse_pos"] for run in by_seed}) == 3  # the seeds differ
     rmse = row.stats["rmse_pos"]

@@ -31,11 +31,11 @@ from agents.training.train import main as agents_train_main
 from agents.training.train import run_dir_for
 from baselines.controllers import make_baseline
 from baselines.safety.filter import SafetyFilter
-from leaderboard.entries import resolve_entries
-from leaderboard.registry import (
+from leaderboard.running.evaluate import evaluate
+from leaderboard.suite.entries import resolve_entries
+from leaderboard.suite.registry import (
     BaselineFactory,
     SafetyFilterFactory,
-    evaluate,
     make_controller,
     with_safety_filter,
 )

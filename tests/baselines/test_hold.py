@@ -8,8 +8,8 @@ import pytest
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 from baselines.controllers import HoldStill, make_baseline
-from leaderboard.entries import resolve_entries
-from leaderboard.registry import RESIDUAL_BASES
+from leaderboard.suite.entries import resolve_entries
+from leaderboard.suite.registry import RESIDUAL_BASES
 from uvdms_gym.evaluation import run_episode
 
 

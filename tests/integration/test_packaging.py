@@ -111,7 +111,7 @@ import json, agents, uvdms_gym
 from agents.config import default_config_path, load_config
 from agents.export import TRUSTED_DIR, load_agent
 from agents.distributed.search_space import default_search_space_path, load_search_space
-from leaderboard import find_agent_folders, resolve_entries
+from leaderboard.suite.entries import find_agent_folders, resolve_entries
 cfg = load_config(default_config_path("ppo"), "ppo", "uvdms/CircleTrack-v0")
 space = load_search_space(default_search_space_path("ppo"))
 folders = find_agent_folders(TRUSTED_DIR)

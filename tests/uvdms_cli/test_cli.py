@@ -274,7 +274,7 @@ def test_bench_json_records_machine_and_load(monkeypatch, capsys):
 
 
 def test_evaluate_json_records_machine_and_load(tmp_path):
-    from leaderboard.registry import evaluate
+    from leaderboard.running.evaluate import evaluate
 
     result = evaluate("campc", CIRCLE, {"max_episode_steps": 3}, episodes=1, out=str(tmp_path / "e.json"))
     timing = json.loads((tmp_path / "e.json").read_text())["meta"]["timing"]
@@ -303,10 +303,10 @@ def _fake_episode(env, controller, seed, save_trajectory):
 @pytest.mark.parametrize("load, marked", [(0.0, False), (1000.0, True)])
 def test_leaderboard_marks_timings_taken_under_overload(load, marked, tmp_path, monkeypatch):
     import leaderboard as lb
+    from leaderboard.running.jobs import Backend
+    from leaderboard.stats.metrics import OVERLOAD_MARK
 
-    backend = lb.Backend(
-        make_env=lambda spec: _FakeEnv(), make_controller=lambda s, e, t: None, run_episode=_fake_episode
-    )
+    backend = Backend(make_env=lambda spec: _FakeEnv(), make_controller=lambda s, e, t: None, run_episode=_fake_episode)
     monkeypatch.setattr(provenance, "load_average", lambda: load)
     tasks = (lb.Task("case1", "Case 1", CIRCLE, {"case": 1}, max_episode_steps=3),)
     entries = lb.resolve_entries(["campc", "mpc"])
@@ -320,7 +320,7 @@ def test_leaderboard_marks_timings_taken_under_overload(load, marked, tmp_path, 
         assert int(row["timing_episodes_overloaded"]) == (2 if marked else 0)
         assert float(row["timing_load_1min_max"]) == load
         assert f"({os.cpu_count()} cores)" in row["timing_machine"]
-    assert (f"1.50 ± 0.00 {lb.OVERLOAD_MARK}" in md) is marked
+    assert (f"1.50 ± 0.00 {OVERLOAD_MARK}" in md) is marked
     assert f"{2 * marked * 2} of 4 episodes ran with a load above the core count" in md
     cached = [json.loads(p.read_text())["result"]["timing"] for p in (tmp_path / "cache").rglob("*.json")]
     assert len(cached) == 4 and all(c["overloaded"] is marked for c in cached)

@@ -14,7 +14,8 @@ import pytest
 import yaml
 
 import uvdms_gym  # noqa: F401
-from leaderboard.registry import evaluate, make_controller
+from leaderboard.running.evaluate import evaluate
+from leaderboard.suite.registry import make_controller
 from uvdms_gym.evaluation import EPISODE_KEYS, TRAJECTORY_KEYS, run_episode
 
 CIRCLE, TRANSPORT = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"

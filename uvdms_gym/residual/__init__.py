@@ -29,7 +29,7 @@ same filter. With both, the order is the residual first, then the filter: ``Filt
 
 [D] The base and the filter are *injected* as factories (:data:`ControllerFactory`, :data:`FilterFactory`): this
 module, like all of layer 0, imports no other package of the project; the composition layer
-(``leaderboard.registry.BaselineFactory``, ``SafetyFilterFactory``) provides picklable module-level factories, so
+(``leaderboard.suite.registry.BaselineFactory``, ``SafetyFilterFactory``) provides picklable module-level factories, so
 that the wrappers also build in ``SubprocVecEnv`` / hybrid workers. :class:`ActionComposition` is what a run's
 ``config.yml`` and an export's ``agent.json`` record (names, not objects), so evaluation rebuilds the same
 composition from the record alone.

@@ -23,7 +23,7 @@ import yaml
 
 from agents.training.train import run_dir_for
 from baselines.controllers import make_baseline
-from leaderboard.registry import BaselineFactory, make_controller
+from leaderboard.suite.registry import BaselineFactory, make_controller
 from uvdms_cli.main import main as uvdms
 from uvdms_gym import distances as D
 from uvdms_gym.evaluation import run_episode

@@ -24,7 +24,7 @@ from test_residual_clearance import ACTION_DIM, CIRCLE, OBS_DIM, SCALE, SEED, TI
 
 from agents.training.train import run_dir_for
 from baselines.controllers import make_baseline
-from leaderboard.registry import BaselineFactory, make_controller
+from leaderboard.suite.registry import BaselineFactory, make_controller
 from uvdms_cli.main import main as uvdms
 from uvdms_gym.evaluation import run_episode
 from uvdms_gym.physics.kinematics import KinematicModel

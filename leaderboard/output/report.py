@@ -1,0 +1,243 @@
+"""Leaderboard outputs: markdown tables and document, CSV, one JSON per entry (plots: :mod:`.plots`)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import uvdms_gym
+from leaderboard.output.plots import write_plots
+from leaderboard.output.webpage import write_index_html
+from leaderboard.stats.metrics import (  # (the table constants live in stats: the page, output.webpage, reads them too)
+    METRICS,
+    OVERLOAD_MARK,
+    RATE_METRICS,
+    TABLE_METRICS,
+    TIMING_METRICS,
+    timing_summary,
+)
+from leaderboard.stats.ranking import RankedRow
+from leaderboard.suite.entries import Entry
+from leaderboard.suite.entry_info import entry_details
+from leaderboard.suite.tasks import TRACKS, env_version
+from uvdms_gym.utils.io import write_json_atomic
+
+if TYPE_CHECKING:
+    from leaderboard.stats.result import LeaderboardResult
+
+
+def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_METRICS) -> str:
+    """One markdown table per track (ranked within each task), with the columns ``metrics``."""
+    lines: list[str] = []
+    for track in TRACKS:
+        rows = [r for r in result.rows if r.entry.track == track]
+        if not rows:
+            continue
+        lines.append(f"### {track.capitalize()} track")
+        lines.append("")
+        header = ["Task", "Rank", "Entry", *[METRICS[m]["label"] for m in metrics], "n"]
+        lines.append("| " + " | ".join(header) + " |")
+        lines.append("|" + "|".join(["---"] * 3 + ["--:"] * (len(metrics) + 1)) + "|")
+        marked = False
+        for row in rows:
+            cells = [row.task.label, row.rank_label, row.entry.label]
+            for m in metrics:
+                cell = row.stats[m].format(METRICS[m]["fmt"], METRICS[m].get("scale", 1.0))
+                if m in TIMING_METRICS and row.timing["overloaded"]:
+                    cell += f" {OVERLOAD_MARK}"
+                    marked = True
+                cells.append(cell)
+            cells.append(episodes_label(row))
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+        if marked:
+            lines.append(
+                f"{OVERLOAD_MARK} timed with a 1-minute load average above the machine's core count in some of the "
+                "row's episodes (other processes shared the CPU): the timing reads long."
+            )
+            lines.append("")
+        versions = sorted({env_version(row.entry.task_spec(row.task)["env_id"]) for row in rows})
+        if "return" in metrics and len(versions) > 1:
+            lines.append(
+                f"Returns are in the reward of the environment version each entry runs ({', '.join(versions)}: an "
+                "agent runs the version it was trained on, baselines v0); v0 rewards are <= 0, v1 rewards >= 0 but "
+                "for the contact penalty. The ranking does not use them."
+            )
+            lines.append("")
+    return "\n".join(lines)
+
+
+def episodes_label(row: RankedRow) -> str:
+    """The ``n`` cell: the episode count, or ``seeds × episodes`` for a multi-seed row."""
+    if not row.entry.multi_seed:
+        return str(len(row.episodes))
+    seeds = len(row.entry.members)
+    per_seed = len(row.episodes) / seeds
+    return f"{seeds} × {per_seed:g}"
+
+
+MULTI_SEED_TEXT = (
+    "Rows of multi-seed entries (`name (k seeds)`, `n` = seeds × episodes) aggregate k training seeds on the same "
+    "evaluation seeds: rates are fractions of all k × n episodes, every other metric is the interquartile mean "
+    "(IQM, the mean of the middle 50 % of the k × n values), each ± the half-width of a 95 % stratified bootstrap "
+    "interval (percentile; for each evaluation episode the training seeds are resampled with replacement, the "
+    "method of Agarwal et al., NeurIPS 2021, `rliable`), so the interval shows how the entry would score if "
+    "trained again with other seeds."
+)
+"""The explanation that ``leaderboard.md`` carries when a row aggregates training seeds."""
+
+
+def timing_text(result: LeaderboardResult) -> str:
+    """One sentence: the machine(s) and the load under which the run's timings were taken."""
+    summary = timing_summary([ep for row in result.rows for ep in row.episodes])
+    run = result.timing or {}
+    machines = ", ".join(summary["machines"]) or "unknown"
+    n = sum(len(row.episodes) for row in result.rows)
+    text = (
+        f"Timings (`Ctrl ms`, `controller_ms_median`) were taken on {machines}; 1-minute load average "
+        f"{run.get('load_1min_start')} at the start and {run.get('load_1min_end')} at the end of this run "
+        f"(episodes from the cache or reused from an earlier output, `--reuse`, keep the record of the run that "
+        f"computed them; {result.computed} were computed in this run), highest seen in an episode "
+        f"{summary['load_1min_max']}; {summary['overloaded']} of {n} episodes ran with a load above the core count"
+    )
+    if summary["unknown"]:
+        text += f", {summary['unknown']} without a load record"
+    return text + f" (marked {OVERLOAD_MARK})."
+
+
+def _markdown_document(result: LeaderboardResult, command: str | None, plot_files: Sequence[str]) -> str:
+    seeds = result.seeds
+    seed_text = f"{seeds[0]}" if len(seeds) == 1 else f"{seeds[0]}–{seeds[-1]}"
+    task_lines = [
+        f"- **{t.label}** (`{t.name}`): `{t.env_id}` with `{json.dumps(dict(t.env_kwargs))}`" for t in result.tasks
+    ]
+    parts = [
+        "# uvdms-gym leaderboard",
+        "",
+        f"Generated by `{command or 'uvdms leaderboard'}` (uvdms-gym {uvdms_gym.__version__}); "
+        f"{len(seeds)} episode(s) per entry and task, evaluation seeds {seed_text} "
+        "(disjoint from every training seed).",
+        "",
+        "Tasks:",
+        "",
+        *task_lines,
+        "",
+        "Each cell is the mean over episodes ± the half-width of its 95 % bootstrap confidence interval "
+        "(`max(mean - low, high - mean)`; exact bounds in `leaderboard.csv`). Rates are fractions of episodes: "
+        "*contact-free* = no physical contact, *contact-free success* = task success without contact. "
+        "Ranking within each track and task: contact-free success rate (higher first), then position RMSE "
+        "(lower first); an entry whose contact-free-success and RMSE intervals both overlap those of the "
+        "first entry of the current group (RMSE intervals less than 0.1 mm apart count as overlapping) is tied "
+        "with it (`2=`). Success: the episode ran to its time limit without contact and, on the circle tasks, "
+        "with RMSE <= 30 mm; on transport, with the object at the goal at the end (`uvdms_gym/evaluation.py`). "
+        "The paper's tasks have a fixed start and no randomisation: a deterministic controller repeats the "
+        "same episode there (zero-width intervals); the randomised tasks carry the spread. Agents run only on "
+        "the tasks of the environment they were trained on.",
+        "",
+        timing_text(result),
+        "",
+    ]
+    if any(entry.multi_seed for entry in result.entries):
+        parts += [MULTI_SEED_TEXT, ""]
+    parts += [markdown_tables(result)]
+    if plot_files:
+        parts += ["## Plots", ""]
+        parts += [f"![{Path(p).stem}]({p})" for p in plot_files]
+        parts.append("")
+    return "\n".join(parts)
+
+
+def _csv_text(result: LeaderboardResult) -> str:
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    header = ["track", "task", "rank", "tied", "entry", "kind", "episodes"]
+    for metric in METRICS:
+        header += [f"{metric}_mean", f"{metric}_ci_low", f"{metric}_ci_high"]
+    header += ["timing_episodes_overloaded", "timing_episodes_unknown_load", "timing_load_1min_max", "timing_machine"]
+    header += ["training_seeds", "aggregation"]
+    writer.writerow(header)
+    for row in result.rows:
+        cells: list[Any] = [
+            row.entry.track,
+            row.task.name,
+            row.rank,
+            int(row.tied),
+            row.entry.name,
+            row.entry.kind,
+            len(row.episodes),
+        ]
+        for metric in METRICS:
+            stat = row.stats[metric]
+            cells += ["" if not math.isfinite(v) else f"{v:.6g}" for v in (stat.mean, stat.low, stat.high)]
+        timing = row.timing
+        load_max = timing["load_1min_max"]
+        cells += [timing["overloaded"], timing["unknown"], "" if load_max is None else load_max]
+        cells.append("; ".join(timing["machines"]))
+        cells += [len(row.entry.members) if row.entry.multi_seed else "", _aggregation(row.entry)]
+        writer.writerow(cells)
+    return buffer.getvalue()
+
+
+def _aggregation(entry: Entry) -> str:
+    """How a row's statistics were formed (CSV ``aggregation``): over episodes, or over seeds x episodes."""
+    return "seeds-iqm-stratified" if entry.multi_seed else "episodes-mean-bca"
+
+
+def _entry_document(entry: Entry, rows: Sequence[RankedRow]) -> dict[str, Any]:
+    document = {
+        "name": entry.name,
+        "kind": entry.kind,
+        "spec": entry.spec if entry.kind == "baseline" else Path(entry.spec).name,
+        "track": entry.track,
+        "env_id": entry.env_id,
+        "checksum": entry.checksum,
+        "weights_only": entry.weights_only,
+        "package_version": uvdms_gym.__version__,
+        **entry_details(entry),
+        "tasks": {
+            row.task.name: {
+                "rank": row.rank,
+                "tied": row.tied,
+                "timing": row.timing,
+                "stats": {m: s.to_json() for m, s in row.stats.items()},
+                "episodes": [{k: v for k, v in ep.items() if k != "trajectory"} for ep in row.episodes],
+            }
+            for row in rows
+        },
+    }
+    if entry.multi_seed:  # (absent otherwise: the documents of single agents and baselines keep their form)
+        document["aggregation"] = {
+            "rates": f"mean over seeds x episodes ({', '.join(RATE_METRICS)})",
+            "other_metrics": "interquartile mean (25 % trimmed mean) over seeds x episodes",
+            "interval": "95 % stratified bootstrap: training seeds resampled within each evaluation episode",
+        }
+        document["seeds"] = [
+            {"training_seed": m.training_seed, "folder": Path(m.spec).name, "checksum": m.checksum}
+            for m in entry.members
+        ]
+    return document
+
+
+def write_outputs(result: LeaderboardResult, *, command: str | None = None, plots: bool = True) -> None:
+    """Write ``leaderboard.md``, ``leaderboard.csv``, ``entries/<entry>.json``, (optionally) the plots, ``index.html``.
+
+    ``index.html`` (:func:`leaderboard.output.webpage.write_index_html`) is made from the other files, written first.
+    """
+    out = result.out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    plot_files = write_plots(result, out / "plots") if plots else []
+    rel = [str(Path(p).relative_to(out)) for p in plot_files]
+    result.markdown = _markdown_document(result, command, rel)
+    (out / "leaderboard.md").write_text(result.markdown, encoding="utf-8")
+    (out / "leaderboard.csv").write_text(_csv_text(result), encoding="utf-8")
+    entries_dir = out / "entries"
+    entries_dir.mkdir(exist_ok=True)
+    for entry in result.entries:
+        rows = [r for r in result.rows if r.entry is entry]
+        write_json_atomic(entries_dir / f"{entry.slug}.json", _entry_document(entry, rows), indent=None)
+    write_index_html(out)

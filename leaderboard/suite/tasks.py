@@ -1,0 +1,121 @@
+"""The task suite (the paper's three tasks and their held-out randomised variants), tracks and evaluation seeds."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from gymnasium.envs.registration import parse_env_id
+
+from uvdms_gym.utils.kwargs import env_family  # re-exported: the one home of the versionless id
+
+SEED_BASE = 2_000_000_000
+"""Evaluation seed of episode ``i`` is ``SEED_BASE + i`` (``docs/leaderboard.md``, Seeds)."""
+TRACKS: tuple[str, ...] = ("velocity", "torque")
+"""The two tracks, by the action mode their entries command."""
+DEFAULT_EPISODES = 20
+QUICK_EPISODES = 2
+
+
+@dataclass(frozen=True)
+class Task:
+    """One task of the suite.
+
+    Attributes:
+        name: Short identifier (file names, CSV).
+        label: Human-readable name (tables, plots).
+        env_id: Gymnasium id.
+        env_kwargs: ``gymnasium.make`` keyword arguments (the track adds ``action_mode``).
+        paper: One of the paper's tasks (run by ``--quick``).
+        trajectory: Store the minimum distance over time of the first episode (for the distance plot).
+        max_episode_steps: Step limit override (``None``: the registered limit).
+    """
+
+    name: str
+    label: str
+    env_id: str
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    paper: bool = True
+    trajectory: bool = False
+    max_episode_steps: int | None = None
+
+    def spec(self, track: str, env_id: str | None = None) -> dict[str, Any]:
+        """The environment specification of this task on ``track`` (part of the cache key).
+
+        Args:
+            track: ``"velocity"`` or ``"torque"`` (the ``action_mode``).
+            env_id: Another version of the task's environment (same :func:`env_family`, e.g. ``-v1`` for an
+                agent trained on it); ``None``: :attr:`env_id`.
+
+        Raises:
+            ValueError: ``env_id`` is not a version of the task's environment.
+        """
+        if env_id is not None and env_family(env_id) != env_family(self.env_id):
+            raise ValueError(f"task {self.name!r} runs {self.env_id!r}, not {env_id!r} (another environment)")
+        return {
+            "env_id": env_id or self.env_id,
+            "env_kwargs": {**dict(self.env_kwargs), "action_mode": track},
+            "max_episode_steps": self.max_episode_steps,
+        }
+
+
+def env_version(env_id: str) -> str:
+    """The version tag of an environment id (``uvdms/CircleTrack-v1`` -> ``v1``; ``""`` without a version)."""
+    _namespace, _name, version = parse_env_id(env_id.split(":")[-1])
+    return "" if version is None else f"v{version}"
+
+
+CIRCLE_ID, TRANSPORT_ID = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"
+OBSTACLES_ID = "uvdms/TransportObstacles-v1"
+HYDRO_RANDOMIZATION = 0.3
+TASKS: tuple[Task, ...] = (
+    Task("case1", "Case 1", CIRCLE_ID, {"case": 1}, paper=True, trajectory=True),
+    Task("case2", "Case 2", CIRCLE_ID, {"case": 2}, paper=True, trajectory=True),
+    Task("transport", "Transport", TRANSPORT_ID, {"goal": "paper"}, paper=True),
+    Task(
+        "circle-random",
+        "Random circles, hydro ±30 %",
+        CIRCLE_ID,
+        {"case": "random", "hydro_randomization": HYDRO_RANDOMIZATION},
+        paper=False,
+    ),
+    Task(
+        "transport-random",
+        "Random goal, hydro ±30 %",
+        TRANSPORT_ID,
+        {"goal": "random", "hydro_randomization": HYDRO_RANDOMIZATION},
+        paper=False,
+    ),
+    Task(
+        "transport-obstacles",
+        "Moving obstacles, current",
+        OBSTACLES_ID,
+        {"obstacles": "random", "current": "random"},
+        paper=False,
+    ),
+)
+"""The task suite: the paper's three tasks, then the held-out randomised variants and the obstacle task (the paper's
+stated future work: moving outer obstacles in a current)."""
+
+
+def select_tasks(names: Sequence[str] | None = None, *, quick: bool = False) -> tuple[Task, ...]:
+    """Tasks by name (all of :data:`TASKS` by default; only the paper's with ``quick``).
+
+    Raises:
+        ValueError: An unknown task name.
+    """
+    by_name = {t.name: t for t in TASKS}
+    if names:
+        unknown = [n for n in names if n not in by_name]
+        if unknown:
+            raise ValueError(f"unknown task(s) {unknown}; choose from {sorted(by_name)}")
+        tasks = tuple(by_name[n] for n in names)
+    else:
+        tasks = TASKS
+    return tuple(t for t in tasks if t.paper) if quick else tasks
+
+
+def evaluation_seeds(episodes: int, base: int = SEED_BASE) -> list[int]:
+    """The evaluation seeds ``base + i`` for ``i < episodes``."""
+    return [base + i for i in range(episodes)]
