@@ -4,7 +4,7 @@ Every competitor (a named baseline, a trained agent, a user's own controller) is
 :class:`Controller` protocol and :func:`run_episode`; :func:`summarize` averages episodes and
 :func:`evaluate_controller` runs several seeded episodes of a controller factory and writes the JSON result.
 Resolving a controller *name* (``campc``) or *path* (an agent folder) to a controller belongs to the command
-layer (:mod:`leaderboard.registry`, ``uvdms evaluate``), not here: this module imports no other package of the
+layer (:mod:`leaderboard.suite.registry`, ``uvdms evaluate``), not here: this module imports no other package of the
 project.
 :func:`evaluate` runs several seeded episodes of a controller named by a string (a baseline name or an agent
 path), averages them and writes the result to a JSON file atomically. ``uvdms evaluate`` is its command line.

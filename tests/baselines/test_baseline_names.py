@@ -21,7 +21,7 @@ def test_a_name_that_is_no_baseline_has_no_action_mode():
 
 @pytest.mark.parametrize("name", ["make_controller", "required_action_mode"])
 def test_the_leaderboard_s_names_are_not_defined_in_baselines(name):
-    """``leaderboard.registry`` defines them (names and agent paths); ``baselines`` has ``make_baseline`` and
+    """``leaderboard.suite.registry`` defines them (names and agent paths); ``baselines`` has ``make_baseline`` and
     ``baseline_action_mode``."""
     assert not hasattr(controllers, name)
 
