@@ -1,0 +1,63 @@
+"""Issue 37's loose ends of the command line, each one line naming the problem (``uvdms: error: ...``, exit 2)."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from uvdms_cli.main import build_parser, main
+
+
+def _error_line(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err  # one line
+    assert err[0].startswith("uvdms: error: ")
+    return err[0]
+
+
+def _subcommands() -> dict[str, argparse.ArgumentParser]:
+    (action,) = [a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    return dict(action.choices)
+
+
+def _typo(parser: argparse.ArgumentParser) -> tuple[str, str]:
+    """A long option of ``parser`` with one letter left out, not a prefix of any of its options."""
+    options = [s for a in parser._actions for s in a.option_strings]
+    for option in sorted(o for o in options if o.startswith("--") and len(o) >= 6 and o != "--help"):
+        typo = option[:-2] + option[-1]
+        if not any(o.startswith(typo) for o in options):
+            return option, typo
+    raise AssertionError(f"no option to misspell in {parser.prog}")
+
+
+def test_a_misspelt_option_is_named_with_the_option_meant(capsys):
+    # argparse said "the following arguments are required: --controller" without naming the typo
+    with pytest.raises(SystemExit) as exc:
+        main(["evaluate", "--controler", "campc", "--env", "uvdms/CircleTrack-v1"])
+    assert exc.value.code == 2
+    line = _error_line(capsys)
+    assert "unrecognized arguments: --controler (did you mean --controller?)" in line
+    assert "(see uvdms evaluate --help)" in line
+
+
+@pytest.mark.parametrize("command", sorted(_subcommands()))
+def test_every_subcommand_names_a_misspelt_option(command, capsys):
+    option, typo = _typo(_subcommands()[command])
+    with pytest.raises(SystemExit) as exc:
+        main([command, typo])
+    assert exc.value.code == 2
+    assert f"unrecognized arguments: {typo} (did you mean {option}" in _error_line(capsys)
+
+
+def test_a_misspelt_option_after_valid_ones_is_named_too(capsys):
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--controller", "campc", "--env", "uvdms/CircleTrack-v1", "--epsiodes", "2"])
+    assert "unrecognized arguments: --epsiodes (did you mean --episodes?)" in _error_line(capsys)
+
+
+def test_negative_numbers_and_abbreviations_are_not_typos(capsys):
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--controller", "campc", "--env", "uvdms/CircleTrack-v1", "--seed", "-1", "--episodes", "x"])
+    line = _error_line(capsys)
+    assert "invalid int value: 'x'" in line and "unrecognized" not in line
