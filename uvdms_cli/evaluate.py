@@ -50,7 +50,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from uvdms_gym.utils.kwargs import check_make_kwargs, parse_kv
 
     env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
-    check_make_kwargs(args.env, env_kwargs)  # errors are reported by uvdms_cli.main.main as one line
+    check_make_kwargs(args.env, env_kwargs, "--env-kwargs")  # errors are reported by uvdms_cli.main.main as one line
     result = evaluate_entry(
         args.controller,
         args.env,

@@ -61,3 +61,25 @@ def test_negative_numbers_and_abbreviations_are_not_typos(capsys):
         main(["evaluate", "--controller", "campc", "--env", "uvdms/CircleTrack-v1", "--seed", "-1", "--episodes", "x"])
     line = _error_line(capsys)
     assert "invalid int value: 'x'" in line and "unrecognized" not in line
+
+
+@pytest.mark.parametrize(
+    ("kwarg", "expected"),
+    [
+        ("left_center=abc", "--env-kwargs left_center='abc': expected a sequence of 3 floats or None"),
+        ("radius=[1,2]", "--env-kwargs radius=[1, 2]: expected a float or None"),
+        ("max_episode_steps=abc", "--env-kwargs max_episode_steps='abc': expected an integer or None"),
+    ],
+)
+def test_an_env_kwarg_of_the_wrong_type_names_its_key_and_type(kwarg, expected, capsys):
+    argv = ["evaluate", "--controller", "hold", "--env", "uvdms/CircleTrack-v1", "--episodes", "1"]
+    assert main([*argv, "--no-progress", "--env-kwargs", kwarg]) == 2
+    assert _error_line(capsys) == f"uvdms: error: {expected}"
+
+
+def test_env_kwargs_of_the_right_types_pass():
+    from uvdms_gym.utils.kwargs import check_make_kwargs
+
+    good = {"left_center": [0.1, 0.2, 0.3], "radius": 0.2, "max_episode_steps": 5, "case": 2, "current": "none"}
+    check_make_kwargs("uvdms/CircleTrack-v1", good, "--env-kwargs")
+    check_make_kwargs("uvdms/Transport-v1", {"start_pose": [0.0] * 6, "goal": "random"}, "--env-kwargs")
