@@ -83,3 +83,15 @@ def test_env_kwargs_of_the_right_types_pass():
     good = {"left_center": [0.1, 0.2, 0.3], "radius": 0.2, "max_episode_steps": 5, "case": 2, "current": "none"}
     check_make_kwargs("uvdms/CircleTrack-v1", good, "--env-kwargs")
     check_make_kwargs("uvdms/Transport-v1", {"start_pose": [0.0] * 6, "goal": "random"}, "--env-kwargs")
+
+
+@pytest.mark.parametrize("command", ["evaluate", "train"])
+def test_an_unknown_id_lists_every_registered_uvdms_id(command, capsys):
+    import gymnasium as gym
+
+    ids = [env_id for env_id, spec in gym.registry.items() if spec.namespace == "uvdms"]
+    assert "uvdms/TransportObstacles-v1" in ids
+    argv = {"evaluate": ["--controller", "hold"], "train": ["--algo", "sac", "--total-timesteps", "10"]}[command]
+    assert main([command, *argv, "--env", "uvdms/Nope-v1"]) == 2
+    line = _error_line(capsys)
+    assert all(env_id in line for env_id in ids), line

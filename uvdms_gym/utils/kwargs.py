@@ -47,13 +47,11 @@ def env_spec(env_id: str) -> Any:
     """The Gymnasium spec of ``env_id`` (``module:Id`` imports the module first).
 
     Raises:
-        ValueError: The id is not registered (the message lists the ``uvdms/`` ids).
+        ValueError: The id is not registered (the message lists every registered ``uvdms/`` id).
     """
     import importlib
 
     import gymnasium as gym
-
-    import uvdms_gym
 
     module, sep, name = env_id.rpartition(":")
     if sep:
@@ -65,8 +63,17 @@ def env_spec(env_id: str) -> Any:
         return gym.spec(name)
     except gym.error.Error as exc:
         raise ValueError(
-            f"unknown environment id {name!r} ({exc}); the uvdms environments are {', '.join(uvdms_gym.ENV_IDS)}"
+            f"unknown environment id {name!r} ({exc}); the uvdms environments are {', '.join(registered_ids())}"
         ) from None
+
+
+def registered_ids(namespace: str = "uvdms") -> list[str]:
+    """Every id registered in Gymnasium's ``namespace`` (``uvdms``: importing :mod:`uvdms_gym` registers them)."""
+    import gymnasium as gym
+
+    import uvdms_gym  # noqa: F401  (registers the uvdms ids)
+
+    return [env_id for env_id, spec in gym.registry.items() if spec.namespace == namespace]
 
 
 def check_make_kwargs(env_id: str, kwargs: Mapping[str, Any], option: str | None = None) -> None:
