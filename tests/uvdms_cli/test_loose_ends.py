@@ -95,3 +95,20 @@ def test_an_unknown_id_lists_every_registered_uvdms_id(command, capsys):
     assert main([command, *argv, "--env", "uvdms/Nope-v1"]) == 2
     line = _error_line(capsys)
     assert all(env_id in line for env_id in ids), line
+
+
+def test_evaluate_and_leaderboard_word_a_wrong_folder_alike(tmp_path, capsys):
+    empty, missing = tmp_path / "empty", tmp_path / "missing"
+    empty.mkdir()
+    lines = {}
+    for folder in (empty, missing):
+        assert main(["evaluate", "--controller", str(folder), "--env", "uvdms/CircleTrack-v1", "--episodes", "1"]) == 2
+        evaluate = _error_line(capsys)
+        argv = ["leaderboard", "--entries", str(folder), "--tasks", "case1", "--episodes", "1"]
+        assert main([*argv, "--out", str(tmp_path / "out"), "--no-progress", "--no-plots"]) == 2
+        lines[folder] = (evaluate, _error_line(capsys))
+    assert lines[empty][0] == lines[empty][1]  # the same words for the same folder
+    assert "is not an agent folder: it holds none of agent.json" in lines[empty][0]
+    common = f"{str(missing)!r} is neither a baseline (mpc, "
+    tail = "nor an existing agent folder or checkpoint"
+    assert all(common in line and line.endswith(tail) for line in lines[missing])
