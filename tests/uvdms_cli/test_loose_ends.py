@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 
 import pytest
 
@@ -112,3 +113,14 @@ def test_evaluate_and_leaderboard_word_a_wrong_folder_alike(tmp_path, capsys):
     common = f"{str(missing)!r} is neither a baseline (mpc, "
     tail = "nor an existing agent folder or checkpoint"
     assert all(common in line and line.endswith(tail) for line in lines[missing])
+
+
+def test_evaluate_cuts_episodes_with_max_episode_steps_as_leaderboard_does(tmp_path, capsys):
+    argv = ["evaluate", "--controller", "hold", "--env", "uvdms/CircleTrack-v1", "--episodes", "1", "--no-progress"]
+    out = tmp_path / "eval.json"
+    assert main([*argv, "--max-episode-steps", "3", "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["summary"]["steps"] == 3
+    capsys.readouterr()
+    for command in (argv, ["leaderboard", "--entries", "hold", "--tasks", "case1", "--out", str(tmp_path / "lb")]):
+        assert main([*command, "--max-episode-steps", "0"]) == 2
+        assert _error_line(capsys) == "uvdms: error: --max-episode-steps must be >= 1, got 0"
