@@ -124,3 +124,13 @@ def test_evaluate_cuts_episodes_with_max_episode_steps_as_leaderboard_does(tmp_p
     for command in (argv, ["leaderboard", "--entries", "hold", "--tasks", "case1", "--out", str(tmp_path / "lb")]):
         assert main([*command, "--max-episode-steps", "0"]) == 2
         assert _error_line(capsys) == "uvdms: error: --max-episode-steps must be >= 1, got 0"
+
+
+def test_export_of_a_best_model_a_run_never_wrote_says_what_to_do(tmp_path, capsys):
+    run = tmp_path / "runs" / "sac_0"
+    run.mkdir(parents=True)
+    (run / "final_model.zip").write_bytes(b"")  # a short run: its final model, no evaluation, so no best model
+    assert main(["export-agent", str(run), str(tmp_path / "out"), "--which", "best", "--trust"]) == 2
+    line = _error_line(capsys)
+    assert f"no model at {run / 'best_model.zip'}: a run writes best_model.zip at its evaluations" in line
+    assert "--which final" in line
