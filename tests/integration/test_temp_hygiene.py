@@ -11,17 +11,15 @@ by torch's Adam on its first step, reused).
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
 import tempfile
 import textwrap
-import time
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from ray_support import descendants_matching, in_background
+from ray_support import in_background, kill_when
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -127,14 +125,8 @@ def test_a_killed_ray_worker_leaves_no_agent_folder(tmp_path, ray_processes, mon
             plots=False,
         )
     )
-    killed = None
-    deadline = time.monotonic() + 240
-    while killed is None and thread.is_alive() and time.monotonic() < deadline:
-        running = descendants_matching("ray::episode ")
-        if running and list(temp.glob("uvdms-agent-*")):  # the worker has written the agent's files
-            os.kill(running[0], signal.SIGKILL)
-            killed = running[0]
-        time.sleep(0.01)
+    # kill the episode's worker once it has written the agent's files
+    killed = kill_when("ray::episode ", thread, ready=lambda: any(temp.glob("uvdms-agent-*")))
     thread.join(timeout=400)
     assert "error" not in outcome, outcome.get("error")
     assert killed is not None, "no episode was seen running with its agent folder: nothing was killed"
