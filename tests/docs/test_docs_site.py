@@ -79,9 +79,9 @@ def test_the_site_builds_in_strict_mode(tmp_path):
     assert proc.returncode == 0, proc.stderr[-5000:]
     assert "WARNING" not in proc.stderr, proc.stderr[-5000:]
     site = tmp_path / "site"
-    assert (site / "environments" / "Transport-v1" / "index.html").exists()
-    assert (site / "leaderboard" / "index.html").exists()  # the leaderboard page is part of the site
-    api = (site / "api" / "uvdms_gym" / "index.html").read_text(encoding="utf-8")
+    assert (site / "environments" / "Transport-v1.html").exists()  # use_directory_urls: false (mkdocs.yml)
+    assert (site / "leaderboard.html").exists()  # the leaderboard page is part of the site
+    api = (site / "api" / "uvdms_gym.html").read_text(encoding="utf-8")
     assert "run_episode" in api and "CircleTrackEnv" in api  # the reference was generated from the docstrings
 
 

@@ -3,7 +3,7 @@
 argparse prints the usage and an error over several lines; the project's commands promise one line,
 ``uvdms: error: <what is wrong>``, and exit status 2. :class:`OneLineArgumentParser` does that for argument
 errors (an unknown option, a value of the wrong type); subcommand parsers inherit it (``add_subparsers`` uses the
-parent's class). An option the parser does not know is named first, with the closest known ones
+parent's class). An option the parser does not know is named first, with the closest known one
 (``unrecognized arguments: --controler (did you mean --controller?)``), even where argparse would have reported
 a missing required option instead.
 """
@@ -40,7 +40,7 @@ def unknown_options(parser: argparse.ArgumentParser, args: Sequence[str]) -> lis
     """The option tokens of ``args`` that ``parser`` (or the subcommand they follow) does not know.
 
     Returns:
-        ``(token, close matches among the known option strings, prog of the parser that does not know it)`` for
+        ``(token, the closest known option string (none or one), prog of the parser that does not know it)`` for
         each unknown option, in order.
     """
     options, commands = _option_strings(parser), _subparsers(parser)
@@ -53,7 +53,7 @@ def unknown_options(parser: argparse.ArgumentParser, args: Sequence[str]) -> lis
         if token.startswith("-") and len(token) > 1 and not _NUMBER.match(token):
             name = token.split("=", 1)[0]
             if not _is_known(name, options, parser.allow_abbrev):
-                found.append((name, difflib.get_close_matches(name, options, n=2, cutoff=0.6), parser.prog))
+                found.append((name, difflib.get_close_matches(name, options, n=1, cutoff=0.6), parser.prog))
     return found
 
 
@@ -85,7 +85,7 @@ class OneLineArgumentParser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         """Print ``<command>: error: <message> (<prog> --help)`` on one line and exit with status 2.
 
-        An unknown option among the arguments is the error reported (with the closest known options).
+        An unknown option among the arguments is the error reported (with the closest known option).
         """
         unknown, prog = unknown_options(self, self._parsed_args), self.prog
         if unknown:
