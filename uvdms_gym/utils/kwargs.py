@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import inspect
 import numbers
+import re
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -167,9 +168,11 @@ def kwarg_value_problem(value: Any, annotation: str) -> str | None:
 
     Understood: ``None``, ``float`` (any real number), ``int``, ``bool``, ``str``, ``Any``, ``Optional[...]``
     and sequences (``tuple[float, float, float]``, ``tuple[float, ...]``, ``Sequence[float]``, ``list[...]``;
-    a list, tuple or one-dimensional array). Any other name (a class, a ``Literal``) lets the value pass: the
-    constructor checks it.
+    a list, tuple or one-dimensional array). An annotation naming anything else (a class, a ``Literal``) lets
+    every value pass: the constructor checks it.
     """
+    if not set(re.findall(r"[A-Za-z_]\w*", annotation)) <= _KNOWN_NAMES:
+        return None  # it names a class or a Literal: the constructor's own check has the better message
     alternatives = _split(_unwrap_optional(annotation), "|")
     for alternative in alternatives:
         if _fits(value, alternative) is not False:
@@ -205,6 +208,7 @@ _SCALARS: dict[str, tuple[str, str]] = {
     "None": ("None", "None"),
 }
 _SEQUENCES = ("tuple[", "Sequence[", "list[")
+_KNOWN_NAMES = {*_SCALARS, "tuple", "Sequence", "list", "Optional", "Any", "object"}
 
 
 def _fits_scalar(value: Any, name: str) -> bool | None:
