@@ -120,7 +120,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
                 check_env_id(args.env_id, args.gym_packages)  # its message names failed imports, close matches
             except EnvironmentNotFoundError as exc:
                 raise ValueError(str(exc)) from None
-        check_make_kwargs(args.env_id, env_kwargs)
+        check_make_kwargs(args.env_id, env_kwargs, "--env-kwargs")
     components = args._components() if args._components is not None else None
     if args.residual not in (None, NO_BASE) and components is not None:
         components.base_factory(args.residual)  # an unknown or torque-mode base: one line, before torch loads

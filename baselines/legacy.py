@@ -13,7 +13,9 @@ REGROUPED: dict[str, str] = {
     "baselines.reproduce": "baselines.paper.reproduce",
     "baselines.figures": "baselines.paper.figures",
     "baselines.obstacle_figure": "baselines.paper.obstacle_figure",
-    "baselines.evaluate": "uvdms_gym.evaluation (run_episode, summarize, ...) and leaderboard.running.evaluate (evaluate)",
+    "baselines.evaluate": (
+        "uvdms_gym.evaluation (run_episode, summarize, ...) and leaderboard.running.evaluate (evaluate)"
+    ),
 }
 """Old module path of ``baselines`` -> where its names live now (``baselines.mpc`` and ``baselines.safety`` are
 packages now: ``baselines.mpc.kinematic``, ``baselines.mpc.config``, ``baselines.mpc.solver``,

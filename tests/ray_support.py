@@ -11,6 +11,7 @@ reaped when the worker exits).
 from __future__ import annotations
 
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable
@@ -131,6 +132,38 @@ def descendants_matching(fragment: str) -> list[int]:
     return sorted(
         pid for pid, _ in _descendants(table, os.getpid()) if table[pid][1] != "Z" and fragment in _cmdline(pid)
     )
+
+
+def kill_when(
+    fragment: str,
+    thread: threading.Thread,
+    *,
+    ready: Callable[[], bool] = lambda: True,
+    settle: float = 0.0,
+    timeout: float = 240.0,
+) -> int | None:
+    """While ``thread`` runs, ``SIGKILL`` the first descendant whose command line contains ``fragment``.
+
+    Args:
+        fragment: E.g. ``"ray::episode "`` (a Ray task's process title).
+        thread: The run the process belongs to (:func:`in_background`); nothing is killed once it has ended.
+        ready: Kill only once this holds (e.g. the process has written a file).
+        settle: Seconds to wait after seeing the process (into its work); it is killed if it still runs then.
+        timeout: Seconds to wait in all.
+
+    Returns:
+        The process killed, or ``None`` if none was seen in time.
+    """
+    deadline = time.monotonic() + timeout
+    while thread.is_alive() and time.monotonic() < deadline:
+        running = descendants_matching(fragment)
+        if running and ready():
+            time.sleep(settle)
+            if running[0] in descendants_matching(fragment):
+                os.kill(running[0], signal.SIGKILL)
+                return running[0]
+        time.sleep(0.01)
+    return None
 
 
 def in_background(fn: Callable[[], Any]) -> tuple[threading.Thread, dict[str, Any]]:

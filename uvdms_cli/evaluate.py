@@ -36,6 +36,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     ev.add_argument("--episodes", type=int, default=5, help="number of episodes (seeds S, S+1, ...)")
     ev.add_argument("--seed", type=int, default=0, help="seed of the first episode")
+    ev.add_argument(
+        "--max-episode-steps",
+        type=int,
+        default=None,
+        metavar="N",
+        help="cut every episode after N steps, as uvdms leaderboard does (smoke tests: the metrics then describe "
+        "the first N steps only; the same as --env-kwargs max_episode_steps=N)",
+    )
     ev.add_argument("--out", default=None, help="JSON file to write (atomically)")
     ev.add_argument("--save-trajectory", action="store_true", help="include each episode's time series")
     ev.add_argument("--trust", action="store_true", help="allow unpickling the agent's SB3/VecNormalize files")
@@ -53,7 +61,11 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from uvdms_gym.utils.kwargs import check_make_kwargs, parse_kv
 
     env_kwargs = parse_kv(args.env_kwargs, "--env-kwargs")
-    check_make_kwargs(args.env, env_kwargs)  # errors are reported by uvdms_cli.main.main as one line
+    if args.max_episode_steps is not None:
+        if args.max_episode_steps < 1:
+            raise ValueError(f"--max-episode-steps must be >= 1, got {args.max_episode_steps}")
+        env_kwargs["max_episode_steps"] = args.max_episode_steps
+    check_make_kwargs(args.env, env_kwargs, "--env-kwargs")  # errors are reported by uvdms_cli.main.main as one line
     result = evaluate_entry(
         args.controller,
         args.env,

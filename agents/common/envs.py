@@ -69,6 +69,8 @@ def check_env_id(env_id: str, packages: Sequence[str]) -> None:
         EnvironmentNotFoundError: If the id is not registered; the message lists failed imports and
             close matches.
     """
+    from uvdms_gym.utils.kwargs import registered_ids
+
     errors = import_gym_packages(packages)
     if ":" in env_id or env_id in gym.registry:
         return
@@ -84,6 +86,10 @@ def check_env_id(env_id: str, packages: Sequence[str]) -> None:
     close = difflib.get_close_matches(env_id, list(gym.registry), n=3)
     if close:
         msg += f" Close matches: {', '.join(close)}."
+    namespace = env_id.split("/")[0] if "/" in env_id else None
+    known = registered_ids(namespace) if namespace else []
+    if known:
+        msg += f" The {namespace} environments are {', '.join(known)}."
     raise EnvironmentNotFoundError(msg)
 
 

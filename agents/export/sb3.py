@@ -150,6 +150,17 @@ def _find_run_config(model_path: Path) -> dict[str, Any]:
     return {}
 
 
+def _no_model_message(model_path: Path) -> str:
+    """``no model at PATH``; for a run's missing ``best_model.zip``, why there is none and what to export instead."""
+    if model_path.name != "best_model.zip" or not (model_path.parent / "final_model.zip").is_file():
+        return f"no model at {model_path}"
+    return (
+        f"no model at {model_path}: a run writes best_model.zip at its evaluations (every eval_freq steps, "
+        "train_options of the training config) and this run ended before its first one; export its final model "
+        "(which='final', uvdms export-agent --which final) or train for more than eval_freq steps"
+    )
+
+
 def load_sb3_agent(
     path: str | Path, *, which: Which = "final", trust: bool = False, algo: str | None = None
 ) -> AgentController:
@@ -169,7 +180,7 @@ def load_sb3_agent(
     else:
         model_path = path
     if not model_path.is_file():
-        raise FileNotFoundError(f"no model at {model_path}")
+        raise FileNotFoundError(_no_model_message(model_path))
     stats_path = _stats_path(model_path)
     resolved = _find_run_config(model_path)
     config = resolved.get("config", {})

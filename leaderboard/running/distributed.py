@@ -14,6 +14,9 @@ Controllers reach the workers as data:
   where it needs it, and exported) and put in the object store once per entry as ``{file name: bytes}``. A
   worker writes it to a private temporary folder once per process and loads it with
   :func:`agents.export.weights.load_weights_only`, which never unpickles; no SB3 zip or pickle reaches a worker.
+  The folder (``uvdms-agent-<pid>-*``, :func:`uvdms_gym.utils.tempdirs.owned_tempdir`) goes when the worker
+  exits; a worker killed meanwhile (by Ray at shutdown, or lost) leaves it to the next sweep: on a local
+  instance the driver's, after the session ends.
 
 Faults: a task whose worker process dies (killed, out of memory, node lost) is run again by Ray, up to
 ``max_retries`` times; an episode is a pure function of its job (seeded, fresh baseline controller), so the
@@ -24,9 +27,8 @@ episode's entry, task and seed, as with the local backends.
 
 from __future__ import annotations
 
-import atexit
+import contextlib
 import logging
-import shutil
 import tempfile
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import replace
@@ -34,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from leaderboard.suite.entries import Entry
+from uvdms_gym.utils.tempdirs import owned_tempdir, sweep_stale
 
 log = logging.getLogger("uvdms.leaderboard")
 
@@ -42,6 +45,10 @@ DEFAULT_MAX_RETRIES = 3
 
 _MATERIALISED: dict[str, Path] = {}
 """Per worker process: agent checksum -> the folder its weights-only export was written to."""
+AGENT_FOLDER_PREFIX = "uvdms-agent-"
+"""Start of the name of a worker's agent folder (``uvdms-agent-<pid>-<random>``)."""
+SWEEP_WAIT_S = 10.0
+"""How long the driver waits for the workers of its ended local Ray instance to exit before sweeping."""
 
 
 def agent_files(entry: Entry, trust: bool) -> dict[str, bytes]:
@@ -74,22 +81,14 @@ def materialise(checksum: str, files: Mapping[str, bytes]) -> Path:
     """Write an agent's export to a private temporary folder of this process, once per ``checksum``."""
     folder = _MATERIALISED.get(checksum)
     if folder is None or not folder.is_dir():
-        if not _MATERIALISED:
-            atexit.register(_remove_materialised)
         bad = [name for name in files if Path(name).name != name or name in ("", ".", "..")]
         if bad:  # the driver sends a flat folder: anything else would write outside the temporary folder
             raise ValueError(f"agent export file names {bad} are not plain file names")
-        folder = Path(tempfile.mkdtemp(prefix="uvdms-agent-"))
+        folder = owned_tempdir(AGENT_FOLDER_PREFIX)  # removed at exit, or by a sweep if the worker is killed
         for name, data in files.items():
             (folder / name).write_bytes(data)
         _MATERIALISED[checksum] = folder
     return folder
-
-
-def _remove_materialised() -> None:
-    for folder in _MATERIALISED.values():
-        shutil.rmtree(folder, ignore_errors=True)
-    _MATERIALISED.clear()
 
 
 def ray_episode(job: Any, backend: Any, trust: bool, files: Mapping[str, bytes] | None) -> dict[str, Any]:
@@ -105,6 +104,25 @@ def ray_episode(job: Any, backend: Any, trust: bool, files: Mapping[str, bytes] 
         folder = materialise(_payload_key(job.entry), files)
         job = replace(job, entry=replace(job.entry, spec=str(folder), weights_only=True))
     return compute_job(job, backend, trust)
+
+
+@contextlib.contextmanager
+def _sweep_after_local_session(address: str | None) -> Iterator[None]:
+    """Remove the agent folders of the workers of a local Ray instance started here, once it has ended.
+
+    Ray ends its workers at shutdown with a signal, so they run no exit code (:mod:`uvdms_gym.utils.tempdirs`).
+    """
+    try:
+        import ray
+
+        started_here = address is None and not ray.is_initialized()
+    except ImportError:  # ray_session says how to install it
+        started_here = False
+    try:
+        yield
+    finally:
+        if started_here:
+            sweep_stale(AGENT_FOLDER_PREFIX, wait=SWEEP_WAIT_S)
 
 
 def _payload_key(entry: Entry) -> str:
@@ -140,7 +158,7 @@ def run_on_ray(
 
     if max_retries < 0:
         raise ValueError(f"max_retries must be >= 0, got {max_retries}")
-    with ray_session(address=address, num_cpus=num_cpus) as ray:
+    with _sweep_after_local_session(address), ray_session(address=address, num_cpus=num_cpus) as ray:
         payloads: dict[str, Any] = {}  # one export per agent (an agent and its ``+filter`` entry share it)
         for job in todo:
             if job.entry.kind == "agent" and _payload_key(job.entry) not in payloads:

@@ -31,6 +31,7 @@ from leaderboard.suite.registry import (
     load_agent,
     make_controller,
     resolve_controller,
+    unknown_controller,
     with_safety_filter,
 )
 from uvdms_gym.utils.io import write_json_atomic
@@ -104,7 +105,7 @@ def evaluate(
     else:
         path = Path(resolve_controller(controller_spec))
         if not path.exists():
-            raise ValueError(f"{controller_spec!r} is neither a baseline ({', '.join(CONTROLLERS)}) nor an agent path")
+            raise unknown_controller(controller_spec)
         from agents.export import check_agent
 
         agent = load_agent(path, trust)

@@ -38,7 +38,14 @@ from leaderboard.suite.agent_files import (
     run_seed,
     training_seeds,
 )
-from leaderboard.suite.registry import BASELINE_ENV, DEFAULT_BASELINES, TRACK_OF, resolve_controller
+from leaderboard.suite.registry import (
+    BASELINE_ENV,
+    DEFAULT_BASELINES,
+    TRACK_OF,
+    not_an_agent_folder,
+    resolve_controller,
+    unknown_controller,
+)
 from leaderboard.suite.tasks import TRACKS, Task, env_family
 
 log = logging.getLogger("uvdms.leaderboard")
@@ -213,10 +220,7 @@ def _token_entry(spec: str, raw_token: str, token: str, filtered: bool, trust: b
     else:
         path = Path(resolve_controller(spec))  # a shipped name from any directory, a former name
         if not path.exists():
-            raise ValueError(
-                f"entry {spec!r} is neither a baseline ({', '.join(BASELINES)}), 'baselines', 'agents', "
-                "nor an existing agent folder or checkpoint"
-            )
+            raise unknown_controller(spec, ("baselines", "agents"))
         key = str(path.resolve())
         entry = agent_entry(path, trust=trust)
     if filtered and not entry.safety_filter:
@@ -284,7 +288,7 @@ def agent_entry(path: str | Path, *, trust: bool = False) -> Entry:
     weights_only = is_weights_only(path)
     archives = sorted(path.glob("*.zip")) if path.is_dir() else [path]
     if path.is_dir() and not weights_only and not archives:
-        raise ValueError(f"{path} is not an agent folder: it holds neither agent.json (weights-only export) nor a .zip")
+        raise not_an_agent_folder(path)
     if not weights_only and not (trust or is_trusted_path(path)):
         raise UntrustedFileError(
             f"refusing to load {path}: it is a full Stable-Baselines3 model, whose pickled objects can run "

@@ -56,6 +56,22 @@ def required_action_mode(spec: str) -> str | None:
     return TRACK_OF.get(spec)
 
 
+def not_an_agent_folder(path: str | Path) -> ValueError:
+    """The error of a folder that holds no agent (one wording for ``uvdms evaluate`` and ``uvdms leaderboard``)."""
+    return ValueError(
+        f"{path} is not an agent folder: it holds none of {', '.join(AGENT_FILES)} (a weights-only export, "
+        "a shipped agent or a run directory)"
+    )
+
+
+def unknown_controller(spec: str, keywords: tuple[str, ...] = ()) -> ValueError:
+    """The error of a name that is no baseline and a path that does not exist (``keywords``: other names taken)."""
+    also = f", {', '.join(map(repr, keywords))}" if keywords else ""
+    return ValueError(
+        f"{spec!r} is neither a baseline ({', '.join(CONTROLLERS)}){also} nor an existing agent folder or checkpoint"
+    )
+
+
 def load_agent(path: str | Path, trust: bool = False) -> Any:
     """:func:`agents.export.load_agent` with the errors of a wrong path or a corrupt archive named.
 
@@ -68,10 +84,7 @@ def load_agent(path: str | Path, trust: bool = False) -> Any:
 
     path = Path(path)
     if path.is_dir() and not any((path / name).is_file() for name in AGENT_FILES):
-        raise ValueError(
-            f"{path} is not an agent folder: it holds none of {', '.join(AGENT_FILES)} (a weights-only export, "
-            "a shipped agent or a run directory)"
-        )
+        raise not_an_agent_folder(path)
     try:
         return _load(path, trust=trust)
     except zipfile.BadZipFile as exc:
@@ -284,7 +297,7 @@ def make_controller(spec: str, env: Any, *, trust: bool = False, **kwargs: Any) 
         return CONTROLLERS[spec](spec, env, **kwargs)
     path = Path(resolve_controller(spec))
     if not path.exists():
-        raise ValueError(f"{spec!r} is neither a baseline ({', '.join(CONTROLLERS)}) nor an existing agent path")
+        raise unknown_controller(spec)
     from agents.export import check_agent
 
     agent = load_agent(path, trust=trust)

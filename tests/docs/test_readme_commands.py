@@ -44,7 +44,7 @@ UVDMS = Path(sys.executable).parent / "uvdms"
 
 BUDGET_OPTIONS = ("--episodes", "--total-timesteps")
 """Options whose README value may be replaced by a smaller one."""
-PLACEHOLDERS = {"path/to/agent_export": "exported/sac_case1", "path/to/my_export": "my_export"}
+PLACEHOLDERS = {"path/to/agent_export": "exported/sac_case1"}
 """README placeholders and the agents the tests use for them (made earlier in the same chain)."""
 TINY_SAC = "learning_starts=100 eval_freq=100 n_eval_episodes=1 checkpoint_freq=200"
 """SAC at a tiny budget: learn after 100 steps, evaluate (and keep a best model) every 100."""
@@ -94,16 +94,22 @@ SHRUNK: dict[str, Shrunk] = {
         "--cache-dir leaderboard_out/cache",
         creates=("docs/leaderboard/leaderboard.md", "docs/leaderboard/entries/campc.json"),
     ),
-    "uvdms leaderboard --entries baselines agents path/to/my_export": Shrunk(
+    "uvdms leaderboard --entries baselines agents out/my_export": Shrunk(
         "leaderboard",
-        "uvdms leaderboard --entries baselines agents my_export --quick --episodes 1 --max-episode-steps 20 "
+        "uvdms leaderboard --entries baselines agents out/my_export --quick --episodes 1 --max-episode-steps 20 "
         "--no-progress",
         creates=("leaderboard_out/entries/my_export.json",),
     ),
-    "uvdms export-agent trained_agents/ppo-circle-case1-v0 path/to/my_export": Shrunk(
+    "uvdms leaderboard --quick --entries baselines agents out/my_export": Shrunk(
         "leaderboard",
-        "uvdms export-agent trained_agents/ppo-circle-case1-v0 my_export",
-        creates=("my_export/agent.json", "my_export/policy.pt"),
+        "uvdms leaderboard --quick --entries baselines agents out/my_export --episodes 1 --max-episode-steps 20 "
+        "--no-progress",
+        creates=("leaderboard_out/entries/my_export.json",),
+    ),
+    "uvdms export-agent trained_agents/ppo-circle-case1-v0 out/my_export": Shrunk(
+        "leaderboard",
+        "uvdms export-agent trained_agents/ppo-circle-case1-v0 out/my_export",
+        creates=("out/my_export/agent.json", "out/my_export/policy.pt"),
     ),
     # docs/OBSTACLES.md: a scripted obstacle through --env-kwargs
     "uvdms evaluate --controller campc --env uvdms/TransportObstacles-v1 --episodes 1 --env-kwargs "
@@ -115,14 +121,15 @@ SHRUNK: dict[str, Shrunk] = {
         stdout_json=True,
     ),
     # reference controller section
-    "uvdms evaluate --controller campc --env uvdms/CircleTrack-v0 --env-kwargs case=2 --episodes 5 --out campc.json": (
+    "uvdms evaluate --controller campc --env uvdms/CircleTrack-v0 --env-kwargs case=2 --episodes 5 "
+    "--out out/campc.json": (
         Shrunk(
             "evaluate",
             "uvdms evaluate --controller campc --env uvdms/CircleTrack-v0 --env-kwargs case=2 max_episode_steps=20 "
-            "--episodes 1 --out campc.json --no-progress",
-            creates=("campc.json",),
+            "--episodes 1 --out out/campc.json --no-progress",
+            creates=("out/campc.json",),
             stdout_json=True,
-            contains=(("campc.json", '"load_1min_start"'), ("-", '"episodes": 1')),
+            contains=(("out/campc.json", '"load_1min_start"'), ("-", '"episodes": 1')),
         )
     ),
     "uvdms evaluate --controller campc-nndi --env uvdms/Transport-v0 --env-kwargs hydro_randomization=0.3 "
@@ -182,11 +189,11 @@ SHRUNK: dict[str, Shrunk] = {
         creates=("exported/sac_case1/agent.json", "exported/sac_case1/policy.pt"),
     ),
     "uvdms evaluate --controller trained_agents/ppo-circle-case1-v0 --env uvdms/CircleTrack-v0 --env-kwargs case=1 "
-    "--episodes 10 --seed 1000 --out eval.json": Shrunk(
+    "--episodes 10 --seed 1000 --out out/eval.json": Shrunk(
         "evaluate",
         "uvdms evaluate --controller trained_agents/ppo-circle-case1-v0 --env uvdms/CircleTrack-v0 --env-kwargs case=1 "
-        "max_episode_steps=20 --episodes 1 --seed 1000 --out eval.json --no-progress",
-        creates=("eval.json",),
+        "max_episode_steps=20 --episodes 1 --seed 1000 --out out/eval.json --no-progress",
+        creates=("out/eval.json",),
         stdout_json=True,
     ),
     # residual agents
@@ -238,7 +245,7 @@ ORDER: tuple[str, ...] = (
     "uvdms export-agent runs/uvdms_CircleTrack-v0/sac_1 exported/residual-mpc-sac --trust",
     "uvdms evaluate --controller exported/residual-mpc-sac --env uvdms/CircleTrack-v0 --env-kwargs case=1 --episodes 5",
     # leaderboard: the submission is exported first; the full suite and the submission reuse the quick run's cache
-    "uvdms export-agent trained_agents/ppo-circle-case1-v0 path/to/my_export",
+    "uvdms export-agent trained_agents/ppo-circle-case1-v0 out/my_export",
     "uvdms leaderboard --quick",
     "uvdms leaderboard --out docs/leaderboard",
 )

@@ -45,6 +45,7 @@ from uvdms_gym.physics.render import CAMERA_YAW_OFFSET_DEG, ReferenceScene
 from uvdms_gym.physics.sim import UVDMSSim
 from uvdms_gym.physics.state import PhysicsError
 from uvdms_gym.utils.display import gui_available, require_display
+from uvdms_gym.utils.kwargs import check_init_kwargs
 
 PREVIEW_TIMES: tuple[float, ...] = (0.0, 0.4, 0.8)
 """Reference preview horizon of the observation, s."""
@@ -128,6 +129,7 @@ class UVDMSEnv(gym.Env, EzPickle):
 
     def __new__(cls, *args: Any, **kwargs: Any) -> UVDMSEnv:
         """Record the most-derived constructor's arguments for pickling (each subclass takes its own keywords)."""
+        check_init_kwargs(cls, kwargs)  # left_center="abc": one line naming the key and the type it takes
         env = super().__new__(cls)
         EzPickle.__init__(env, *args, **kwargs)
         return env

@@ -21,7 +21,6 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-import tempfile
 import threading
 from functools import lru_cache
 from pathlib import Path
@@ -29,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from uvdms_gym.physics.params import ARM_SIDES, FramePlate, UVDMSParams
+from uvdms_gym.utils.tempdirs import owned_tempdir
 
 TINY_MASS = 1e-4
 """Mass of frame-only links (PyBullet gives a link without ``<inertial>`` 1 kg)."""
@@ -292,16 +292,16 @@ def build_object_urdf(params: UVDMSParams, *, collision: bool = False) -> str:
     )
 
 
-_URDF_DIRS: dict[int, tempfile.TemporaryDirectory] = {}
+_URDF_DIRS: dict[int, Path] = {}
 """This process's folder of URDF files (by process id: a forked worker makes its own), removed at exit."""
 
 
 def _cache_dir() -> Path:
-    """This process's URDF folder: PyBullet loads from a path, and the process leaves nothing behind."""
+    """This process's URDF folder: PyBullet loads from a path, and the process (a worker too) leaves nothing behind."""
     folder = _URDF_DIRS.get(os.getpid())
-    if folder is None or not Path(folder.name).is_dir():
-        folder = _URDF_DIRS[os.getpid()] = tempfile.TemporaryDirectory(prefix="uvdms_gym_urdf-")
-    return Path(folder.name)
+    if folder is None or not folder.is_dir():
+        folder = _URDF_DIRS[os.getpid()] = owned_tempdir("uvdms_gym_urdf-")
+    return folder
 
 
 def write_urdf(text: str) -> Path:

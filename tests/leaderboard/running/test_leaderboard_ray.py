@@ -9,14 +9,11 @@ Every Ray test starts its own Ray, shuts it down, and checks that no process it 
 from __future__ import annotations
 
 import csv
-import os
-import signal
-import time
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from ray_support import descendants_matching, in_background
+from ray_support import in_background, kill_when
 
 import leaderboard as lb
 from leaderboard.running.cache import read_cached
@@ -103,16 +100,7 @@ def test_a_killed_worker_is_retried_and_every_episode_is_cached_once(tmp_path, r
             plots=False,
         )
     )
-    killed = None
-    deadline = time.monotonic() + 240
-    while killed is None and thread.is_alive() and time.monotonic() < deadline:
-        running = descendants_matching("ray::episode ")
-        if running:
-            time.sleep(0.5)  # into the episode (its controller is built, its steps are running)
-            if running[0] in descendants_matching("ray::episode "):
-                os.kill(running[0], signal.SIGKILL)
-                killed = running[0]
-        time.sleep(0.01)
+    killed = kill_when("ray::episode ", thread, settle=0.5)  # into the episode: its steps are running
     thread.join(timeout=400)
     assert "error" not in outcome, outcome.get("error")
     assert killed is not None, "no episode was seen running: nothing was killed"
