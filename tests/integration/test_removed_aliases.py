@@ -155,18 +155,20 @@ def test_a_run_whose_checkpoints_were_pickled_under_the_old_module_path_resumes(
 def regrouped_tables() -> dict[str, str]:
     """The module paths 0.4.0 moved without an alias, of every package that keeps such a table."""
     import baselines.legacy
+    import leaderboard.legacy
 
-    return {**legacy.REGROUPED, **baselines.legacy.REGROUPED}
+    return {**legacy.REGROUPED, **baselines.legacy.REGROUPED, **leaderboard.legacy.REGROUPED}
 
 
 @pytest.mark.parametrize("old", sorted(regrouped_tables()))
 def test_a_path_the_regrouping_moved_fails_in_one_line_naming_where_its_names_live(old):
     import baselines  # noqa: F401  (installs its finder)
+    import leaderboard  # noqa: F401  (installs its finder)
 
     new = regrouped_tables()[old]
     with pytest.raises(ModuleNotFoundError) as excinfo:
         importlib.import_module(old)
     assert str(excinfo.value) == f"{old} was moved in 0.4.0: import from {new}" and excinfo.value.name == old
-    homes = [word.strip(",") for word in new.split() if "." in word and word[0].isalpha()]
+    homes = [word.strip(",()") for word in new.split() if "." in word and word.strip("(")[0].isalpha()]
     for home in homes:  # every module the message names exists
         assert importlib.util.find_spec(home) is not None, home
