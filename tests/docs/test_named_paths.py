@@ -61,8 +61,18 @@ ALLOWED: dict[str, str] = {
     "trained_agents/x+filter": "a placeholder agent folder with the leaderboard's +filter suffix",
 }
 """Names that are not paths of this checkout -> why they stand where they do."""
-LEGACY_FILES = ("uvdms_gym/utils/legacy.py", "agents/common/legacy.py", "agents/__init__.py", "agents/config/zoo.py")
-"""Files that describe the module paths removed in 0.4.0 and may name them (the legacy tables' old names only)."""
+LEGACY_FILES = (
+    "uvdms_gym/utils/legacy.py",
+    "agents/common/legacy.py",
+    "agents/__init__.py",
+    "agents/config/zoo.py",
+    "baselines/legacy.py",
+    "baselines/__init__.py",
+    "leaderboard/legacy.py",
+    "leaderboard/__init__.py",
+)
+"""Files that describe the module paths removed or moved in 0.4.0 and may name them (the legacy tables' old names
+only)."""
 SHIPPED_ALIAS_FILES = ("agents/common/paths.py",)
 """Files that describe the former names of renamed shipped folders (``trained_agents/circle_case1_ppo``)."""
 
@@ -198,9 +208,11 @@ def _repo_file_names() -> frozenset[str]:
 
 def _legacy_names() -> set[str]:
     from agents.common.legacy import MOVED as AGENTS_MOVED
-    from uvdms_gym.utils.legacy import MOVED
+    from baselines.legacy import REGROUPED as BASELINES_REGROUPED
+    from leaderboard.legacy import REGROUPED as LEADERBOARD_REGROUPED
+    from uvdms_gym.utils.legacy import MOVED, REGROUPED
 
-    return {*MOVED, *AGENTS_MOVED}
+    return {*MOVED, *AGENTS_MOVED, *REGROUPED, *BASELINES_REGROUPED, *LEADERBOARD_REGROUPED}
 
 
 @functools.cache

@@ -11,10 +11,12 @@ by torch's Adam on its first step, reused).
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
 import textwrap
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -56,6 +58,15 @@ SUBPROC_SCRIPT = textwrap.dedent(
 )
 
 
+@pytest.fixture
+def short_temp() -> Iterator[Path]:
+    """A temporary folder with a short path: the forkserver's socket lives in TMPDIR, and an AF_UNIX path holds at
+    most 107 bytes (pytest's ``tmp_path`` under xdist is longer)."""
+    folder = Path(tempfile.mkdtemp(prefix="uvh-", dir="/tmp"))
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
+
+
 def _run_with_temp(script: str, temp) -> str:
     temp.mkdir(exist_ok=True)
     env = {k: v for k, v in os.environ.items() if k != "SB3_LOGDIR"}  # SB3 would fall back to the temp directory
@@ -75,8 +86,8 @@ def test_an_env_and_bench_train_models_leave_the_temp_directory_as_they_found_it
     assert _left(temp) == []
 
 
-def test_a_two_worker_subprocess_model_leaves_the_temp_directory_as_it_found_it(tmp_path):
-    temp = tmp_path / "system_temp"
+def test_a_two_worker_subprocess_model_leaves_the_temp_directory_as_it_found_it(short_temp):
+    temp = short_temp / "t"
     _run_with_temp(SUBPROC_SCRIPT, temp)
     assert _left(temp) == []
 
