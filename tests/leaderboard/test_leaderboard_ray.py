@@ -3,7 +3,7 @@
 Episodes are cut to a few steps (``--max-episode-steps``): the properties under test (which episodes run,
 where results go, that a result does not depend on the process that computed it) do not need whole episodes.
 Every Ray test starts its own Ray, shuts it down, and checks that no process it started outlives it (the
-``ray_processes`` fixture of ``tests/ray_support.py``).
+``ray_processes`` fixture of ``tests/support/ray_cluster.py``).
 """
 
 from __future__ import annotations
@@ -16,12 +16,12 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from ray_support import descendants_matching, in_background
 
 import leaderboard as lb
 from leaderboard.cache import read_cached
 from leaderboard.distributed import agent_files, materialise
 from leaderboard.jobs import plan_jobs
+from tests.support.ray_cluster import descendants_matching, in_background
 from uvdms_cli.main import main
 
 REPO = Path(__file__).resolve().parents[2]

@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from ray_support import ray_processes  # noqa: F401  (fixture)
-
+from tests.support.ray_cluster import ray_processes  # noqa: F401  (fixture)
 from uvdms_gym.utils.cluster import ray_session
 
 

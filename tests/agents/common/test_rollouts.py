@@ -1,4 +1,4 @@
-"""Parallel PPO rollouts (agents/rollouts.py, ``--vec-env rollout``).
+"""Parallel PPO rollouts (agents/common/rollouts.py, ``--vec-env rollout``).
 
 * One rollout on 2 envs (env 1 in a worker) inside ``VecNormalize``: replaying each env from its seed with the
   buffer's clipped actions gives the buffer's observations (normalised with the rollout's starting statistics),

@@ -1,4 +1,4 @@
-"""``HybridVecEnv`` (agents/vecenv.py): the same transitions and the same training as ``DummyVecEnv``."""
+"""``HybridVecEnv`` (agents/common/vecenv.py): the same transitions and the same training as ``DummyVecEnv``."""
 
 from __future__ import annotations
 

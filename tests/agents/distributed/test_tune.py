@@ -1,7 +1,7 @@
 """``uvdms tune``: the search spaces against RL Zoo's samplers, their checks, a 4-trial search on Ray, bad input.
 
-The search uses the tiny PPO configuration of ``tests/agents/test_sweep.py``; the ``ray_processes`` fixture
-(``tests/ray_support.py``) fails the test if a process the search started outlives it.
+The search uses the tiny PPO configuration of ``tests/agents/distributed/test_sweep.py``; the ``ray_processes`` fixture
+(``tests/support/ray_cluster.py``) fails the test if a process the search started outlives it.
 """
 
 from __future__ import annotations

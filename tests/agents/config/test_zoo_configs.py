@@ -26,7 +26,7 @@ from agents.algos import ALGOS
 from agents.config import ConfigError, load_config, parse_entry, validate_config_file
 from agents.config.zoo import TRAIN_OPTIONS
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 CONFIGS = sorted((REPO / "train_configs").glob("*.yml"))
 BEFORE = json.loads((REPO / "tests" / "data" / "train_configs_before.json").read_text(encoding="utf-8"))
 

@@ -1,4 +1,4 @@
-"""DAgger on a residual (agents/dagger.py) and the teacher's labels (uvdms_gym.residual.ResidualAction).
+"""DAgger on a residual (agents/algos/dagger.py) and the teacher's labels (uvdms_gym.residual.ResidualAction).
 
 * ``teacher_residual`` is the residual output that makes the composed command the teacher's, clipped to the bound.
 * ``ResidualAction`` with a teacher reports, at every step, the label of the state the action was taken in,
@@ -189,7 +189,7 @@ RESIDUAL = ["--residual", "mpc", "--residual-scale", "0.5"]
         ([*RESIDUAL, "--hyperparams", "teacher=3"], r"key 'teacher': expected str, got int"),
         ([*RESIDUAL, "--hyperparams", "teacher_margin=-0.01"], r"teacher_margin must be a finite number >= 0"),
         ([*RESIDUAL, "--hyperparams", "teacher=mpc", "teacher_margin=0.01"], r"'mpc' has none \(use campc\)"),
-        # with no base (a distilled controller, tests/agents/test_dagger_no_base.py)
+        # with no base (a distilled controller, tests/agents/algos/test_dagger_no_base.py)
         (["--residual", "none", "--residual-scale", "0.5"], r"residual_scale 0.5 is given without a residual_base"),
         (
             ["--env-kwargs", "action_mode=torque"],

@@ -1,4 +1,4 @@
-"""Torch threads of training (agents/threads.py): the rule, the switch at rollout boundaries, same results."""
+"""Torch threads of training (agents/common/threads.py): the rule, the switch at rollout boundaries, same results."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""PPO-Lagrangian (agents/ppo_lagrangian.py): the formulas, a problem where the budget binds, state, configs, CLI.
+"""PPO-Lagrangian (agents/algos/ppo_lagrangian.py): the formulas, a problem where the budget binds, state, configs, CLI.
 
 The small problem (:class:`CostlyPush`): one action ``a`` in [-1, 1] per step for ``HORIZON`` steps, reward ``a``,
 cost ``a**2``. Unconstrained, the best policy pushes ``a = 1`` and pays ``HORIZON`` per episode; under the budget
@@ -44,7 +44,7 @@ from agents.export import export_agent, load_agent, load_weights_only
 from agents.training.train import latest_checkpoint, run_dir_for, train
 from uvdms_cli.main import main as uvdms
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 UVDMS = Path(sys.executable).with_name("uvdms")
 
 HORIZON = 10

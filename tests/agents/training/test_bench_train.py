@@ -1,4 +1,4 @@
-"""``uvdms bench train`` (agents/bench.py): its figures are what its blocks say, with the training thread rule."""
+"""``uvdms bench train`` (agents/training/bench.py): its figures are what its blocks say, with the thread rule."""
 
 from __future__ import annotations
 
