@@ -48,6 +48,7 @@ def leaderboard_argv(out: Path, *extra: str) -> list[str]:
     return ["leaderboard", "--out", str(out), "--no-plots", "--no-progress", *extra]
 
 
+@pytest.mark.portability
 def test_ray_backend_writes_the_quick_leaderboard_of_the_local_backend(tmp_path, ray_processes, monkeypatch):
     monkeypatch.chdir(tmp_path)  # the default agents folder is the repository's trained_agents/
     quick = ["--quick", "--max-episode-steps", "8"]

@@ -451,6 +451,7 @@ def _committed_stats(stats: dict) -> dict:
     }
 
 
+@pytest.mark.portability
 def test_committed_leaderboard_is_reproduced_from_its_episodes():
     root = REPO / "docs" / "leaderboard"
     tasks = {t.name: t for t in lb.TASKS}

@@ -31,6 +31,7 @@ from uvdms_gym.physics.params import JOINT_NAMES
 
 
 # ------------------------------------------------------------------ compiled kernels vs the numpy reference
+@pytest.mark.portability
 def test_exact_kernel_matches_numpy_reference_on_random_configurations(kin):
     """Generic random states (many in contact or near it): same rows, points, obstacles and J_dis."""
     rng = np.random.default_rng(15)
@@ -51,6 +52,7 @@ def test_exact_kernel_matches_numpy_reference_on_random_configurations(kin):
     assert ties > 10  # and so are ties at the left arm's joints (measured: 37)
 
 
+@pytest.mark.portability
 def test_exact_kernel_matches_numpy_reference_on_degenerate_configurations(kin):
     """Joint angles in {-90, 0, 90} deg: many exactly parallel, collinear or touching link pairs."""
     rng = np.random.default_rng(16)

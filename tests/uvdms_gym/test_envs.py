@@ -49,6 +49,7 @@ def _rollout_digest(env_id: str, seed: int, n: int = 300, **kwargs) -> str:
     return h.hexdigest()
 
 
+@pytest.mark.portability
 @pytest.mark.parametrize("env_id", IDS)
 def test_same_seed_same_trajectory_in_process_and_across_processes(env_id):
     kwargs = {"case": "random", "hydro_randomization": 0.3} if "Circle" in env_id else {"goal": "random"}

@@ -98,6 +98,7 @@ def _train_ppo(threads: int) -> tuple[torch.Tensor, torch.Tensor]:
         venv.close()
 
 
+@pytest.mark.portability
 def test_two_update_threads_train_the_parameters_of_one_thread_to_rounding():
     """2 update threads train what 1 thread trains, equal to ``PARAMETER_ATOL`` (not bit for bit: see there)."""
     before, one = _train_ppo(1)

@@ -243,6 +243,7 @@ def _check_completed(out: Path, seeds: list[int]) -> dict[int, dict]:
     return rows
 
 
+@pytest.mark.portability
 def test_ray_sweep_matches_local_and_runs_load(tiny_config, tmp_path, capsys, ray_processes):
     ray_out, local_out = tmp_path / "ray", tmp_path / "local"
     assert main(sweep_argv(tiny_config, ray_out, "--backend", "ray", "--num-cpus", "2")) == 0
