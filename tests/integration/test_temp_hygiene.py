@@ -12,6 +12,8 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 SCRIPT = textwrap.dedent(
     """
     import gymnasium as gym
@@ -31,6 +33,7 @@ SCRIPT = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 def test_an_env_and_bench_train_models_leave_the_temp_directory_as_they_found_it(tmp_path):
     temp = tmp_path / "system_temp"
     temp.mkdir()

@@ -24,6 +24,8 @@ from leaderboard.jobs import plan_jobs
 from tests.support.ray_cluster import descendants_matching, in_background
 from uvdms_cli.main import main
 
+pytestmark = pytest.mark.slow  # Ray instances and clusters
+
 REPO = Path(__file__).resolve().parents[2]
 SHIPPED_SAC = REPO / "trained_agents" / "sac-circle-case1-v0"
 TIMING_PREFIXES = ("timing_", "controller_ms_")
