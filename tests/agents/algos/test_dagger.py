@@ -127,6 +127,7 @@ class _ToyTeacherEnv(gym.Env):
         return self._obs, 0.0, False, False, info
 
 
+@pytest.mark.slow
 def test_dagger_fits_the_teachers_map_on_a_toy_problem():
     kwargs = {"learning_rate": 3e-3, "batch_size": 64, "policy_kwargs": {"net_arch": [32, 32]}}
     model = DAgger("MlpPolicy", _ToyTeacherEnv(), seed=0, teacher="toy", **kwargs)

@@ -179,6 +179,7 @@ def test_bad_train_options_are_named(tmp_path):
         load_config(path, "sac", "Pendulum-v1")
 
 
+@pytest.mark.slow
 def test_rl_zoo_trains_from_the_shipped_sac_config(tmp_path):
     pytest.importorskip("rl_zoo3", reason="rl_zoo3 is not installed (pip install -e .[zoo])")
     steps = 300

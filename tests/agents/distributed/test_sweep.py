@@ -243,6 +243,7 @@ def _check_completed(out: Path, seeds: list[int]) -> dict[int, dict]:
     return rows
 
 
+@pytest.mark.slow
 @pytest.mark.portability
 def test_ray_sweep_matches_local_and_runs_load(tiny_config, tmp_path, capsys, ray_processes):
     ray_out, local_out = tmp_path / "ray", tmp_path / "local"
@@ -293,6 +294,7 @@ def test_grid_sweep_locally(tiny_config, tmp_path):
         assert resolved["config"]["n_timesteps"] == 128
 
 
+@pytest.mark.slow
 def test_two_node_cluster(tiny_config, tmp_path, ray_processes):
     from ray.cluster_utils import Cluster
 
@@ -309,6 +311,7 @@ def test_two_node_cluster(tiny_config, tmp_path, ray_processes):
         cluster.shutdown()
 
 
+@pytest.mark.slow
 def test_killed_worker_resumes_from_its_checkpoint(tiny_config, tmp_path, ray_processes):
     import ray
 

@@ -169,6 +169,7 @@ def test_a_space_fixed_entirely_or_with_a_bad_key_is_an_error(tiny_config, tmp_p
 # ------------------------------------------------------------------------------------------------------
 # A search on a local Ray instance
 # ------------------------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_tune_writes_a_config_that_trains(tiny_config, tmp_path, capsys, ray_processes):  # noqa: F811
     out = tmp_path / "out"
     assert main(_tune_argv(tiny_config, out, "--num-cpus", "2", "--seed", "3")) == 0
