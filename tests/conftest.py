@@ -3,7 +3,8 @@
 import os
 
 import pytest
-from ray_support import ray_processes  # noqa: F401  (the fixture is registered by being imported here)
+
+from tests.support.ray_cluster import ray_processes  # noqa: F401  (the fixture is registered by being imported here)
 
 
 @pytest.fixture(scope="session", autouse=True)

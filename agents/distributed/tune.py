@@ -24,10 +24,11 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import json
 import shutil
 import tempfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -273,35 +274,98 @@ def tune(
     from agents.training.composition import composition_factories
 
     _check_search_options(algo, vec_env, n_trials, n_startup_trials, reduction_factor, max_concurrent)
-    gym_packages = tuple(gym_packages)
-    check_env_id(env_id, gym_packages)
-    env_kwargs = dict(env_kwargs or {})
-    check_make_kwargs(env_id, env_kwargs)
-    fixed = dict(hyperparams or {})
-    config_path = Path(config_path) if config_path is not None else default_config_path(algo)
-    spec = RunSpec(
-        algo=algo,
-        env_id=env_id,
-        env_kwargs=env_kwargs,
-        config_path=config_path,
+    spec = _run_spec(
+        algo,
+        env_id,
+        env_kwargs=dict(env_kwargs or {}),
+        config_path=Path(config_path) if config_path is not None else default_config_path(algo),
         seed=seed,
         total_timesteps=total_timesteps,
         n_envs=n_envs,
-        hyperparams=fixed,
+        hyperparams=dict(hyperparams or {}),
         vec_env=vec_env,
-        gym_packages=gym_packages,
+        gym_packages=tuple(gym_packages),
     )
     cfg = spec.resolve()
     composition_factories(cfg, components)  # a residual or the filter needs the components
     budget, grace = _trial_budget(cfg, grace_period)
     space_path = Path(search_space_path) if search_space_path is not None else default_search_space_path(algo)
-    space = load_search_space(space_path).without(fixed)
+    setup = _trial_setup(spec.replace(total_timesteps=budget), cfg, space_path, components)
+    out_dir = _new_out_dir(Path(out_dir))
+    started = utc_now()
+    scheduler_options = {"max_t": budget, "grace_period": grace, "reduction_factor": reduction_factor}
+    trials = _run_trials(
+        setup,
+        functools.partial(_searcher, setup.space, seed, n_startup_trials),
+        scheduler_options,
+        run_cpus(cfg.n_envs, vec_env),
+        n_trials=n_trials,
+        max_concurrent=max_concurrent,
+        address=address,
+        num_cpus=num_cpus,
+        out_dir=out_dir,
+    )
+    header = {
+        "algo": algo,
+        "env_id": env_id,
+        "env_kwargs": spec.env_kwargs,
+        "config": str(spec.config_path),
+        "search_space": str(space_path),
+        "hyperparams": spec.hyperparams,
+        "n_trials": n_trials,
+        "total_timesteps": budget,
+        "seed": seed,
+        "n_startup_trials": n_startup_trials,
+        "grace_period": grace,
+        "reduction_factor": reduction_factor,
+        "address": address,
+        "started_utc": started,
+        "finished_utc": utc_now(),
+    }
+    return _write_results(out_dir, spec, header, trials)
+
+
+def _new_out_dir(out_dir: Path) -> Path:
+    """``out_dir``, made; refused if it already holds a search."""
+    if (out_dir / "tune.json").exists():
+        raise RunDirError(f"{out_dir} already holds a search (tune.json); choose another --out")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    return out_dir
+
+
+def _write_results(out_dir: Path, spec: RunSpec, header: Mapping[str, Any], trials: list[dict]) -> TuneResult:
+    """Write ``tune.json``, ``tune.csv`` and the best completed trial's configuration (``<algo>.yml``).
+
+    Raises:
+        NoTrialCompletedError: No trial completed (``tune.json`` and ``tune.csv`` are written first).
+    """
+    completed = [t for t in trials if t["status"] == "completed" and t[METRIC] is not None]
+    if not completed:
+        _write_trials(out_dir, header, trials, None)
+        raise NoTrialCompletedError(f"no trial completed (see {out_dir / 'tune.json'})")
+    best = max(completed, key=lambda t: t[METRIC])
+    best_cfg = spec.replace(hyperparams=best["hyperparams"], total_timesteps=None).resolve()
+    best_file = write_best_config(out_dir / f"{spec.algo}.yml", best_cfg.to_entry(), spec.env_id, header, best)
+    _write_trials(out_dir, header, trials, best)
+    return TuneResult(out_dir, best_file, best, trials)
+
+
+def _run_spec(algo: str, env_id: str, **options: Any) -> RunSpec:
+    """The run every trial starts from (the env id and its ``gymnasium.make`` keywords checked first)."""
+    check_env_id(env_id, options["gym_packages"])
+    check_make_kwargs(env_id, options["env_kwargs"])
+    return RunSpec(algo=algo, env_id=env_id, **options)
+
+
+def _trial_setup(spec: RunSpec, cfg: Any, space_path: Path, components: Any) -> TrialSetup:
+    """What every trial needs; every choice and bound of the search space checked to give a valid configuration."""
+    space = load_search_space(space_path).without(spec.hyperparams)
     if not space.params:
         raise ConfigError(f"{space_path}: --hyperparams fix every parameter of the search space; nothing to search")
     setup = TrialSetup(
-        spec=spec.replace(total_timesteps=budget),
-        config_name=config_path.name,
-        config_text=config_path.read_text(encoding="utf-8"),
+        spec=spec,
+        config_name=spec.config_path.name,
+        config_text=spec.config_path.read_text(encoding="utf-8"),
         policy_kwargs=dict(cfg.policy_kwargs),
         space=space,
         components=None if cfg.composition.is_plain else components,
@@ -314,13 +378,26 @@ def tune(
             raise ConfigError(f"{space_path}: a sample does not give a valid configuration: {exc}") from None
 
     _check_space(space, check)
-    out_dir = Path(out_dir)
-    if (out_dir / "tune.json").exists():
-        raise RunDirError(f"{out_dir} already holds a search (tune.json); choose another --out")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    started = utc_now()
-    cpus = run_cpus(cfg.n_envs, vec_env)
+    return setup
 
+
+def _run_trials(
+    setup: TrialSetup,
+    searcher: Callable[[], Any],
+    scheduler_options: Mapping[str, Any],
+    cpus: int,
+    *,
+    n_trials: int,
+    max_concurrent: int | None,
+    address: str | None,
+    num_cpus: int | None,
+    out_dir: Path,
+) -> list[dict[str, Any]]:
+    """Run the trials on Ray Tune (``searcher()``'s samples, ASHA with ``scheduler_options``, ``cpus`` per trial).
+
+    Returns:
+        One row per trial (:func:`_trial_row`).
+    """
     with ray_session(address=address, num_cpus=num_cpus) as ray:
         from ray import tune as ray_tune
         from ray.tune.schedulers import ASHAScheduler
@@ -328,17 +405,15 @@ def tune(
         check_fits(ray, cpus)
         scheduler = ASHAScheduler(
             time_attr=TIME_ATTR,
-            max_t=budget,
-            grace_period=grace,
-            reduction_factor=reduction_factor,
             stop_last_trials=False,  # a trial ends by itself (its last report says completed)
+            **scheduler_options,
         )
         tuner = ray_tune.Tuner(
             ray_tune.with_resources(ray_tune.with_parameters(run_trial, setup=setup), {"cpu": cpus}),
             tune_config=ray_tune.TuneConfig(
                 metric=METRIC,
                 mode="max",
-                search_alg=_searcher(space, seed, n_startup_trials),
+                search_alg=searcher(),
                 scheduler=scheduler,
                 num_samples=n_trials,
                 max_concurrent_trials=max_concurrent,
@@ -348,34 +423,7 @@ def tune(
             ),
         )
         grid = tuner.fit()
-        trials = [_trial_row(grid[i], setup) for i in range(len(grid))]
-
-    completed = [t for t in trials if t["status"] == "completed" and t[METRIC] is not None]
-    header = {
-        "algo": algo,
-        "env_id": env_id,
-        "env_kwargs": env_kwargs,
-        "config": str(config_path),
-        "search_space": str(space_path),
-        "hyperparams": fixed,
-        "n_trials": n_trials,
-        "total_timesteps": budget,
-        "seed": seed,
-        "n_startup_trials": n_startup_trials,
-        "grace_period": grace,
-        "reduction_factor": reduction_factor,
-        "address": address,
-        "started_utc": started,
-        "finished_utc": utc_now(),
-    }
-    if not completed:
-        _write_trials(out_dir, header, trials, None)
-        raise NoTrialCompletedError(f"no trial completed (see {out_dir / 'tune.json'})")
-    best = max(completed, key=lambda t: t[METRIC])
-    best_cfg = spec.replace(hyperparams=best["hyperparams"], total_timesteps=None).resolve()
-    best_file = write_best_config(out_dir / f"{algo}.yml", best_cfg.to_entry(), env_id, header, best)
-    _write_trials(out_dir, header, trials, best)
-    return TuneResult(out_dir, best_file, best, trials)
+        return [_trial_row(grid[i], setup) for i in range(len(grid))]
 
 
 def _trial_row(result: Any, setup: TrialSetup) -> dict[str, Any]:

@@ -3,7 +3,8 @@
 from pathlib import Path
 
 import pytest
-from agent_runs import ALGO_NAMES, Runs, write_config
+
+from tests.support.agent_runs import ALGO_NAMES, Runs, write_config
 
 
 @pytest.fixture(scope="session")

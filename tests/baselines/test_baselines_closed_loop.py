@@ -37,6 +37,7 @@ def transport_run() -> dict:
     return episode("campc-nndi", TRANSPORT, save=True)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case, row", [(1, ROW_RIGHT_LINK3_FRAME), (2, ROW_RIGHT_LINK5_LEFT_ARM)])
 def test_plain_mpc_reproduces_the_papers_collision(circle_runs, case, row):
     """Case 1: right link 3 into the right frame; Case 2: right link 5 into the left arm (paper Fig. 6, 9)."""
@@ -46,6 +47,7 @@ def test_plain_mpc_reproduces_the_papers_collision(circle_runs, case, row):
     assert mpc["rmse_pos"] < 0.01  # it tracks well: the collision is the price
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", [1, 2])
 def test_campc_avoids_it_and_tracks(circle_runs, case):
     mpc, campc = circle_runs[case, "mpc"], circle_runs[case, "campc"]
@@ -55,6 +57,7 @@ def test_campc_avoids_it_and_tracks(circle_runs, case):
     assert campc["success"] and campc["truncated"] and not campc["terminated"]
 
 
+@pytest.mark.slow
 def test_qp_never_fails_and_slack_is_reported(circle_runs, transport_run):
     for ep in [*circle_runs.values(), transport_run]:
         assert ep["qp_unsolved"] == 0
@@ -62,6 +65,7 @@ def test_qp_never_fails_and_slack_is_reported(circle_runs, transport_run):
         assert ep["physics_error"] is None
 
 
+@pytest.mark.slow
 def test_transport_with_the_full_stack(transport_run):
     tn = transport_numbers(transport_run)
     assert tn["final_pos_error_m"] <= 0.02
@@ -74,6 +78,7 @@ def test_transport_with_the_full_stack(transport_run):
     assert nn.shape == (600, 18) and np.abs(nn).max() > 0.0  # the network does compensate
 
 
+@pytest.mark.slow
 def test_ablation_network_beats_plain_inversion_under_randomised_hydrodynamics():
     """Case 1, hydro_randomization = 0.3, seeds 0-4: campc-nndi tracks better on average than campc-di."""
     rmse = {
@@ -125,6 +130,7 @@ def test_unknown_controller_is_rejected():
         env.close()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("env_id, kwargs", [(CIRCLE, {"case": 2}), (TRANSPORT, {})])
 def test_recorded_qps_match_an_independent_solver(env_id, kwargs):
     """QPs recorded in closed loop on the simulator, re-solved by OSQP (polished, tight tolerances).

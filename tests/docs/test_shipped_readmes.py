@@ -53,6 +53,7 @@ def readme_code(folder: Path) -> str:
 
 
 @pytest.mark.parametrize("folder", FOLDERS, ids=lambda p: p.name)
+@pytest.mark.portability
 def test_plain_sb3_recipe_gives_the_agent_controller_actions(folder, monkeypatch, capsys):
     code = readme_code(folder)
     assert code.strip() == plain_sb3_snippet(folder).strip(), (
@@ -86,7 +87,9 @@ def test_plain_sb3_recipe_gives_the_agent_controller_actions(folder, monkeypatch
     if full:
         evaluation = json.loads((folder / "evaluation.json").read_text(encoding="utf-8"))
         (value,) = re.findall(r"return (-?\d+\.\d)", printed)
-        assert float(value) == round(evaluation["summary"]["return"], 1)
+        # evaluation.json was computed on another machine: its return, printed to 0.1, to half that digit (not
+        # rounded to the same digit: a last-bit difference of another CPU could fall across a rounding boundary)
+        assert float(value) == pytest.approx(evaluation["summary"]["return"], abs=0.05 + 1e-9)
         assert agent.action_scale == 0.3  # the case of the issue: SAC.load alone would send 1/0.3 x the command
 
 

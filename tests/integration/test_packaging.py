@@ -22,6 +22,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # builds the wheel
+
 REPO = Path(__file__).resolve().parents[2]
 SOURCE_PACKAGES = ("uvdms_gym", "baselines", "agents", "leaderboard", "uvdms_cli")
 MAX_MODEL_BYTES = 5 * 2**20

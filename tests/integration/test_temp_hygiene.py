@@ -21,7 +21,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from ray_support import in_background, kill_when
+
+from tests.support.ray_cluster import in_background, kill_when
+
+pytestmark = pytest.mark.slow  # a process (a Ray instance) per test
 
 REPO = Path(__file__).resolve().parents[2]
 

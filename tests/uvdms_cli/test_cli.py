@@ -112,6 +112,7 @@ ERROR_CASES: dict[str, tuple[list[str], tuple[str, ...]]] = {
 }
 
 
+@pytest.mark.slow  # a uvdms process per case
 @pytest.mark.parametrize("case", sorted(ERROR_CASES))
 def test_user_errors_are_one_line_with_exit_status_2(case, workspace):
     argv, words = ERROR_CASES[case]

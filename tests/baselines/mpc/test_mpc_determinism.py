@@ -62,6 +62,7 @@ def _run(mode: str, n_controllers: int) -> tuple[str, list[str]]:
     return build, hashes
 
 
+@pytest.mark.portability
 @pytest.mark.slow
 def test_campc_transport_actions_repeat_bit_for_bit_across_processes():
     plain_build, plain = _run("plain", 1)

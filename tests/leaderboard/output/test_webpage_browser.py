@@ -20,6 +20,8 @@ import pytest
 from leaderboard.suite.entries import slugify
 from uvdms_cli.main import main as uvdms_main
 
+pytestmark = pytest.mark.slow  # a headless browser
+
 REPO = Path(__file__).resolve().parents[3]
 COMMITTED = REPO / "docs" / "leaderboard"
 CHROMIUM = Path("/usr/bin/chromium")

@@ -3,7 +3,7 @@
 Episodes are cut to a few steps (``--max-episode-steps``): the properties under test (which episodes run,
 where results go, that a result does not depend on the process that computed it) do not need whole episodes.
 Every Ray test starts its own Ray, shuts it down, and checks that no process it started outlives it (the
-``ray_processes`` fixture of ``tests/ray_support.py``).
+``ray_processes`` fixture of ``tests/support/ray_cluster.py``).
 """
 
 from __future__ import annotations
@@ -13,14 +13,16 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from ray_support import in_background, kill_when
 
 import leaderboard as lb
 from leaderboard.running.cache import read_cached
 from leaderboard.running.distributed import agent_files, materialise
 from leaderboard.running.jobs import plan_jobs
 from leaderboard.suite.tasks import evaluation_seeds
+from tests.support.ray_cluster import in_background, kill_when
 from uvdms_cli.main import main
+
+pytestmark = pytest.mark.slow  # Ray instances and clusters
 
 REPO = Path(__file__).resolve().parents[3]
 SHIPPED_SAC = REPO / "trained_agents" / "sac-circle-case1-v0"
@@ -46,6 +48,7 @@ def leaderboard_argv(out: Path, *extra: str) -> list[str]:
     return ["leaderboard", "--out", str(out), "--no-plots", "--no-progress", *extra]
 
 
+@pytest.mark.portability
 def test_ray_backend_writes_the_quick_leaderboard_of_the_local_backend(tmp_path, ray_processes, monkeypatch):
     monkeypatch.chdir(tmp_path)  # the default agents folder is the repository's trained_agents/
     quick = ["--quick", "--max-episode-steps", "8"]

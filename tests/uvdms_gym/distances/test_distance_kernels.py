@@ -31,6 +31,23 @@ from uvdms_gym.physics.params import JOINT_NAMES
 
 
 # ------------------------------------------------------------------ compiled kernels vs the numpy reference
+def _joint_ties(res, seg) -> int:
+    """Rows to the left arm (``d > 1e-9``) whose distance a neighbouring left link attains too, to 1e-12.
+
+    A geometric count (the minimum lies at the joint the two links share), the same on any CPU.
+    """
+    count = 0
+    for i in range(6):
+        j = int(res.obstacle_index[i])
+        for k in (j - 1, j + 1):
+            if res.d[i] > 1e-9 and 1 <= k < seg.shape[1]:
+                a, b = seg[0, k]
+                t = np.clip((res.p[i] - a) @ (b - a) / max(float((b - a) @ (b - a)), 1e-300), 0.0, 1.0)
+                count += bool(abs(np.linalg.norm(res.p[i] - a - t * (b - a)) - res.d[i]) < 1e-12)
+    return count
+
+
+@pytest.mark.portability
 def test_exact_kernel_matches_numpy_reference_on_random_configurations(kin):
     """Generic random states (many in contact or near it): same rows, points, obstacles and J_dis."""
     rng = np.random.default_rng(15)
@@ -39,7 +56,8 @@ def test_exact_kernel_matches_numpy_reference_on_random_configurations(kin):
         kin.set_state(*random_state(rng))
         res = D.compute_distances(kin)
         ref = D.compute_distances_reference(kin)
-        ties += check_against_reference(res, ref, kin.link_segments(), kin.plates())
+        check_against_reference(res, ref, kin.link_segments(), kin.plates())
+        ties += _joint_ties(res, kin.link_segments())
         near += int(np.sum(res.d < D.contact_thresholds(PARAMS, res.obstacle_index) + 0.02))
         jd = D.distance_jacobian(kin, res)
         # the J_dis kernel against the numpy formula on the same result (every row, incl. d = 0 ones) ...
@@ -48,9 +66,12 @@ def test_exact_kernel_matches_numpy_reference_on_random_configurations(kin):
         ok = res.d > 1e-9
         np.testing.assert_allclose(jd[ok], D.distance_jacobian_reference(kin, ref)[ok], rtol=0, atol=1e-12)
     assert near > 200  # rows in contact or within 2 cm of it are well represented (measured: 414)
-    assert ties > 10  # and so are ties at the left arm's joints (measured: 37)
+    # and so are ties at the left arm's joints (measured: 785); which of the two links the kernel and the reference
+    # then name is rounding noise (they differ in 37 rows on AMD EPYC, in none with OPENBLAS_CORETYPE=Prescott)
+    assert ties > 10
 
 
+@pytest.mark.portability
 def test_exact_kernel_matches_numpy_reference_on_degenerate_configurations(kin):
     """Joint angles in {-90, 0, 90} deg: many exactly parallel, collinear or touching link pairs."""
     rng = np.random.default_rng(16)

@@ -259,6 +259,7 @@ def test_exact_rows_match_generic_geometry(kin):
         np.testing.assert_allclose(np.linalg.norm(res.e - res.p, axis=1), res.d, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_exact_link_link_rows_nearly_parallel():
     """Right links nearly parallel (~1e-8 .. 1e-4 rad) to left links, partly overlapping."""
     rng = np.random.default_rng(13)
@@ -279,6 +280,7 @@ def test_exact_link_link_rows_nearly_parallel():
             assert ref - 1e-8 <= res.d[i] <= ref + 1e-13
 
 
+@pytest.mark.slow
 def test_exact_link_plate_rows_degenerate_placements():
     """Links near the plates: parallel to a plate, parallel to an edge, beside edges/corners, crossing."""
     rng = np.random.default_rng(14)

@@ -49,6 +49,8 @@ def _rollout_digest(env_id: str, seed: int, n: int = 300, **kwargs) -> str:
     return h.hexdigest()
 
 
+@pytest.mark.slow
+@pytest.mark.portability
 @pytest.mark.parametrize("env_id", IDS)
 def test_same_seed_same_trajectory_in_process_and_across_processes(env_id):
     kwargs = {"case": "random", "hydro_randomization": 0.3} if "Circle" in env_id else {"goal": "random"}
@@ -166,6 +168,7 @@ def _rss_mb() -> float:
     raise RuntimeError("no VmRSS")
 
 
+@pytest.mark.slow
 def test_make_step_close_cycles_do_not_leak():
     ids = []
     for k in range(20):  # warm-up (caches, allocator)

@@ -160,6 +160,7 @@ def test_mixed_circles_draw_the_paper_cases_and_random_circles_in_equal_parts():
         env.close()
 
 
+@pytest.mark.portability
 def test_transport_reference_kernel_equals_scipy_spline_bit_for_bit():
     """The compiled evaluation gives the bits of scipy's CubicSpline at the clipped times, edges and NaN included."""
     rng = np.random.default_rng(5)

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
-from ray_support import ray_processes  # noqa: F401  (fixture)
+import pytest
 
+from tests.support.ray_cluster import ray_processes  # noqa: F401  (fixture)
 from uvdms_gym.utils.cluster import ray_session
+
+pytestmark = pytest.mark.slow  # a Ray instance
 
 
 def test_no_address_starts_a_local_instance_beside_a_running_cluster(ray_processes, monkeypatch):  # noqa: F811

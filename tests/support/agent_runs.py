@@ -25,7 +25,7 @@ TEST_ENVS: list[tuple[str, dict]] = [
 ALGO_NAMES = sorted(ALGOS)
 UVDMS_IDS = ("uvdms/CircleTrack-v0", "uvdms/Transport-v0")
 COST_ALGOS = ("ppo_lagrangian",)  # need info["cost"]: trained on the uvdms ids only
-TEACHER_ALGOS = ("dagger",)  # need a residual base and a teacher (uvdms train): tests/agents/test_dagger.py
+TEACHER_ALGOS = ("dagger",)  # need a residual base and a teacher (uvdms train): tests/agents/algos/test_dagger.py
 RUNS = [
     (a, e)
     for a in ALGO_NAMES

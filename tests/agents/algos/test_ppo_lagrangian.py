@@ -44,7 +44,7 @@ from agents.export import export_agent, load_agent, load_weights_only
 from agents.training.train import latest_checkpoint, run_dir_for, train
 from uvdms_cli.main import main as uvdms
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 UVDMS = Path(sys.executable).with_name("uvdms")
 
 HORIZON = 10
@@ -236,11 +236,13 @@ def test_at_lambda_zero_the_policy_updates_are_ppos():
 # ------------------------------------------------------------------------------------------------------
 # The small problem where the constraint binds
 # ------------------------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_unconstrained_ppo_exceeds_the_budget(toy_runs):
     _, logs, _ = toy_runs["ppo"]
     assert _tail_cost(logs, STEPS // 2) > 3 * BUDGET
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("run", ["binding", "binding_parallel"])
 def test_binding_budget_ends_near_the_budget_with_a_positive_multiplier(toy_runs, run):
     model, logs, history = toy_runs[run]
@@ -250,6 +252,7 @@ def test_binding_budget_ends_near_the_budget_with_a_positive_multiplier(toy_runs
     assert _tail_cost(logs, STEPS // 2) < _tail_cost(toy_runs["ppo"][1], STEPS // 2) / 3
 
 
+@pytest.mark.slow
 def test_loose_budget_keeps_lambda_at_zero_and_learns_like_ppo(toy_runs):
     model, logs, history = toy_runs["loose"]
     assert model.lagrangian_multiplier == 0.0 and all(row["lambda"] == 0.0 for row in history)
@@ -257,6 +260,7 @@ def test_loose_budget_keeps_lambda_at_zero_and_learns_like_ppo(toy_runs):
     assert _tail_cost(logs, STEPS // 2) == pytest.approx(ppo_cost, rel=0.1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("run", ["binding", "binding_parallel"])
 def test_multiplier_updates_match_an_independent_computation(toy_runs, run):
     """lambda recomputed from the env's own episode log (rollout k holds the episodes ending in its steps).
@@ -355,6 +359,7 @@ def test_lambda_survives_checkpoints_and_resume(tmp_path):
     assert latest_checkpoint(run_dir).num_timesteps == 896
 
 
+@pytest.mark.slow
 def test_resume_keeps_the_vec_env_of_the_last_segment_unless_told(tmp_path):
     # a registered id: the rollout worker is a fresh process, which knows only the ids of gym_packages
     run_dir = train(
@@ -415,6 +420,7 @@ def test_the_class_checks_its_arguments():
 # ------------------------------------------------------------------------------------------------------
 # End to end: the uvdms command on a uvdms env, through a worker process
 # ------------------------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_uvdms_train_ppo_lagrangian_on_circle_track(tmp_path):
     argv = [
         str(UVDMS),

@@ -1,4 +1,4 @@
-"""Torch threads of training (agents/threads.py): the rule, the switch at rollout boundaries, same results."""
+"""Torch threads of training (agents/common/threads.py): the rule, the switch at rollout boundaries, the training."""
 
 from __future__ import annotations
 
@@ -64,25 +64,44 @@ def test_update_runs_with_more_threads_and_rollouts_with_one():
     assert torch.get_num_threads() == ROLLOUT_THREADS  # restored at the end of training
 
 
-def test_two_update_threads_train_bit_identically():
-    """The shipped PPO sizes (batch 256, 256-wide layers): 2 update threads give the same parameters as 1."""
-    params = []
-    for threads in (1, 2):
-        torch.set_num_threads(ROLLOUT_THREADS)
-        venv = make_vec_env(_factories(2), "hybrid")
-        try:
-            model = PPO(
-                "MlpPolicy",
-                venv,
-                n_steps=128,
-                batch_size=256,
-                n_epochs=2,
-                seed=5,
-                device="cpu",
-                policy_kwargs={"net_arch": {"pi": [256, 256], "vf": [256, 256]}},
-            )
-            model.learn(total_timesteps=512, callback=UpdateThreads(threads) if threads > 1 else None)
-            params.append(torch.nn.utils.parameters_to_vector(model.policy.parameters()).detach().clone())
-        finally:
-            venv.close()
-    assert torch.equal(params[0], params[1])
+PARAMETER_ATOL = 3e-5
+"""Parameters after training with 2 update threads agree with 1 thread to this (absolute, float32 parameters).
+
+torch does not promise bit identity across thread counts: with 2 threads a matrix product may sum in another
+order (it does on an Intel Xeon with MKL, not on AMD EPYC), and rounding differences grow through the updates
+and the rollouts that follow. Other CPU kernels give the same kind of difference: the test's training with
+``MKL_CBWR=COMPATIBLE`` or ``ATEN_CPU_CAPABILITY=default`` moved parameters by up to 3.9e-6 and 2.0e-6 (AMD EPYC),
+while training moves them by up to 1.2e-3; so 3e-5 holds on any x86-64 CPU and a change of what is trained (other
+minibatches, another seed, a lost update) exceeds it.
+"""
+
+
+def _train_ppo(threads: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """The shipped PPO sizes (batch 256, 256-wide layers): parameters before and after 512 steps."""
+    torch.set_num_threads(ROLLOUT_THREADS)
+    venv = make_vec_env(_factories(2), "hybrid")
+    try:
+        model = PPO(
+            "MlpPolicy",
+            venv,
+            n_steps=128,
+            batch_size=256,
+            n_epochs=2,
+            seed=5,
+            device="cpu",
+            policy_kwargs={"net_arch": {"pi": [256, 256], "vf": [256, 256]}},
+        )
+        before = torch.nn.utils.parameters_to_vector(model.policy.parameters()).detach().clone()
+        model.learn(total_timesteps=512, callback=UpdateThreads(threads) if threads > 1 else None)
+        return before, torch.nn.utils.parameters_to_vector(model.policy.parameters()).detach().clone()
+    finally:
+        venv.close()
+
+
+@pytest.mark.portability
+def test_two_update_threads_train_the_parameters_of_one_thread_to_rounding():
+    """2 update threads train what 1 thread trains, equal to ``PARAMETER_ATOL`` (not bit for bit: see there)."""
+    before, one = _train_ppo(1)
+    _, two = _train_ppo(2)
+    assert (one - before).abs().max() > 10 * PARAMETER_ATOL  # training moves them: the comparison can fail
+    torch.testing.assert_close(two, one, rtol=0.0, atol=PARAMETER_ATOL)

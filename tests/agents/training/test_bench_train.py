@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from agents.common.threads import update_threads
 from agents.training.bench import CONFIGURATIONS, bench_train
 
 
+@pytest.mark.slow
 def test_bench_train_quick_reports_consistent_figures():
     result = bench_train(quick=True, sac_block_steps=150)
     for algo, on_policy in (("ppo", True), ("sac", False)):

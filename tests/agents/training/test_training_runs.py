@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 import torch
 import yaml
-from agent_runs import COST_ALGOS, RUNS, TEST_ENVS, TINY, write_config
 
 from agents.algos import ALGOS
 from agents.config import ConfigError, parse_entry
@@ -24,6 +23,7 @@ from agents.training.train import (
     train_env_seed,
     zip_num_timesteps,
 )
+from tests.support.agent_runs import COST_ALGOS, RUNS, TEST_ENVS, TINY, write_config
 
 
 @pytest.mark.parametrize(("algo", "env_id"), RUNS)

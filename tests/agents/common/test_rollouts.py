@@ -60,6 +60,7 @@ def _normalize(obs: np.ndarray, mean: np.ndarray, var: np.ndarray) -> np.ndarray
     return np.clip((obs - mean) / np.sqrt(var + 1e-8), -10.0, 10.0).astype(np.float32)
 
 
+@pytest.mark.portability
 def test_a_parallel_rollout_is_the_replay_of_its_envs_and_of_vecnormalize():
     env = _venv("rollout")
     try:
@@ -139,6 +140,7 @@ def _trained(kind: str, algo_cls: type = RolloutPPO, seed: int = SEED) -> list[n
         env.close()
 
 
+@pytest.mark.portability
 def test_a_parallel_run_is_reproducible_from_its_seed():
     first, again, other = _trained("rollout"), _trained("rollout"), _trained("rollout", seed=SEED + 1)
     for a, b in zip(first, again, strict=True):

@@ -7,13 +7,13 @@ import re
 import pytest
 import torch
 import yaml
-from agent_runs import ALGO_NAMES, REPO, UVDMS_IDS
 
 from agents.algos import ALGOS
 from agents.config import ConfigError, load_config, parse_entry, validate_config_file
 from agents.training.train import (
     parse_key_values,
 )
+from tests.support.agent_runs import ALGO_NAMES, REPO, UVDMS_IDS
 
 
 @pytest.mark.parametrize("path", sorted((REPO / "train_configs").glob("*.yml")), ids=lambda p: p.name)

@@ -26,7 +26,7 @@ from agents.algos import ALGOS
 from agents.config import ConfigError, load_config, parse_entry, validate_config_file
 from agents.config.zoo import TRAIN_OPTIONS
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 CONFIGS = sorted((REPO / "train_configs").glob("*.yml"))
 BEFORE = json.loads((REPO / "tests" / "data" / "train_configs_before.json").read_text(encoding="utf-8"))
 
@@ -188,6 +188,7 @@ def test_bad_train_options_are_named(tmp_path):
         load_config(path, "sac", "Pendulum-v1")
 
 
+@pytest.mark.slow
 def test_rl_zoo_trains_from_the_shipped_sac_config(tmp_path):
     pytest.importorskip("rl_zoo3", reason="rl_zoo3 is not installed (pip install -e .[zoo])")
     steps = 300

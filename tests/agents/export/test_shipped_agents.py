@@ -8,13 +8,13 @@ import re
 import gymnasium as gym
 import numpy as np
 import pytest
-from agent_runs import REPO, TEST_ENVS, sample_observations
 
 from agents.export import (
     UntrustedFileError,
     load_agent,
 )
 from agents.export import sb3 as agent_sb3
+from tests.support.agent_runs import REPO, TEST_ENVS, sample_observations
 
 
 def test_shipped_agent_folder(runs, tmp_path, monkeypatch):

@@ -34,7 +34,7 @@ from agents.training.train import (
     zip_num_timesteps,
 )
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 UVDMS = Path(sys.executable).with_name("uvdms")
 STEPS = 300
 RESUME_STEPS = 200

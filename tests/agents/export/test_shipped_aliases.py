@@ -11,7 +11,7 @@ import pytest
 from agents.common.paths import SHIPPED_ALIASES, resolve_shipped, trained_agents_dir
 from agents.export import load_agent
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 SCHEME = re.compile(r"^[a-z0-9]+(-[a-z0-9]+)*-v\d+$")
 
 

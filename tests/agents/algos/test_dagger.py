@@ -127,6 +127,7 @@ class _ToyTeacherEnv(gym.Env):
         return self._obs, 0.0, False, False, info
 
 
+@pytest.mark.slow
 def test_dagger_fits_the_teachers_map_on_a_toy_problem():
     kwargs = {"learning_rate": 3e-3, "batch_size": 64, "policy_kwargs": {"net_arch": [32, 32]}}
     model = DAgger("MlpPolicy", _ToyTeacherEnv(), seed=0, teacher="toy", **kwargs)
@@ -189,7 +190,7 @@ RESIDUAL = ["--residual", "mpc", "--residual-scale", "0.5"]
         ([*RESIDUAL, "--hyperparams", "teacher=3"], r"key 'teacher': expected str, got int"),
         ([*RESIDUAL, "--hyperparams", "teacher_margin=-0.01"], r"teacher_margin must be a finite number >= 0"),
         ([*RESIDUAL, "--hyperparams", "teacher=mpc", "teacher_margin=0.01"], r"'mpc' has none \(use campc\)"),
-        # with no base (a distilled controller, tests/agents/test_dagger_no_base.py)
+        # with no base (a distilled controller, tests/agents/algos/test_dagger_no_base.py)
         (["--residual", "none", "--residual-scale", "0.5"], r"residual_scale 0.5 is given without a residual_base"),
         (
             ["--env-kwargs", "action_mode=torque"],

@@ -1,7 +1,7 @@
 """``uvdms tune``: the search spaces against RL Zoo's samplers, their checks, a 4-trial search on Ray, bad input.
 
-The search uses the tiny PPO configuration of ``tests/agents/test_sweep.py``; the ``ray_processes`` fixture
-(``tests/ray_support.py``) fails the test if a process the search started outlives it.
+The search uses the tiny PPO configuration of ``tests/agents/distributed/test_sweep.py``; the ``ray_processes`` fixture
+(``tests/support/ray_cluster.py``) fails the test if a process the search started outlives it.
 """
 
 from __future__ import annotations
@@ -169,6 +169,7 @@ def test_a_space_fixed_entirely_or_with_a_bad_key_is_an_error(tiny_config, tmp_p
 # ------------------------------------------------------------------------------------------------------
 # A search on a local Ray instance
 # ------------------------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_tune_writes_a_config_that_trains(tiny_config, tmp_path, capsys, ray_processes):  # noqa: F811
     out = tmp_path / "out"
     assert main(_tune_argv(tiny_config, out, "--num-cpus", "2", "--seed", "3")) == 0

@@ -5,7 +5,8 @@
   trajectory equals the bare environment's under the same actions).
 * ``TeacherFactory`` builds a baseline of either action mode, or a trained agent composed as it was trained.
 * ``uvdms train --algo dagger --residual none`` -> ``export-agent`` -> ``evaluate``: the export is the network
-  alone (no base, no filter, no teacher); its misconfigurations are among tests/agents/test_dagger.py's one-line errors.
+  alone (no base, no filter, no teacher); its misconfigurations are among the one-line errors of
+  tests/agents/algos/test_dagger.py.
 """
 
 from __future__ import annotations

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 import torch
 import yaml
-from agent_runs import REPO, RUNS, TEST_ENVS, sample_observations
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from agents.algos import ALGOS
@@ -31,6 +30,7 @@ from agents.training.train import (
     train,
     zip_num_timesteps,
 )
+from tests.support.agent_runs import REPO, RUNS, TEST_ENVS, sample_observations
 
 
 @pytest.mark.parametrize(("algo", "env_id"), RUNS)

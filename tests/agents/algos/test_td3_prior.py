@@ -1,4 +1,4 @@
-"""TD3-prior (agents/algos/td3_prior.py): the actor loss, faithful to SB3's TD3, the pull toward zero, config checks."""
+"""TD3-prior (agents/algos/td3_prior.py): the actor loss, faithfulness to SB3's TD3, the pull toward zero, configs."""
 
 from __future__ import annotations
 

@@ -45,6 +45,7 @@ def _assert_same(a, b) -> None:
             assert x == y
 
 
+@pytest.mark.portability
 def test_hybrid_steps_exactly_like_dummy():
     """3 envs over 75 steps with two automatic resets each (30-step episodes): bit-identical obs, rewards,
     dones, truncation flags and terminal observations; per-env seeds seed + i as in DummyVecEnv."""
@@ -73,6 +74,7 @@ def test_hybrid_steps_exactly_like_dummy():
     hybrid.close()  # idempotent
 
 
+@pytest.mark.portability
 def test_ppo_trains_identically_on_hybrid_and_dummy():
     """Two PPO updates on 2 envs: the same parameters bit for bit whichever vector env steps them."""
     params = []

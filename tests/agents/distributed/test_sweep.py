@@ -3,7 +3,7 @@
 Runs are tiny (PPO, 1 env, rollouts of 64 steps, an evaluation and a checkpoint every 100 steps, 40-step
 episodes of ``uvdms/CircleTrack-v0``). Every Ray test starts its own Ray (a local instance or a
 ``ray.cluster_utils.Cluster`` on this machine), shuts it down, and checks that no process it started outlives
-it (the ``ray_processes`` fixture of ``tests/ray_support.py``).
+it (the ``ray_processes`` fixture of ``tests/support/ray_cluster.py``).
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ import numpy as np
 import pytest
 import torch
 import yaml
-from ray_support import in_background
 
 from agents.config import ConfigError, load_config
 from agents.config.zoo import zoo_entry
@@ -35,9 +34,10 @@ from agents.distributed.sweep import (
     sweep,
 )
 from agents.distributed.worker import pack_run_dir, unpack_run_dir
+from tests.support.ray_cluster import in_background
 from uvdms_cli.main import main
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 ENV = "uvdms/CircleTrack-v0"
 TINY_PPO = {
     "n_timesteps": 400,
@@ -243,6 +243,8 @@ def _check_completed(out: Path, seeds: list[int]) -> dict[int, dict]:
     return rows
 
 
+@pytest.mark.slow
+@pytest.mark.portability
 def test_ray_sweep_matches_local_and_runs_load(tiny_config, tmp_path, capsys, ray_processes):
     ray_out, local_out = tmp_path / "ray", tmp_path / "local"
     assert main(sweep_argv(tiny_config, ray_out, "--backend", "ray", "--num-cpus", "2")) == 0
@@ -292,6 +294,7 @@ def test_grid_sweep_locally(tiny_config, tmp_path):
         assert resolved["config"]["n_timesteps"] == 128
 
 
+@pytest.mark.slow
 def test_two_node_cluster(tiny_config, tmp_path, ray_processes):
     from ray.cluster_utils import Cluster
 
@@ -308,6 +311,7 @@ def test_two_node_cluster(tiny_config, tmp_path, ray_processes):
         cluster.shutdown()
 
 
+@pytest.mark.slow
 def test_killed_worker_resumes_from_its_checkpoint(tiny_config, tmp_path, ray_processes):
     import ray
 
