@@ -64,6 +64,12 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     if args.max_episode_steps is not None:
         if args.max_episode_steps < 1:
             raise ValueError(f"--max-episode-steps must be >= 1, got {args.max_episode_steps}")
+        given = env_kwargs.get("max_episode_steps", args.max_episode_steps)
+        if given != args.max_episode_steps:
+            raise ValueError(
+                f"--max-episode-steps {args.max_episode_steps} and --env-kwargs max_episode_steps={given} disagree; "
+                "give one of them"
+            )
         env_kwargs["max_episode_steps"] = args.max_episode_steps
     check_make_kwargs(args.env, env_kwargs, "--env-kwargs")  # errors are reported by uvdms_cli.main.main as one line
     result = evaluate_entry(

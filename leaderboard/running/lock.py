@@ -66,7 +66,7 @@ def _acquire(path: Path) -> int:
             os.close(fd)
             raise OutputFolderInUseError(
                 f"{path.parent} is in use by another uvdms leaderboard (pid {holder}): run again when it has "
-                "finished (the episodes it computed are then read from the cache)"
+                "finished (with the same --cache-dir, the episodes it computed are then read from the cache)"
             ) from None
         if _is_current(fd, path):
             break

@@ -124,6 +124,12 @@ def test_evaluate_cuts_episodes_with_max_episode_steps_as_leaderboard_does(tmp_p
     for command in (argv, ["leaderboard", "--entries", "hold", "--tasks", "case1", "--out", str(tmp_path / "lb")]):
         assert main([*command, "--max-episode-steps", "0"]) == 2
         assert _error_line(capsys) == "uvdms: error: --max-episode-steps must be >= 1, got 0"
+    assert main([*argv, "--max-episode-steps", "3", "--env-kwargs", "max_episode_steps=5"]) == 2
+    assert _error_line(capsys) == (
+        "uvdms: error: --max-episode-steps 3 and --env-kwargs max_episode_steps=5 disagree; give one of them"
+    )
+    assert main([*argv, "--max-episode-steps", "3", "--env-kwargs", "max_episode_steps=3", "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["summary"]["steps"] == 3
 
 
 def test_export_of_a_best_model_a_run_never_wrote_says_what_to_do(tmp_path, capsys):
