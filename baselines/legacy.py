@@ -20,3 +20,27 @@ REGROUPED: dict[str, str] = {
 """Old module path of ``baselines`` -> where its names live now (``baselines.mpc`` and ``baselines.safety`` are
 packages now: ``baselines.mpc.kinematic``, ``baselines.mpc.config``, ``baselines.mpc.solver``,
 ``baselines.mpc.damper``; ``baselines.safety.filter``)."""
+
+MOVED_NAMES: dict[str, dict[str, str]] = {
+    "baselines.mpc": {
+        **dict.fromkeys(
+            ["INF", "MPCConfig", "MPCProblem", "MPCStepRecord", "N_DIS", "N_DOF", "N_JOINTS", "QPMatrices"],
+            "baselines.mpc.config",
+        ),
+        **dict.fromkeys(
+            [
+                "PORTABLE_PROXSUITE_BUILD",
+                "PROXSUITE_BUILD",
+                "import_portable_proxsuite",
+                "proxsuite",
+                "proxsuite_build",
+            ],
+            "baselines.mpc.solver",
+        ),
+        **dict.fromkeys(["damper_bound", "damper_shape"], "baselines.mpc.damper"),
+        **dict.fromkeys(["KinematicMPC", "hold_matrix"], "baselines.mpc.kinematic"),
+    },
+    "baselines.safety": dict.fromkeys(["N", "SafetyFilter", "SafetyFilterConfig"], "baselines.safety.filter"),
+}
+"""The packages that were modules before 0.4.0 -> their former names -> the module each lives in now
+(``from baselines.mpc import KinematicMPC`` fails in one line naming ``baselines.mpc.kinematic``)."""

@@ -10,6 +10,7 @@ The module paths before the grouping (``leaderboard.registry``, ...) fail in one
 
 from __future__ import annotations
 
+from leaderboard.legacy import MOVED_NAMES as _MOVED_NAMES
 from leaderboard.legacy import REGROUPED as _REGROUPED
 from leaderboard.output.report import markdown_tables
 from leaderboard.output.webpage import write_index_html
@@ -18,9 +19,10 @@ from leaderboard.running.runner import run_leaderboard
 from leaderboard.stats.result import LeaderboardResult
 from leaderboard.suite.entries import Entry, resolve_entries
 from leaderboard.suite.tasks import DEFAULT_EPISODES, QUICK_EPISODES, TASKS, Task, select_tasks
-from uvdms_gym.utils.legacy import install_moved_finder, regrouped_message
+from uvdms_gym.utils.legacy import install_moved_finder, moved_names, regrouped_message
 
 install_moved_finder(_REGROUPED, regrouped_message)
+__getattr__ = moved_names(__name__, _MOVED_NAMES[__name__])  # former names: one line naming their module
 
 __all__ = [
     "DEFAULT_EPISODES",

@@ -9,3 +9,8 @@
 * :mod:`~baselines.mpc.campc`: its model-based front end :class:`~baselines.mpc.campc.MPCController` and the task
   settings (:func:`~baselines.mpc.campc.task_config`).
 """
+
+from baselines.legacy import MOVED_NAMES as _MOVED_NAMES
+from uvdms_gym.utils.legacy import moved_names as _moved_names
+
+__getattr__ = _moved_names(__name__, _MOVED_NAMES[__name__])  # former names: one line naming their module

@@ -4,3 +4,8 @@ Intervals (``intervals``: bootstrap means, interquartile means, the stratified b
 metrics and their aggregation per row (``metrics``), the ranking with ties (``ranking``) and what a run computed
 (``result``). The rules: ``docs/leaderboard.md``.
 """
+
+from leaderboard.legacy import MOVED_NAMES as _MOVED_NAMES
+from uvdms_gym.utils.legacy import moved_names as _moved_names
+
+__getattr__ = _moved_names(__name__, _MOVED_NAMES[__name__])  # former names: one line naming their module

@@ -172,3 +172,24 @@ def test_a_path_the_regrouping_moved_fails_in_one_line_naming_where_its_names_li
     homes = [word.strip(",()") for word in new.split() if "." in word and word.strip("(")[0].isalpha()]
     for home in homes:  # every module the message names exists
         assert importlib.util.find_spec(home) is not None, home
+
+
+def moved_name_tables() -> list[tuple[str, str, str]]:
+    """(package, former name, its module now) of every package whose root or former module lost names in 0.4.0."""
+    import baselines.legacy
+    import leaderboard.legacy
+
+    tables = {**baselines.legacy.MOVED_NAMES, **leaderboard.legacy.MOVED_NAMES}
+    return [(package, name, home) for package, table in tables.items() for name, home in sorted(table.items())]
+
+
+@pytest.mark.parametrize(("package", "name", "home"), moved_name_tables())
+def test_a_name_the_regrouping_moved_fails_in_one_line_naming_its_module(package, name, home):
+    module = importlib.import_module(package)
+    with pytest.raises(ImportError) as excinfo:
+        exec(f"from {package} import {name}", {})
+    assert str(excinfo.value) == f"{package}.{name} was moved in 0.4.0: import it from {home}"
+    if name != "PACKAGE_VERSION":  # removed: the version is uvdms_gym.__version__
+        assert hasattr(importlib.import_module(home), name), (home, name)
+    with pytest.raises(AttributeError):
+        module.no_such_name  # noqa: B018  (any other missing name is missing as usual)

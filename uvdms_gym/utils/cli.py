@@ -32,8 +32,16 @@ def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentP
     return {}
 
 
-def _is_known(token: str, options: list[str], allow_abbrev: bool) -> bool:
-    return token in options or (allow_abbrev and token.startswith("--") and any(o.startswith(token) for o in options))
+def _is_known(parser: argparse.ArgumentParser, token: str) -> bool:
+    """Whether ``parser`` takes ``token`` as one of its options, as argparse decides it.
+
+    ``-vv`` is ``-v -v``, an abbreviation of a long option counts, ``-n5`` is ``-n 5``.
+    """
+    found = parser._parse_optional(token)  # None: not an option; (action, ...) or a list of such (Python >= 3.12.7)
+    if found is None:
+        return True
+    tuples = found if isinstance(found, list) else [found]
+    return any(t[0] is not None for t in tuples)
 
 
 def unknown_options(parser: argparse.ArgumentParser, args: Sequence[str]) -> list[tuple[str, list[str], str]]:
@@ -52,7 +60,7 @@ def unknown_options(parser: argparse.ArgumentParser, args: Sequence[str]) -> lis
             return found + unknown_options(commands[token], list(args)[i + 1 :])
         if token.startswith("-") and len(token) > 1 and not _NUMBER.match(token):
             name = token.split("=", 1)[0]
-            if not _is_known(name, options, parser.allow_abbrev):
+            if not _is_known(parser, token):
                 found.append((name, difflib.get_close_matches(name, options, n=1, cutoff=0.6), parser.prog))
     return found
 

@@ -98,6 +98,24 @@ class MovedModuleFinder(importlib.abc.MetaPathFinder):
         raise ModuleNotFoundError(self.message(fullname, new), name=fullname)
 
 
+def moved_names(package: str, table: Mapping[str, str]) -> Callable[[str], object]:
+    """A module ``__getattr__`` for ``package`` that names the new module of each name of ``table``.
+
+    Each name of ``table`` (moved to another module by the regrouping of 0.4.0) raises an ``ImportError`` in one
+    line naming its new module; any other missing name is missing as usual. ``ImportError``, not
+    ``AttributeError``: ``from baselines.mpc import KinematicMPC`` would replace an ``AttributeError``'s message
+    with its own ``cannot import name``.
+    """
+
+    def __getattr__(name: str) -> object:
+        home = table.get(name)
+        if home is None:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        raise ImportError(f"{package}.{name} was moved in {REGROUPED_IN}: import it from {home}", name=package)
+
+    return __getattr__
+
+
 def install_moved_finder(table: Mapping[str, str], message: Callable[[str, str], str] = moved_message) -> None:
     """Put a :class:`MovedModuleFinder` for ``table`` at the end of ``sys.meta_path`` (once per table).
 
