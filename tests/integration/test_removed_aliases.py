@@ -179,7 +179,7 @@ def moved_name_tables() -> list[tuple[str, str, str]]:
     import baselines.legacy
     import leaderboard.legacy
 
-    tables = {**baselines.legacy.MOVED_NAMES, **leaderboard.legacy.MOVED_NAMES}
+    tables = {**legacy.MOVED_NAMES, **baselines.legacy.MOVED_NAMES, **leaderboard.legacy.MOVED_NAMES}
     return [(package, name, home) for package, table in tables.items() for name, home in sorted(table.items())]
 
 

@@ -46,6 +46,7 @@ from uvdms_gym.physics.sim import UVDMSSim
 from uvdms_gym.physics.state import PhysicsError
 from uvdms_gym.utils.display import gui_available, require_display
 from uvdms_gym.utils.kwargs import check_init_kwargs
+from uvdms_gym.utils.legacy import MOVED_NAMES, moved_names
 
 PREVIEW_TIMES: tuple[float, ...] = (0.0, 0.4, 0.8)
 """Reference preview horizon of the observation, s."""
@@ -513,3 +514,7 @@ class UVDMSEnv(gym.Env, EzPickle):
                 link_drag=float(rng.uniform(lo, hi)),
             )
         )
+
+
+# Names this module held before 0.4.0 that live in other modules now: one line naming their module (utils/legacy.py).
+__getattr__ = moved_names(__name__, MOVED_NAMES[__name__])

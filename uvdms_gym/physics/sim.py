@@ -50,6 +50,7 @@ from uvdms_gym.physics.stepping import Stepping
 from uvdms_gym.physics.water import Water
 from uvdms_gym.utils.display import require_display
 from uvdms_gym.utils.io import quiet_c_stream
+from uvdms_gym.utils.legacy import MOVED_NAMES, moved_names
 from uvdms_gym.utils.validation import finite_vector
 
 _get_link_states = pb.getLinkStates
@@ -501,3 +502,7 @@ class UVDMSSim(Stepping):
         """
         self._check_open()
         return self._contacts.count_obstacles(pairs, self._obstacle_bodies.body_ids, self._grasp.require)
+
+
+# Names this module held before 0.4.0 that live in other modules now: one line naming their module (utils/legacy.py).
+__getattr__ = moved_names(__name__, MOVED_NAMES[__name__])

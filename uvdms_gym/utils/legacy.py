@@ -62,6 +62,20 @@ REGROUPED: dict[str, str] = {
 }
 """Module paths of ``uvdms_gym`` that 0.4.0 moved without an alias -> where their names live now."""
 
+MOVED_NAMES: dict[str, dict[str, str]] = {
+    "uvdms_gym.physics.sim": {
+        **dict.fromkeys(
+            ["NU_LIMIT", "POSITION_LIMIT", "PhysicsError", "QDOT_LIMIT", "StepInfo"], "uvdms_gym.physics.state"
+        ),
+        **dict.fromkeys(["GRASP_MAX_FORCE", "GRASP_TOLERANCE"], "uvdms_gym.physics.grasp"),
+        **dict.fromkeys(["CONSTRAINT_CFM", "CONSTRAINT_ERP", "MAX_JOINT_VELOCITY"], "uvdms_gym.physics.body"),
+        "MIN_VIRTUAL_MASS": "uvdms_gym.physics.water",
+    },
+    "uvdms_gym.envs.base": dict.fromkeys(["POS_SCALE", "errors_pose", "errors_positions"], "uvdms_gym.envs.tracking"),
+}
+"""Modules of ``uvdms_gym`` whose names 0.4.0 moved to other modules -> those names -> their module now
+(``from uvdms_gym.physics.sim import PhysicsError`` fails in one line naming ``uvdms_gym.physics.state``)."""
+
 
 def moved_message(old: str, new: str) -> str:
     """The one line that answers an import of ``old``: where it lives now and which release removed the alias."""
