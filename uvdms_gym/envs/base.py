@@ -284,8 +284,11 @@ class UVDMSEnv(gym.Env, EzPickle):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Start an episode: draw the task (and hydrodynamic factors) from the seeded generator."""
         super().reset(seed=seed)
-        self._episode = _Episode(copy.deepcopy(self.np_random), self._np_random_seed, options, [])
-        return self._start_episode()
+        episode = _Episode(copy.deepcopy(self.np_random), self._np_random_seed, options, [])
+        self._episode = None  # until the episode has started: a reset that raises leaves no episode to step or copy
+        out = self._start_episode()
+        self._episode = episode
+        return out
 
     def _start_episode(self) -> tuple[np.ndarray, dict[str, Any]]:
         """The part of :meth:`reset` after the generator is set: draw the task, reset the simulator, observe."""
