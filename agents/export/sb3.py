@@ -156,8 +156,9 @@ def _no_model_message(model_path: Path) -> str:
         return f"no model at {model_path}"
     return (
         f"no model at {model_path}: a run writes best_model.zip at its evaluations (every eval_freq steps, "
-        "train_options of the training config) and this run ended before its first one; export its final model "
-        "(which='final', uvdms export-agent --which final) or train for more than eval_freq steps"
+        "train_options of the training config) and this run had none (it ended before its first one, or eval_freq "
+        "was 0); export its final model (which='final', uvdms export-agent --which final) or train with evaluations "
+        "for more than eval_freq steps"
     )
 
 
