@@ -139,9 +139,9 @@ class CircleTrackV1Env(BoundedReward, CircleTrackEnv):
     ``reward_proximity = proximity_weight * mean_i S(d_i)`` (velocity-damper shape: 1 beyond 0.12 m, 0 inside
     0.05 m) and ``reward_contact = -contact_weight`` on a step with physical contact (which ends the episode).
     Every term but the contact penalty lies in ``[0, weight]``, so at equal tracking running to the time limit
-    always beats ending the episode early. Defaults: :data:`~uvdms_gym.envs.bounded_reward.V1_WEIGHTS`, ``track_scale = 0.05 m``. The optional
-    ``reward_precision = precision_weight * exp(-e / precision_scale)`` (default weight 0, scale 0.01 m) is a
-    narrow second tracking term for training with a wide ``track_scale``.
+    always beats ending the episode early. Defaults: :data:`~uvdms_gym.envs.bounded_reward.V1_WEIGHTS`,
+    ``track_scale = 0.05 m``. The optional ``reward_precision = precision_weight * exp(-e / precision_scale)``
+    (default weight 0, scale 0.01 m) is a narrow second tracking term for training with a wide ``track_scale``.
 
     Everything else (dynamics, task, observation, costs, episode end, ``max_episode_steps = 500``) is v0's.
 
