@@ -14,7 +14,8 @@ REGROUPED: dict[str, str] = {
     "baselines.figures": "baselines.paper.figures",
     "baselines.obstacle_figure": "baselines.paper.obstacle_figure",
     "baselines.evaluate": (
-        "uvdms_gym.evaluation (run_episode, summarize, ...) and leaderboard.running.evaluate (evaluate)"
+        "uvdms_gym.evaluation (run_episode, summarize, ...), uvdms_gym.utils.io (write_json_atomic) and "
+        "leaderboard.running.evaluate (evaluate)"
     ),
 }
 """Old module path of ``baselines`` -> where its names live now (``baselines.mpc`` and ``baselines.safety`` are
