@@ -118,11 +118,12 @@ def _sweep_after_local_session(address: str | None) -> Iterator[None]:
         started_here = address is None and not ray.is_initialized()
     except ImportError:  # ray_session says how to install it
         started_here = False
+    before = {path.name for path in Path(tempfile.gettempdir()).glob(f"{AGENT_FOLDER_PREFIX}*")}  # other runs'
     try:
         yield
     finally:
         if started_here:
-            sweep_stale(AGENT_FOLDER_PREFIX, wait=SWEEP_WAIT_S)
+            sweep_stale(AGENT_FOLDER_PREFIX, wait=SWEEP_WAIT_S, not_waiting_for=before)
 
 
 def _payload_key(entry: Entry) -> str:

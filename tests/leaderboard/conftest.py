@@ -18,7 +18,7 @@ def release(monkeypatch):
     def bump(version: str) -> None:
         monkeypatch.setattr(uvdms_gym, "__version__", version)
         for name, module in list(sys.modules.items()):
-            if name.split(".")[0] == "leaderboard" and hasattr(module, "PACKAGE_VERSION"):
+            if name.split(".")[0] == "leaderboard" and "PACKAGE_VERSION" in vars(module):
                 monkeypatch.setattr(module, "PACKAGE_VERSION", version)
 
     return bump

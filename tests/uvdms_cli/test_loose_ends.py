@@ -62,6 +62,14 @@ def test_negative_numbers_and_abbreviations_are_not_typos(capsys):
         main(["evaluate", "--controller", "campc", "--env", "uvdms/CircleTrack-v1", "--seed", "-1", "--episodes", "x"])
     line = _error_line(capsys)
     assert "invalid int value: 'x'" in line and "unrecognized" not in line
+    with pytest.raises(SystemExit):  # an abbreviation argparse accepts: its own error, not a typo
+        main(["evaluate", "--controller", "campc", "--env", "uvdms/CircleTrack-v1", "--epi", "x"])
+    line = _error_line(capsys)
+    assert "argument --episodes: invalid int value: 'x'" in line and "unrecognized" not in line
+    with pytest.raises(SystemExit):  # bundled short flags are not a typo either
+        main(["-vv", "evalute"])
+    line = _error_line(capsys)
+    assert "invalid choice: 'evalute'" in line and "unrecognized" not in line
 
 
 @pytest.mark.parametrize(

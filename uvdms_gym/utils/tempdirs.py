@@ -20,6 +20,7 @@ import os
 import shutil
 import tempfile
 import time
+from collections.abc import Collection
 from multiprocessing.util import Finalize
 from pathlib import Path
 
@@ -74,12 +75,14 @@ def process_ended(pid: int) -> bool:
         return False
 
 
-def sweep_stale(prefix: str, *, wait: float = 0.0) -> list[Path]:
+def sweep_stale(prefix: str, *, wait: float = 0.0, not_waiting_for: Collection[str] = ()) -> list[Path]:
     """Remove this user's ``<prefix><pid>-*`` folders of the temporary directory whose process has ended.
 
     Args:
         prefix: As for :func:`owned_tempdir`.
         wait: Seconds to wait for the owners still running to end (a driver after shutting its workers down).
+        not_waiting_for: Names of folders not to wait for (those that existed before the driver's workers started:
+            another run's); they are removed only if their owner has already ended.
 
     Returns:
         The folders removed.
@@ -95,7 +98,7 @@ def sweep_stale(prefix: str, *, wait: float = 0.0) -> list[Path]:
             if process_ended(pid):
                 shutil.rmtree(path, ignore_errors=True)
                 removed.append(path)
-            else:
+            elif path.name not in not_waiting_for:
                 waiting = True
         if not waiting or time.monotonic() >= deadline:
             return removed

@@ -1,7 +1,7 @@
 """``index.html``: the leaderboard page holds every row of ``leaderboard.csv``, loads nothing, escapes every text.
 
-A small output folder is made with the fake backend of ``support.multiseed_fakes`` (no physics, a few seconds with its
-plots): the four baselines, a three-seed residual agent with learning curves (and its ``+filter`` twin) and a
+A small output folder is made with the fake backend of ``tests.support.multiseed_fakes`` (no physics, a few seconds
+with its plots): the four baselines, a three-seed residual agent with learning curves (and its ``+filter`` twin) and a
 single agent whose folder name is HTML (``sac<b>&"q"``). The page is parsed with :mod:`html.parser` and checked
 against the CSV, cell by cell, with the intervals formatted independently of :mod:`leaderboard.output.webpage`. The
 page's behaviour in a browser: ``test_webpage_browser.py``.
@@ -18,13 +18,13 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import pytest
-from support.multiseed_fakes import CALLS, FAKE, TINY_TASKS, _agent_folder, _multi_seed, _write_curve
 
 import leaderboard as lb
 import leaderboard.suite.registry
 from leaderboard.output.webpage import PAGE_NAME, metric_cell_text, write_index_html
 from leaderboard.stats.metrics import METRICS
 from leaderboard.suite.entries import slugify
+from tests.support.multiseed_fakes import CALLS, FAKE, TINY_TASKS, _agent_folder, _multi_seed, _write_curve
 from uvdms_cli.main import main as uvdms_main
 
 REPO = Path(__file__).resolve().parents[3]

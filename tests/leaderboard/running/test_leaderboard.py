@@ -9,7 +9,6 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from support.leaderboard_fakes import BASELINE_ENTRIES, CALLS, CIRCLE, FAKE, TINY_TASKS, _run
 
 import leaderboard as lb
 import leaderboard.running.cache
@@ -19,6 +18,7 @@ from leaderboard.running.jobs import DEFAULT_BACKEND, Backend
 from leaderboard.suite.agent_files import training_seeds
 from leaderboard.suite.entries import agent_entry, check_seed_disjointness
 from leaderboard.suite.tasks import SEED_BASE, evaluation_seeds
+from tests.support.leaderboard_fakes import BASELINE_ENTRIES, CALLS, CIRCLE, FAKE, TINY_TASKS, _run
 from uvdms_cli.main import main as uvdms_main
 from uvdms_gym.utils.io import _umask, mirror_file, write_json_atomic
 
@@ -327,7 +327,7 @@ def test_agents_of_another_env_version_run_the_tasks_on_their_version():
 
 
 def test_a_v1_agent_runs_its_version_and_the_table_says_whose_return_it_is(tmp_path):
-    from support.multiseed_fakes import FAKE, TINY_TASKS, _agent_folder, _fake_episode
+    from tests.support.multiseed_fakes import FAKE, TINY_TASKS, _agent_folder, _fake_episode
 
     seen: list[tuple[str, str]] = []
 

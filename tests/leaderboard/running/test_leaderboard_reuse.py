@@ -13,8 +13,6 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from support.leaderboard_fakes import CALLS, FAKE, TINY_TASKS
-from support.multiseed_fakes import _multi_seed
 
 import leaderboard as lb
 import leaderboard.running.cache
@@ -22,6 +20,8 @@ import leaderboard.running.reuse
 from leaderboard.running.jobs import plan_jobs
 from leaderboard.running.reuse import reusable_results
 from leaderboard.suite.tasks import evaluation_seeds
+from tests.support.leaderboard_fakes import CALLS, FAKE, TINY_TASKS
+from tests.support.multiseed_fakes import _multi_seed
 
 EPISODES = 3
 

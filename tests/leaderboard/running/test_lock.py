@@ -10,9 +10,9 @@ import subprocess
 import sys
 
 import pytest
-from support.leaderboard_fakes import CALLS, _run
 
 from leaderboard.running.lock import LOCK_NAME, OutputFolderInUseError, output_lock
+from tests.support.leaderboard_fakes import CALLS, _run
 from uvdms_cli.main import main as uvdms_main
 
 HOLD = """

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from support.leaderboard_fakes import BASELINE_ENTRIES, TINY_TASKS, _run
 
 import leaderboard as lb
 import leaderboard.running.cache
@@ -15,6 +14,7 @@ from leaderboard.stats.intervals import Stat, bootstrap_ci, intervals_overlap
 from leaderboard.stats.metrics import aggregate
 from leaderboard.stats.ranking import RankedRow, rank_rows
 from leaderboard.suite.entries import BASELINES
+from tests.support.leaderboard_fakes import BASELINE_ENTRIES, TINY_TASKS, _run
 
 
 # ------------------------------------------------------------------------------------------------------

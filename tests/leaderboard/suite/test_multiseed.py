@@ -17,15 +17,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy import stats as sps
-from support.multiseed_fakes import (
-    CALLS,
-    CIRCLE,
-    FAKE,
-    TINY_TASKS,
-    _agent_folder,
-    _multi_seed,
-    _write_curve,
-)
 
 import leaderboard as lb
 from leaderboard.output.plots import write_learning_curves
@@ -35,6 +26,15 @@ from leaderboard.stats.ranking import RankedRow, rank_rows
 from leaderboard.stats.result import LeaderboardResult
 from leaderboard.suite.entries import agent_entry, check_seed_disjointness, find_agent_folders
 from leaderboard.suite.tasks import SEED_BASE, TRACKS, evaluation_seeds
+from tests.support.multiseed_fakes import (
+    CALLS,
+    CIRCLE,
+    FAKE,
+    TINY_TASKS,
+    _agent_folder,
+    _multi_seed,
+    _write_curve,
+)
 
 REPO = Path(__file__).resolve().parents[3]
 TRANSPORT = "uvdms/Transport-v0"

@@ -91,17 +91,36 @@ def _closing(env: gym.Env) -> Iterator[gym.Env]:
 @pytest.mark.parametrize("how", sorted(COPIES))
 def test_a_copy_made_during_an_episode_steps_on_from_the_originals_state(env_id, how):
     """The newcomer's defect: a copy came back with its wrappers marked as reset and failed deep inside ``step``."""
-    with _closing(gym.make(env_id, **KWARGS[env_id])) as original:
-        actions = _actions(original, 2 * STEPS)
+    limit = STEPS + 2  # the TimeLimit truncates both on the second step after the copy: its step count is copied
+    with _closing(gym.make(env_id, max_episode_steps=limit, **KWARGS[env_id])) as original:
+        actions = _actions(original, limit)
         original.reset()  # no seed: the copy must carry the generator, not a seed
         for a in actions[:STEPS]:
             original.step(a)
         with _closing(COPIES[how](original)) as duplicate:
             assert duplicate.unwrapped.t == original.unwrapped.t
+            truncated = []
             for a in actions[STEPS:]:
                 got, want = duplicate.step(a), original.step(a)
                 np.testing.assert_array_equal(got[0], want[0])
-                assert got[1:4] == want[1:4]  # reward, terminated, truncated (the wrappers' step count included)
+                assert got[1:4] == want[1:4]  # reward, terminated, truncated
+                truncated.append(got[3])
+            assert truncated == [False, True]
+
+
+@pytest.mark.parametrize("env_id", uvdms_gym.ENV_IDS)
+@pytest.mark.parametrize("how", sorted(COPIES))
+def test_a_copy_of_a_never_reset_environment_asks_for_reset_in_one_line(env_id, how):
+    """Through ``gym.make``'s wrappers ``OrderEnforcing`` answers first; the environment itself answers alike."""
+    with _closing(gym.make(env_id, **KWARGS[env_id])) as env:
+        action = env.action_space.sample()
+        with _closing(COPIES[how](env)) as wrapped, _closing(COPIES[how](env.unwrapped)) as bare:
+            for duplicate, message in ((wrapped, r"env\.reset\(\)"), (bare, r"call reset\(\) before step\(\)")):
+                with pytest.raises(ResetNeeded, match=message) as err:
+                    duplicate.step(action)
+                assert "\n" not in str(err.value)
+                duplicate.reset(seed=SEED)
+                duplicate.step(action)
 
 
 @pytest.mark.parametrize("env_id", uvdms_gym.ENV_IDS)
