@@ -34,14 +34,42 @@ def pages() -> list[Path]:
     return [REPO / "README.md", *sorted(p for p in DOCS.rglob("*.md") if not p.is_relative_to(DOCS / "leaderboard"))]
 
 
+SHELL_LANGUAGES = ("bash", "sh", "shell", "console", "")
+"""Info strings of a fenced block that may hold shell commands: ```bash, ```sh (and ```shell, ```console) or none."""
+
+
+def fenced_blocks(text: str) -> list[tuple[str, str]]:
+    """The fenced code blocks of ``text``: ``(info string, body)`` pairs, fences paired in order."""
+    blocks, info, body = [], None, []
+    for line in text.splitlines():
+        if info is None:
+            if line.startswith("```"):
+                info, body = line[3:].strip(), []
+        elif line.strip() == "```":
+            blocks.append((info, "\n".join(body) + "\n"))
+            info = None
+        else:
+            body.append(line)
+    return blocks
+
+
 def bash_commands(text: str) -> list[list[str]]:
-    """The ``uvdms`` commands of the ```bash blocks of ``text`` (tokens; comments dropped, chains split)."""
+    """The ``uvdms`` commands of the shell blocks of ``text`` (tokens; comments dropped, chains split).
+
+    ```bash, ```sh and plain ``` blocks count alike (:data:`SHELL_LANGUAGES`; not ```python, ```yaml, ...). A
+    command is a line (or ``&&`` part) run by ``uvdms`` or ``.venv/bin/uvdms``.
+    """
     out = []
-    for block in re.findall(r"^```bash\n(.*?)^```", text, flags=re.M | re.S):
+    for info, block in fenced_blocks(text):
+        if info not in SHELL_LANGUAGES:
+            continue
         for line in block.replace("\\\n", " ").splitlines():
             for part in line.split("&&"):
-                tokens = shlex.split(part, comments=True)
-                if tokens and tokens[0].endswith("uvdms"):
+                try:
+                    tokens = shlex.split(part, comments=True)
+                except ValueError:  # not shell (an unbalanced quote in a plain block's text)
+                    continue
+                if tokens and (tokens[0] == "uvdms" or tokens[0].endswith("/uvdms")):
                     out.append(["uvdms", *tokens[1:]])
     return out
 
@@ -119,10 +147,20 @@ def test_a_python_block_that_needs_an_extra_names_it_before_the_block():
     assert found >= 1  # getting-started's RecordVideo block
 
 
+OUTPUT_OPTIONS = ("--out", "--cache-dir", "--png")
+"""Options whose value is a file or folder the command writes (``uvdms demo --png``: a rendered frame)."""
+
+
+FOLDER_COMMANDS = ("train", "sweep", "tune", "leaderboard", "reproduce")
+"""Subcommands whose ``--out`` (and ``--cache-dir``) is a folder."""
+
+
 def _outputs(argv: list[str]) -> list[str]:
     """What a documented command writes, relative to the working directory."""
     command = argv[1] if len(argv) > 1 else ""
-    outputs = [argv[i + 1] for i, t in enumerate(argv[:-1]) if t in ("--out", "--cache-dir")]
+    outputs = [argv[i + 1] for i, t in enumerate(argv[:-1]) if t in OUTPUT_OPTIONS]
+    if command in FOLDER_COMMANDS:  # a folder: a trailing slash, so that git's folder-only patterns (runs/) match
+        outputs = [o if o.endswith("/") else o + "/" for o in outputs]
     if command == "export-agent":
         outputs.append([t for t in argv[2:] if not t.startswith("-")][1])
     if command in ("train", "sweep") and "--out" not in argv:

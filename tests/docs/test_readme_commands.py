@@ -94,6 +94,13 @@ SHRUNK: dict[str, Shrunk] = {
         "--cache-dir leaderboard_out/cache",
         creates=("docs/leaderboard/leaderboard.md", "docs/leaderboard/entries/campc.json"),
     ),
+    "uvdms leaderboard --out docs/leaderboard --reuse docs/leaderboard": Shrunk(
+        "leaderboard",
+        "uvdms leaderboard --out docs/leaderboard --reuse docs/leaderboard --episodes 1 --max-episode-steps 20 "
+        "--no-progress --cache-dir leaderboard_out/reuse_cache",
+        creates=("docs/leaderboard/leaderboard.md", "docs/leaderboard/entries/campc.json"),
+        contains=(("docs/leaderboard/leaderboard.md", "campc"),),
+    ),
     "uvdms leaderboard --entries baselines agents out/my_export": Shrunk(
         "leaderboard",
         "uvdms leaderboard --entries baselines agents out/my_export --quick --episodes 1 --max-episode-steps 20 "
@@ -248,6 +255,7 @@ ORDER: tuple[str, ...] = (
     "uvdms export-agent trained_agents/ppo-circle-case1-v0 out/my_export",
     "uvdms leaderboard --quick",
     "uvdms leaderboard --out docs/leaderboard",
+    "uvdms leaderboard --out docs/leaderboard --reuse docs/leaderboard",  # reuses the previous command's output
 )
 """Commands that must run before the others of their chain, in this order."""
 
