@@ -11,7 +11,8 @@ A folder from :func:`owned_tempdir` is named ``<prefix><pid>-<random>`` after th
   its workers ended (:func:`leaderboard.running.distributed.run_on_ray` after its Ray session).
 
 Only folders of the calling user are swept; a process id reused by an unrelated process keeps its folder until
-that process ends.
+that process ends. A process id is read in the caller's PID namespace: processes of other namespaces (containers)
+that share the temporary directory and the user should each have a temporary directory of their own (``TMPDIR``).
 """
 
 from __future__ import annotations
