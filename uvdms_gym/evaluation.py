@@ -208,6 +208,20 @@ class EpisodeTracker:
         }
 
 
+def _record_step(
+    traj: dict[str, list], env: Any, controller: Any, info: dict, action: np.ndarray | None, tau: np.ndarray | None
+) -> None:
+    """Append one step to the time series of :data:`TRAJECTORY_KEYS` (``action is None``: the state after reset)."""
+    rec = getattr(controller, "last_record", None) or {}
+    di = getattr(controller, "last_di", None)
+    for key in ("t", "y", "y_ref", "distances", "eta", "nu", "q", "qdot"):
+        traj[key].append(info[key])
+    traj["action"].append(np.zeros(env.action_space.shape) if action is None else action)
+    traj["tau"].append(np.zeros(18) if tau is None else tau)
+    traj["zeta_cmd"].append(None if action is None or "zeta_cmd" not in rec else rec["zeta_cmd"])
+    traj["nn_output"].append(None if action is None or di is None else di.delta_hat)
+
+
 def run_episode(env: Any, controller: Any, seed: int, *, save_trajectory: bool = False) -> dict:
     """Run one episode of ``controller`` on ``env`` from ``env.reset(seed=seed)`` to termination or truncation.
 
@@ -230,22 +244,8 @@ def run_episode(env: Any, controller: Any, seed: int, *, save_trajectory: bool =
     traj: dict[str, list] = {k: [] for k in TRAJECTORY_KEYS}
 
     def record(info: dict, action: np.ndarray | None, tau: np.ndarray | None) -> None:
-        if not save_trajectory:
-            return
-        rec = getattr(controller, "last_record", None) or {}
-        di = getattr(controller, "last_di", None)
-        traj["t"].append(info["t"])
-        traj["y"].append(info["y"])
-        traj["y_ref"].append(info["y_ref"])
-        traj["distances"].append(info["distances"])
-        traj["eta"].append(info["eta"])
-        traj["nu"].append(info["nu"])
-        traj["q"].append(info["q"])
-        traj["qdot"].append(info["qdot"])
-        traj["action"].append(np.zeros(env.action_space.shape) if action is None else action)
-        traj["tau"].append(np.zeros(18) if tau is None else tau)
-        traj["zeta_cmd"].append(None if action is None or "zeta_cmd" not in rec else rec["zeta_cmd"])
-        traj["nn_output"].append(None if action is None or di is None else di.delta_hat)
+        if save_trajectory:
+            _record_step(traj, env, controller, info, action, tau)
 
     record(info, None, None)
     ret = cost = 0.0

@@ -76,6 +76,14 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PKG",
         help="packages imported to register env ids (default: uvdms_gym)",
     )
+    _add_composition_arguments(parser)
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity (1 prints training tables)")
+    return parser
+
+
+def _add_composition_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options that compose the trained policy with a base and a filter (``--residual*``, ``--safety-filter``)."""
     parser.add_argument(
         "--residual",
         metavar="BASE",
@@ -105,6 +113,3 @@ def build_parser() -> argparse.ArgumentParser:
         help="filter the training envs' velocity command (after the residual) with "
         "baselines.safety.filter.SafetyFilter; evaluation composes the same (uvdms train only)",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity (1 prints training tables)")
-    return parser
