@@ -11,15 +11,18 @@ log = logging.getLogger("uvdms.leaderboard")
 
 DESCRIPTION = """\
 Evaluate the named baselines (mpc, campc: velocity track; campc-di, campc-nndi: torque track), every agent
-folder in --agents-dir and any agent given by path on the task suite (paper Case 1, Case 2, transport, and
-held-out randomised variants with hydro_randomization=0.3), on evaluation seeds disjoint from every training
-seed. Rank each track per task by contact-free success rate, then position RMSE (ties when the 95% bootstrap
-intervals overlap), print the tables and write leaderboard.md, leaderboard.csv, entries/*.json, plots/*.png
-and index.html (the same tables as one self-contained web page: sortable, filterable, a detail view per entry)
-to --out; --page-only DIR only rewrites DIR/index.html from the files already in DIR. Every episode is cached
-under --cache-dir and reused on re-runs. Episodes run in this process, in --jobs local processes, or with
---backend ray as Ray tasks on a local instance or the cluster at --address (the driver keeps the cache; agents
-travel to the workers as weights-only exports)."""
+folder in --agents-dir and any agent given by path on the task suite (paper Case 1, Case 2, transport, and held-
+out randomised variants with hydro_randomization=0.3), on the test seeds of the seed protocol (uvdms_gym.seeds:
+training, validation and test seeds in disjoint ranges; --split validation for development): 100 draws of each
+randomised task, spread over the training seeds of a multi-seed entry, one episode per training seed on the
+deterministic paper tasks; the randomised tasks also on the second test set (test2), each entry's difference
+between the two reported and flagged when its 95% interval excludes 0. Rank each track per task by contact-free
+success rate, then position RMSE (ties when the 95% bootstrap intervals overlap), print the tables and write
+leaderboard.md, leaderboard.csv, entries/*.json, plots/*.png and index.html (the same tables as one self-
+contained web page: sortable, filterable, a detail view per entry) to --out; --page-only DIR only rewrites
+DIR/index.html from the files already in DIR. Every episode is cached under --cache-dir and reused on re-runs.
+Episodes run in this process, in --jobs local processes, or with --backend ray as Ray tasks on a local instance
+or the cluster at --address (the driver keeps the cache; agents travel to the workers as weights-only exports)."""
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -33,7 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--quick",
         action="store_true",
-        help="2 episodes per task (unless --episodes), paper tasks only",
+        help="the paper tasks only (deterministic: one episode per entry and training seed)",
     )
     p.add_argument("--out", default="leaderboard_out", help="output folder (default leaderboard_out/)")
     p.add_argument("--cache-dir", default=None, help="per-episode cache (default <out>/cache)")
@@ -53,7 +56,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="shipped-agents folder (default: ./trained_agents, else the repository's trained_agents/)",
     )
     p.add_argument("--tasks", nargs="+", default=None, metavar="TASK", help="subset of the task suite (by name)")
-    p.add_argument("--episodes", type=int, default=None, help="episodes per entry and task (default 20; quick: 2)")
+    p.add_argument(
+        "--episodes",
+        type=int,
+        default=None,
+        help="draws of each randomised task (default 100; quick: 2); the deterministic paper tasks have one",
+    )
+    p.add_argument(
+        "--split",
+        choices=("test", "validation"),
+        default="test",
+        help="seed split to rank on: test (the published leaderboard) or validation (development; no test seed)",
+    )
+    p.add_argument(
+        "--no-generalization-check",
+        action="store_true",
+        help="skip the randomised tasks' second test set (test2) and the check against it",
+    )
     p.add_argument(
         "--max-episode-steps",
         type=int,
@@ -145,6 +164,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         num_cpus=args.num_cpus,
         max_retries=args.max_retries,
         reuse_from=args.reuse,
+        split=args.split,
+        generalization=not args.no_generalization_check,
         progress=not args.no_progress,
         plots=not args.no_plots,
         command=_command_line(args),
@@ -175,6 +196,10 @@ def _command_line(args: argparse.Namespace) -> str:
         parts += ["--tasks", *args.tasks]
     if args.episodes is not None:
         parts += ["--episodes", str(args.episodes)]
+    if args.split != "test":
+        parts += ["--split", args.split]
+    if args.no_generalization_check:
+        parts.append("--no-generalization-check")
     if args.max_episode_steps is not None:
         parts += ["--max-episode-steps", str(args.max_episode_steps)]
     parts += ["--out", args.out]

@@ -40,7 +40,6 @@ _STATS = {
             "bootstrap_ci",
             "intervals_overlap",
             "iqm",
-            "stratified_bootstrap_ci",
         ],
         "leaderboard.stats.intervals",
     ),
@@ -68,7 +67,7 @@ MOVED_NAMES: dict[str, dict[str, str]] = {
     "leaderboard": {
         **_STATS,
         **dict.fromkeys(
-            ["CIRCLE_ID", "HYDRO_RANDOMIZATION", "SEED_BASE", "TRACKS", "TRANSPORT_ID", "evaluation_seeds"],
+            ["CIRCLE_ID", "HYDRO_RANDOMIZATION", "TRACKS", "TRANSPORT_ID"],
             "leaderboard.suite.tasks",
         ),
         **dict.fromkeys(

@@ -93,7 +93,7 @@ def split_seeds(split: str, count: int, first: int = 0) -> list[int]:
 
 
 def assign_draws(draws: Sequence[int], runs: int, run: int) -> list[int]:
-    """The draws that run ``run`` of ``runs`` (training seeds of an entry) evaluates: ``draws[i]`` with ``i % runs == run``.
+    """The draws that run ``run`` of ``runs`` (an entry's training seeds) evaluates: ``draws[i]``, ``i % runs == run``.
 
     Every draw is evaluated once, by one training seed, in turn; with one run it gets them all.
 

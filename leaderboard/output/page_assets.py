@@ -14,7 +14,7 @@ CSS = """
 * { box-sizing: border-box; }
 body { margin: 0; font: 14px/1.45 system-ui, -apple-system, "Segoe UI", Roboto, sans-serif; color: var(--fg);
        background: var(--bg); }
-header, main, #plots, #controls { padding: 0 1.5rem; }
+header, main, #plots, #controls, #generalization { padding: 0 1.5rem; }
 header h1 { margin: 1rem 0 0.3rem; font-size: 1.6rem; }
 header p, .note { color: var(--muted); max-width: 72rem; }
 details.generated { color: var(--muted); margin-bottom: 0.6rem; max-width: 72rem; }

@@ -24,7 +24,8 @@ from leaderboard.stats.metrics import (  # (the table constants live in stats: t
 from leaderboard.stats.ranking import RankedRow
 from leaderboard.suite.entries import Entry
 from leaderboard.suite.entry_info import entry_details
-from leaderboard.suite.tasks import TRACKS, env_version
+from leaderboard.suite.tasks import CHECK_SPLIT, TRACKS, env_version
+from uvdms_gym.seeds import PROTOCOL, protocol_record
 from uvdms_gym.utils.io import write_json_atomic
 
 if TYPE_CHECKING:
@@ -73,23 +74,56 @@ def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_ME
 
 
 def episodes_label(row: RankedRow) -> str:
-    """The ``n`` cell: the episode count, or ``seeds × episodes`` for a multi-seed row."""
-    if not row.entry.multi_seed:
+    """The ``n`` cell: the episode count, or ``seeds × 1`` for a multi-seed row on a deterministic task."""
+    if not row.entry.multi_seed or not row.task.deterministic:
         return str(len(row.episodes))
     seeds = len(row.entry.members)
-    per_seed = len(row.episodes) / seeds
-    return f"{seeds} × {per_seed:g}"
+    return f"{seeds} × {len(row.episodes) / seeds:g}"
 
 
 MULTI_SEED_TEXT = (
-    "Rows of multi-seed entries (`name (k seeds)`, `n` = seeds × episodes) aggregate k training seeds on the same "
-    "evaluation seeds: rates are fractions of all k × n episodes, every other metric is the interquartile mean "
-    "(IQM, the mean of the middle 50 % of the k × n values), each ± the half-width of a 95 % stratified bootstrap "
-    "interval (percentile; for each evaluation episode the training seeds are resampled with replacement, the "
-    "method of Agarwal et al., NeurIPS 2021, `rliable`), so the interval shows how the entry would score if "
-    "trained again with other seeds."
+    "Rows of multi-seed entries (`name (k seeds)`) aggregate k training seeds: on a randomised task the draws are "
+    "spread over the seeds (draw i to the seed i mod k, so `n` draws are `n` episodes), on a deterministic paper "
+    "task every seed runs its one draw (`n` = k × 1). Rates are fractions of the row's episodes, every other "
+    "metric is the interquartile mean (IQM, the mean of the middle 50 % of the values), each ± the half-width of "
+    "a 95 % hierarchical bootstrap interval (percentile): a resample draws the task draws with replacement, then "
+    "the training seeds within each drawn draw, so the interval covers what another set of draws shows, and on "
+    "the paper tasks how the entry would score if trained again with other seeds."
 )
 """The explanation that ``leaderboard.md`` carries when a row aggregates training seeds."""
+
+CHECK_TEXT = (
+    "The randomised tasks were run on a second test set too (`test2`: as many other draws of the same "
+    "distributions). Each cell is the contact-free success rate on each set with the difference `test2 - test` "
+    "and its 95 % bootstrap interval (each set resampled on its own, draws then training seeds); **flagged** "
+    "where that interval excludes 0: the entry's figure does not hold on other draws. At 95 % a correct figure "
+    "is flagged in about 1 of 20 cells by chance."
+)
+"""The explanation above the generalisation table of ``leaderboard.md``."""
+
+
+def check_table(result: LeaderboardResult) -> str:
+    """The generalisation check as a markdown table (empty without checks): flagged rows first."""
+    rows = [r for r in result.rows if r.check is not None]
+    if not rows:
+        return ""
+    lines = [
+        "## Generalisation check",
+        "",
+        CHECK_TEXT,
+        "",
+        "| Task | Entry | test | test2 | test2 - test [95 % CI] | Flag |",
+        "|---|---|--:|--:|--:|---|",
+    ]
+    for row in sorted(rows, key=lambda r: (not r.check.flagged, r.task.name, r.entry.name)):
+        check = row.check
+        diff = check.difference
+        interval = f"[{diff.low:+.2f}, {diff.high:+.2f}]" if math.isfinite(diff.half_width) else ""
+        lines.append(
+            f"| {row.task.label} | {row.entry.label} | {check.test.mean:.2f} | {check.test2.mean:.2f} | "
+            f"{diff.mean:+.2f} {interval} | {'**flagged**' if check.flagged else ''} |"
+        )
+    return "\n".join([*lines, ""])
 
 
 def timing_text(result: LeaderboardResult) -> str:
@@ -110,18 +144,31 @@ def timing_text(result: LeaderboardResult) -> str:
     return text + f" (marked {OVERLOAD_MARK})."
 
 
-def _markdown_document(result: LeaderboardResult, command: str | None, plot_files: Sequence[str]) -> str:
+def seeds_text(result: LeaderboardResult) -> str:
+    """One sentence: the seed protocol, the split, the draws of the randomised tasks and the check's draws."""
     seeds = result.seeds
-    seed_text = f"{seeds[0]}" if len(seeds) == 1 else f"{seeds[0]}–{seeds[-1]}"
+    text = (
+        f"Seed protocol `{PROTOCOL}` (`uvdms_gym/seeds.py`): the `{result.split}` split, {len(seeds)} draw(s) of "
+        f"each randomised task (seeds {_span(seeds)}; the deterministic paper tasks run the first), disjoint from "
+        "every training and validation seed"
+    )
+    if result.check_seeds:
+        text += f"; the generalisation check's second test set `test2`: seeds {_span(result.check_seeds)}"
+    return text + "."
+
+
+def _span(seeds: Sequence[int]) -> str:
+    return f"{seeds[0]}" if len(seeds) == 1 else f"{seeds[0]}–{seeds[-1]}"
+
+
+def _markdown_document(result: LeaderboardResult, command: str | None, plot_files: Sequence[str]) -> str:
     task_lines = [
         f"- **{t.label}** (`{t.name}`): `{t.env_id}` with `{json.dumps(dict(t.env_kwargs))}`" for t in result.tasks
     ]
     parts = [
         "# uvdms-gym leaderboard",
         "",
-        f"Generated by `{command or 'uvdms leaderboard'}` (uvdms-gym {uvdms_gym.__version__}); "
-        f"{len(seeds)} episode(s) per entry and task, evaluation seeds {seed_text} "
-        "(disjoint from every training seed).",
+        f"Generated by `{command or 'uvdms leaderboard'}` (uvdms-gym {uvdms_gym.__version__}). " + seeds_text(result),
         "",
         "Tasks:",
         "",
@@ -145,6 +192,8 @@ def _markdown_document(result: LeaderboardResult, command: str | None, plot_file
     if any(entry.multi_seed for entry in result.entries):
         parts += [MULTI_SEED_TEXT, ""]
     parts += [markdown_tables(result)]
+    if any(row.check is not None for row in result.rows):
+        parts += [check_table(result)]
     if plot_files:
         parts += ["## Plots", ""]
         parts += [f"![{Path(p).stem}]({p})" for p in plot_files]
@@ -159,7 +208,9 @@ def _csv_text(result: LeaderboardResult) -> str:
     for metric in METRICS:
         header += [f"{metric}_mean", f"{metric}_ci_low", f"{metric}_ci_high"]
     header += ["timing_episodes_overloaded", "timing_episodes_unknown_load", "timing_load_1min_max", "timing_machine"]
-    header += ["training_seeds", "aggregation"]
+    header += ["training_seeds", "aggregation", "split"]
+    header += [f"check_{part}_{bound}" for part in ("test", "test2", "difference") for bound in ("mean", "low", "high")]
+    header.append("check_flagged")
     writer.writerow(header)
     for row in result.rows:
         cells: list[Any] = [
@@ -173,22 +224,55 @@ def _csv_text(result: LeaderboardResult) -> str:
         ]
         for metric in METRICS:
             stat = row.stats[metric]
-            cells += ["" if not math.isfinite(v) else f"{v:.6g}" for v in (stat.mean, stat.low, stat.high)]
+            cells += [_number(v) for v in (stat.mean, stat.low, stat.high)]
         timing = row.timing
         load_max = timing["load_1min_max"]
         cells += [timing["overloaded"], timing["unknown"], "" if load_max is None else load_max]
         cells.append("; ".join(timing["machines"]))
-        cells += [len(row.entry.members) if row.entry.multi_seed else "", _aggregation(row.entry)]
+        cells += [len(row.entry.members) if row.entry.multi_seed else "", _aggregation(row.entry), result.split]
+        cells += _check_cells(row)
         writer.writerow(cells)
     return buffer.getvalue()
 
 
+def _check_cells(row: RankedRow) -> list[Any]:
+    """The CSV cells of a row's generalisation check (empty without one)."""
+    if row.check is None:
+        return [""] * 10
+    stats = (row.check.test, row.check.test2, row.check.difference)
+    return [_number(v) for stat in stats for v in (stat.mean, stat.low, stat.high)] + [int(row.check.flagged)]
+
+
+def _number(value: float) -> str:
+    return "" if not math.isfinite(value) else f"{value:.6g}"
+
+
 def _aggregation(entry: Entry) -> str:
-    """How a row's statistics were formed (CSV ``aggregation``): over episodes, or over seeds x episodes."""
-    return "seeds-iqm-stratified" if entry.multi_seed else "episodes-mean-bca"
+    """How a row's statistics were formed (CSV ``aggregation``): over episodes, or over draws then seeds."""
+    return "seeds-iqm-hierarchical" if entry.multi_seed else "episodes-mean-bca"
 
 
-def _entry_document(entry: Entry, rows: Sequence[RankedRow]) -> dict[str, Any]:
+def _task_document(row: RankedRow, split: str) -> dict[str, Any]:
+    """One task of an entry document: its rank, statistics and episodes, and its generalisation check."""
+    document = {
+        "rank": row.rank,
+        "tied": row.tied,
+        "seed_protocol": protocol_record(split),
+        "timing": row.timing,
+        "stats": {m: s.to_json() for m, s in row.stats.items()},
+        "episodes": _without_trajectories(row.episodes),
+    }
+    if row.check is not None:
+        document["check"] = {**row.check.to_json(), "seed_protocol": protocol_record(CHECK_SPLIT)}
+        document["check"]["episodes"] = _without_trajectories(row.check_episodes)
+    return document
+
+
+def _without_trajectories(episodes: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [{k: v for k, v in ep.items() if k != "trajectory"} for ep in episodes]
+
+
+def _entry_document(entry: Entry, rows: Sequence[RankedRow], split: str) -> dict[str, Any]:
     document = {
         "name": entry.name,
         "kind": entry.kind,
@@ -199,22 +283,13 @@ def _entry_document(entry: Entry, rows: Sequence[RankedRow]) -> dict[str, Any]:
         "weights_only": entry.weights_only,
         "package_version": uvdms_gym.__version__,
         **entry_details(entry),
-        "tasks": {
-            row.task.name: {
-                "rank": row.rank,
-                "tied": row.tied,
-                "timing": row.timing,
-                "stats": {m: s.to_json() for m, s in row.stats.items()},
-                "episodes": [{k: v for k, v in ep.items() if k != "trajectory"} for ep in row.episodes],
-            }
-            for row in rows
-        },
+        "tasks": {row.task.name: _task_document(row, split) for row in rows},
     }
     if entry.multi_seed:  # (absent otherwise: the documents of single agents and baselines keep their form)
         document["aggregation"] = {
-            "rates": f"mean over seeds x episodes ({', '.join(RATE_METRICS)})",
-            "other_metrics": "interquartile mean (25 % trimmed mean) over seeds x episodes",
-            "interval": "95 % stratified bootstrap: training seeds resampled within each evaluation episode",
+            "rates": f"mean over the row's episodes ({', '.join(RATE_METRICS)})",
+            "other_metrics": "interquartile mean (25 % trimmed mean) over the row's episodes",
+            "interval": "95 % hierarchical bootstrap: task draws resampled, then training seeds within each draw",
         }
         document["seeds"] = [
             {"training_seed": m.training_seed, "folder": Path(m.spec).name, "checksum": m.checksum}
@@ -239,5 +314,5 @@ def write_outputs(result: LeaderboardResult, *, command: str | None = None, plot
     entries_dir.mkdir(exist_ok=True)
     for entry in result.entries:
         rows = [r for r in result.rows if r.entry is entry]
-        write_json_atomic(entries_dir / f"{entry.slug}.json", _entry_document(entry, rows), indent=None)
+        write_json_atomic(entries_dir / f"{entry.slug}.json", _entry_document(entry, rows, result.split), indent=None)
     write_index_html(out)

@@ -149,10 +149,14 @@ def _metric_cell(row: Mapping[str, str], metric: str) -> str:
     return f"<td {attributes}>{esc(text)}</td>"
 
 
+def _deterministic(task: str) -> bool:
+    return any(t.deterministic for t in TASKS if t.name == task)
+
+
 def _episodes_text(row: Mapping[str, str]) -> str:
-    """The ``n`` cell: episodes, or ``seeds × episodes per seed`` for a multi-seed row."""
+    """The ``n`` cell: episodes, or ``seeds × 1`` for a multi-seed row on a deterministic task."""
     seeds, episodes = _number(row.get("training_seeds")), _number(row.get("episodes"))
-    if seeds and episodes is not None:
+    if seeds and episodes is not None and _deterministic(row["task"]):
         return f"{seeds:g} × {episodes / seeds:g}"
     return row.get("episodes", "")
 
@@ -377,6 +381,49 @@ def _detail(name: str, data: PageData) -> str:
     return f'<template id="detail-{esc(slugify(name))}">' + "".join(parts) + "</template>"
 
 
+CHECK_INTRO = (
+    "The randomised tasks were also run on a second test set (test2: as many other draws of the same "
+    "distributions). Contact-free success rate on each set, the difference test2 - test with its 95 % bootstrap "
+    "interval, and a flag where that interval excludes 0 (the entry's figure does not hold on other draws; at 95 % "
+    "about 1 cell in 20 is flagged by chance). Flagged rows first."
+)
+
+
+def _check_row(row: Mapping[str, str]) -> str:
+    """One ``<tr>`` of the generalisation table (the CSV's ``check_*`` columns)."""
+    test, test2, diff, low, high = (
+        _number(row.get(f"check_{c}"))
+        for c in ("test_mean", "test2_mean", "difference_mean", "difference_low", "difference_high")
+    )
+    interval = f" [{low:+.2f}, {high:+.2f}]" if low is not None and high is not None else ""
+    flagged = row.get("check_flagged") == "1"
+    cells = [
+        esc(_task_label(row["task"])),
+        esc(_entry_label(row)),
+        "" if test is None else f"{test:.2f}",
+        "" if test2 is None else f"{test2:.2f}",
+        ("" if diff is None else f"{diff:+.2f}") + interval,
+        "flagged" if flagged else "",
+    ]
+    attributes = f'data-entry="{esc(row["entry"])}" data-task="{esc(row["task"])}" data-flagged="{int(flagged)}"'
+    return f"<tr {attributes}>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>"
+
+
+def _check_section(data: PageData) -> str:
+    """The generalisation check of every row that has one (none: no section)."""
+    rows = [r for r in data.rows if r.get("check_flagged") in ("0", "1")]
+    if not rows:
+        return ""
+    rows.sort(key=lambda r: (r.get("check_flagged") != "1", r["task"], r["entry"]))
+    header = "".join(f"<th>{h}</th>" for h in ("Task", "Entry", "test", "test2", "test2 - test [95 % CI]", "Flag"))
+    body = "\n".join(_check_row(r) for r in rows)
+    return (
+        f'<section id="generalization"><h2>Generalisation check</h2><p>{esc(CHECK_INTRO)}</p>'
+        f'<div class="table-wrap"><table class="check"><thead><tr>{header}</tr></thead>'
+        f"<tbody>\n{body}\n</tbody></table></div></section>"
+    )
+
+
 def _plots_section(data: PageData) -> str:
     """Every plot of the folder but the learning curves (those are in the detail views)."""
     plots = [p for p in data.plots if not Path(p).name.startswith("learning_curves_")]
@@ -400,9 +447,11 @@ def _plot_json(data: PageData) -> str:
 INTRO = (
     "One table per track and task, ranked as in leaderboard.md (contact-free success rate, then position RMSE; "
     "2= marks a tie). Each cell is the mean over episodes with its 95 % bootstrap confidence interval, "
-    "mean [low, high], from leaderboard.csv; for multi-seed entries (name (k seeds), n = seeds × episodes) the "
-    "mean is the interquartile mean over seeds × episodes (rates: the fraction) and the interval a stratified "
-    "bootstrap over training seeds. Click a column header to sort (again to reverse), an entry to see its "
+    "mean [low, high], from leaderboard.csv, on the test draws of the seed protocol (100 draws of each randomised "
+    "task; the paper tasks are deterministic: one episode per entry and training seed). For multi-seed entries "
+    "(name (k seeds)) the draws are spread over the seeds, the mean is the interquartile mean (rates: the "
+    "fraction) and the interval a hierarchical bootstrap: draws, then training seeds within each. "
+    "Click a column header to sort (again to reverse), an entry to see its "
     "composition, seeds, training and learning curve. "
     f"{OVERLOAD_MARK}: timed with a load above the machine's core count in some episodes."
 )
@@ -424,6 +473,7 @@ def render_page(data: PageData) -> str:
             f"<header><h1>uvdms-gym leaderboard</h1><p>{esc(INTRO)}</p>{generated if data.generated else ''}</header>",
             _controls(data),
             f"<main>{_boards(data)}</main>",
+            _check_section(data),
             _plots_section(data),
             '<div id="detail-overlay" hidden><div id="detail-box" role="dialog" aria-modal="true">'
             '<button type="button" id="detail-close">Close</button><div id="detail-body"></div></div></div>',

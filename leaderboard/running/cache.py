@@ -22,11 +22,15 @@ import numpy as np
 from baselines.mpc.solver import PROXSUITE_BUILD
 from leaderboard.suite.entries import Entry
 from leaderboard.suite.tasks import Task
+from uvdms_gym.seeds import PROTOCOL, split_of
 from uvdms_gym.utils.io import to_jsonable
 
-CACHE_FORMAT = 3
-"""Version of the cache keys and files; bump it with a change of the code that changes episode results (3: the key
-no longer hashes the package version; 2: every result carries its ``timing`` record)."""
+CACHE_FORMAT = 4
+"""Version of the cache keys and files; bump it with a change of the code that changes episode results (4: the key
+hashes the seed protocol, :data:`uvdms_gym.seeds.PROTOCOL`; 3: the key no longer hashes the package version; 2: every
+result carries its ``timing`` record)."""
+PROTOCOL_FORMAT = 4
+"""The first format whose keys hash the seed protocol (:func:`earlier_cache_keys` gives the keys before it)."""
 LEGACY_FORMAT = 2
 """The format of the keys that hashed the package version (:func:`legacy_cache_key`)."""
 REQUIRED_KEYS: tuple[str, ...] = ("seed", "contacts", "success", "rmse_pos", "min_distance", "steps")
@@ -40,7 +44,8 @@ class CorruptCacheError(ValueError):
 def cache_material(entry: Entry, task: Task, seed: int, save_trajectory: bool) -> dict[str, Any]:
     """Everything the cache key hashes: what decides the episode's result, not the package version (module docstring).
 
-    Baselines also hash the ProxSuite build their QPs are solved with (:data:`baselines.mpc.solver.PROXSUITE_BUILD`):
+    The seed is recorded with the protocol that gave it and its split (:mod:`uvdms_gym.seeds`). Baselines also hash
+    the ProxSuite build their QPs are solved with (:data:`baselines.mpc.solver.PROXSUITE_BUILD`):
     results of another build differ in the last bits and are not reused.
     """
     material = {
@@ -48,6 +53,7 @@ def cache_material(entry: Entry, task: Task, seed: int, save_trajectory: bool) -
         "entry": entry.identity(),
         "task": entry.task_spec(task),
         "seed": int(seed),
+        "seed_protocol": {"protocol": PROTOCOL, "split": split_of(int(seed))},
         "trajectory": bool(save_trajectory),
     }
     if entry.kind == "baseline":
@@ -62,7 +68,19 @@ def cache_key(material: Mapping[str, Any]) -> str:
 
 def legacy_cache_key(material: Mapping[str, Any], package_version: str) -> str:
     """The key that ``material`` had before 0.4, when keys also hashed the package version of the run."""
-    return cache_key({**material, "format": LEGACY_FORMAT, "package_version": package_version})
+    return cache_key({**_before_protocol(material), "format": LEGACY_FORMAT, "package_version": package_version})
+
+
+def earlier_cache_keys(material: Mapping[str, Any], package_version: str | None) -> set[str]:
+    """The keys ``material`` had in the formats before the seed protocol (3, and 2 with ``package_version``)."""
+    keys = {cache_key({**_before_protocol(material), "format": PROTOCOL_FORMAT - 1})}
+    if package_version is not None:
+        keys.add(legacy_cache_key(material, package_version))
+    return keys
+
+
+def _before_protocol(material: Mapping[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in material.items() if k != "seed_protocol"}
 
 
 def cache_path(cache_dir: str | Path, entry: Entry, task: Task, seed: int, key: str) -> Path:

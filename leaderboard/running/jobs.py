@@ -18,6 +18,7 @@ from typing import Any
 from leaderboard.running.cache import cache_key, cache_material, cache_path, compact_result
 from leaderboard.suite.entries import Entry
 from leaderboard.suite.tasks import Task
+from uvdms_gym.seeds import assign_draws
 from uvdms_gym.utils.io import write_json_atomic
 from uvdms_gym.utils.provenance import timing_record
 
@@ -64,7 +65,7 @@ DEFAULT_BACKEND = Backend(make_env=make_env, make_controller=_real_make_controll
 
 @dataclass(frozen=True)
 class Job:
-    """One episode to compute."""
+    """One episode to compute: ``entry`` on draw ``seed`` of ``task`` in the seed split ``split``."""
 
     entry: Entry
     task: Task
@@ -73,6 +74,7 @@ class Job:
     key: str
     material: dict[str, Any]
     path: Path
+    split: str
 
 
 _WORKER: dict[str, Any] = {}
@@ -138,23 +140,30 @@ def store_result(job: Job, result: dict[str, Any]) -> dict[str, Any]:
 
 
 def plan_jobs(
-    entries: Sequence[Entry], tasks: Sequence[Task], seeds: Sequence[int], cache_dir: str | Path
+    entries: Sequence[Entry], tasks: Sequence[Task], split: str, episodes: int, cache_dir: str | Path
 ) -> list[Job]:
-    """Every (entry, task, seed) episode of the run, grouped by entry and task.
+    """Every (entry, task, draw) episode of a run on the seed split ``split``, grouped by entry and task.
 
-    A multi-seed entry contributes the episodes of each of its members (:meth:`Entry.runs`): the job's entry is
-    the member, so each (entry, training seed, task, evaluation seed) episode is cached on its own.
+    A task's draws are :meth:`Task.draws` (``episodes`` of a randomised task, one of a deterministic one). A
+    multi-seed entry contributes the episodes of each of its members (:meth:`Entry.runs`), each cached on its own:
+    every member evaluates a deterministic task's draw, and the draws of a randomised task are spread over the
+    members (:func:`uvdms_gym.seeds.assign_draws`: draw ``i`` to member ``i % members``), so that ``episodes``
+    draws cost ``episodes`` episodes whatever the number of training seeds. The first episode of each run of a
+    ``trajectory`` task stores its distance trajectory.
     """
     jobs = []
     for entry in entries:
         for task in tasks:
             if not entry.runs_on(task):
                 continue
-            for run in entry.runs():
+            draws = task.draws(split, episodes)
+            runs = entry.runs()
+            for index, run in enumerate(runs):
+                seeds = draws if task.deterministic else assign_draws(draws, len(runs), index)
                 for i, seed in enumerate(seeds):
                     save = task.trajectory and i == 0
                     material = cache_material(run, task, seed, save)
                     key = cache_key(material)
                     path = cache_path(cache_dir, run, task, seed, key)
-                    jobs.append(Job(run, task, seed, save, key, material, path))
+                    jobs.append(Job(run, task, seed, save, key, material, path, split))
     return jobs

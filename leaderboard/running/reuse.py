@@ -12,8 +12,9 @@ Which episode is "the same":
   episode whose key equals the planned one. The key hashes the entry's identity (name, model checksum, safety
   filter), the environment spec the entry runs the task on, the evaluation seed, the trajectory flag and, for
   baselines, the ProxSuite build (:func:`leaderboard.running.cache.cache_material`). A document written before
-  0.4, whose keys also hashed its ``package_version``, matches on that key
-  (:func:`leaderboard.running.cache.legacy_cache_key`): a version bump alone does not make an episode new.
+  0.4, whose keys also hashed its ``package_version``, matches on that key, and one written before the seed
+  protocol (0.4), whose keys did not hash it, on that key (:func:`leaderboard.running.cache.earlier_cache_keys`): a
+  version bump alone does not make an episode new.
 * Older documents (no keys): the document of the entry's name with the same package version, kind and model
   checksum (for a multi-seed entry, the member's checksum under ``seeds``), then the episode of the task's name,
   the evaluation seed and the member's training seed. The environment spec and the QP solver build are not
@@ -32,7 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import uvdms_gym
-from leaderboard.running.cache import REQUIRED_KEYS, legacy_cache_key
+from leaderboard.running.cache import REQUIRED_KEYS, earlier_cache_keys
 from leaderboard.suite.entries import Entry
 
 if TYPE_CHECKING:
@@ -122,9 +123,8 @@ def _match(
     """``job``'s episode among ``episodes`` as a cached result (or ``None``), and whether it matched without a key."""
     keyed = [ep for ep in episodes if isinstance(ep, Mapping) and CACHE_KEY_FIELD in ep]
     if keyed:
-        keys = {job.key}
-        if isinstance(doc.get("package_version"), str):
-            keys.add(legacy_cache_key(job.material, doc["package_version"]))
+        version = doc.get("package_version")
+        keys = {job.key} | earlier_cache_keys(job.material, version if isinstance(version, str) else None)
         hit = next((ep for ep in keyed if ep[CACHE_KEY_FIELD] in keys), None)
         return _as_result(hit), False
     if not _same_entry(job.entry, parent, doc):

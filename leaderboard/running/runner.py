@@ -29,11 +29,13 @@ from leaderboard.running.jobs import (
 )
 from leaderboard.running.lock import output_lock
 from leaderboard.running.reuse import CACHE_KEY_FIELD, check_reuse_dir, reusable_results
+from leaderboard.stats.generalization import generalization_check
 from leaderboard.stats.metrics import aggregate, aggregate_runs
 from leaderboard.stats.ranking import RankedRow, rank_rows
 from leaderboard.stats.result import LeaderboardResult
 from leaderboard.suite.entries import Entry, check_seed_disjointness
-from leaderboard.suite.tasks import DEFAULT_EPISODES, TASKS, TRACKS, Task, evaluation_seeds
+from leaderboard.suite.tasks import CHECK_SPLIT, DEFAULT_EPISODES, DEFAULT_SPLIT, TASKS, TRACKS, Task
+from uvdms_gym.seeds import EVALUATION_SPLITS, split_seeds
 from uvdms_gym.utils.provenance import timing_record
 
 log = logging.getLogger("uvdms.leaderboard")
@@ -125,6 +127,8 @@ def run_leaderboard(
     num_cpus: int | None = None,
     max_retries: int | None = None,
     reuse_from: str | Path | None = None,
+    split: str = DEFAULT_SPLIT,
+    generalization: bool = True,
 ) -> LeaderboardResult:
     """Evaluate ``entries`` on ``tasks`` (cached), rank them per track and task, and write the outputs.
 
@@ -133,7 +137,8 @@ def run_leaderboard(
         out_dir: Output folder (``leaderboard.md``, ``leaderboard.csv``, ``entries/*.json``, ``plots/*.png``).
         cache_dir: Per-episode cache (default ``<out_dir>/cache``; a ``.gitignore`` inside keeps it out of git).
         tasks: The task suite.
-        episodes: Episodes per (entry, task).
+        episodes: Draws of each randomised task (:meth:`Task.draws`; a deterministic task has one), spread over
+            the training seeds of a multi-seed entry (:func:`leaderboard.running.jobs.plan_jobs`).
         force: Recompute every episode (overwriting the cache).
         trust: Passed to ``make_controller`` (unpickling agents outside ``trained_agents/``).
         jobs: Worker processes (1: in this process).
@@ -150,26 +155,35 @@ def run_leaderboard(
             :data:`leaderboard.running.distributed.DEFAULT_MAX_RETRIES`).
         reuse_from: A previous leaderboard output folder whose recorded episodes are reused for the episodes not
             in the cache (:mod:`leaderboard.running.reuse`); they are stored in the cache and count as ``reused``.
+        split: The seed split the ranking uses (:mod:`uvdms_gym.seeds`): ``test`` (the published leaderboard) or
+            ``validation`` (development).
+        generalization: With ``split="test"``, also run the randomised tasks on the second test set and compare
+            (:mod:`leaderboard.stats.generalization`).
 
     Returns:
         The ranked rows and run statistics.
 
     Raises:
-        ValueError: No entries, ``episodes < 1``, evaluation seeds that clash with training seeds, an unknown
-            executor, Ray options without the ``ray`` executor, or ``reuse_from`` with ``force``.
+        ValueError: No entries, ``episodes < 1``, an unknown split, evaluation seeds that clash with training
+            seeds, an unknown executor, Ray options without the ``ray`` executor, or ``reuse_from`` with ``force``.
         FileNotFoundError: ``reuse_from`` is not a leaderboard output folder.
         OutputFolderInUseError: Another run is writing ``out_dir`` (:mod:`leaderboard.running.lock`).
         ConnectionError: The Ray cluster at ``address`` cannot be reached.
     """
     backend = backend if backend is not None else DEFAULT_BACKEND
     _check_options(entries, episodes, executor, address, num_cpus, max_retries, jobs, force, reuse_from)
+    if split not in EVALUATION_SPLITS or split == CHECK_SPLIT:
+        raise ValueError(f"the leaderboard ranks on the test or validation split, not {split!r}")
     out = Path(out_dir)
     with output_lock(out):  # one run per output folder: a second one refuses
         cache = _prepare_cache(Path(cache_dir) if cache_dir is not None else out / "cache")
-        seeds = evaluation_seeds(episodes)
-        check_seed_disjointness(seeds, entries)
+        seeds = split_seeds(split, episodes)
+        check_tasks = [t for t in tasks if not t.deterministic] if generalization and split == DEFAULT_SPLIT else []
+        check_seeds = split_seeds(CHECK_SPLIT, episodes) if check_tasks else []
+        check_seed_disjointness(seeds + check_seeds, entries)
 
-        all_jobs = plan_jobs(entries, tasks, seeds, cache)
+        all_jobs = plan_jobs(entries, tasks, split, episodes, cache)
+        all_jobs += plan_jobs(entries, check_tasks, CHECK_SPLIT, episodes, cache)
         results, corrupt, todo = _read_cache(all_jobs, force)
         n_reused = 0
         if reuse_from is not None and todo:
@@ -179,10 +193,13 @@ def run_leaderboard(
         # finish the short agent episodes last leave less idle time at the end (the results do not depend on order)
         todo.sort(key=lambda job: job.entry.kind != "baseline")
         log.info(
-            "leaderboard: %d entries, %d tasks, %d episodes each: %d cached, %d reused, %d to compute",
+            "leaderboard (%s split): %d entries, %d tasks, %d draws per randomised task%s: %d cached, %d reused, "
+            "%d to compute",
+            split,
             len(entries),
             len(tasks),
             episodes,
+            f" (and {len(check_seeds)} of {CHECK_SPLIT})" if check_seeds else "",
             n_cached,
             n_reused,
             len(todo),
@@ -200,10 +217,12 @@ def run_leaderboard(
             )
             _compute(todo, len(all_jobs), n_cached + n_reused, execute, results, progress)
         result = LeaderboardResult(
-            rows=_ranked_rows(all_jobs, results, entries, tasks),
+            rows=_ranked_rows(all_jobs, results, entries, tasks, split),
             entries=list(entries),
             tasks=tuple(tasks),
             seeds=seeds,
+            split=split,
+            check_seeds=check_seeds,
             computed=len(todo),
             cached=n_cached,
             reused=n_reused,
@@ -311,18 +330,26 @@ def _compute(
 
 
 def _ranked_rows(
-    all_jobs: Sequence[Job], results: dict[Path, dict[str, Any]], entries: Sequence[Entry], tasks: Sequence[Task]
+    all_jobs: Sequence[Job],
+    results: dict[Path, dict[str, Any]],
+    entries: Sequence[Entry],
+    tasks: Sequence[Task],
+    split: str,
 ) -> list[RankedRow]:
-    """The rows of every entry on every task it runs on, ranked per track and task."""
-    by_run: dict[tuple[Entry, str], list[dict[str, Any]]] = {}
+    """The rows of every entry on every task it runs on, ranked per track and task, with their generalisation checks."""
+    by_run: dict[tuple[str, Entry, str], list[dict[str, Any]]] = {}
     for job in all_jobs:  # each episode with its cache key, so that a later run can reuse it from the documents
-        by_run.setdefault((job.entry, job.task.name), []).append({**results[job.path], CACHE_KEY_FIELD: job.key})
-    rows = [
-        row_for(entry, task, {run: by_run[run, task.name] for run in entry.runs()})
-        for entry in entries
-        for task in tasks
-        if entry.runs_on(task)
-    ]
+        episode = {**results[job.path], CACHE_KEY_FIELD: job.key}
+        by_run.setdefault((job.split, job.entry, job.task.name), []).append(episode)
+    rows = []
+    for entry in entries:
+        for task in tasks:
+            if not entry.runs_on(task):
+                continue
+            row = row_for(entry, task, {run: by_run[split, run, task.name] for run in entry.runs()})
+            if (CHECK_SPLIT, entry.runs()[0], task.name) in by_run:
+                _attach_check(row, entry, task, by_run, split)
+            rows.append(row)
     ranked: list[RankedRow] = []
     for track in TRACKS:
         for task in tasks:
@@ -330,3 +357,18 @@ def _ranked_rows(
             if group:
                 ranked.extend(rank_rows(group))
     return ranked
+
+
+def _attach_check(
+    row: RankedRow, entry: Entry, task: Task, by_run: Mapping[tuple[str, Entry, str], list[dict[str, Any]]], split: str
+) -> None:
+    """Add the generalisation check (``split`` against the second test set) and its episodes to ``row``."""
+    runs = entry.runs()
+    first = [by_run[split, run, task.name] for run in runs]
+    second = [by_run[CHECK_SPLIT, run, task.name] for run in runs]
+    row.check = generalization_check(first, second)
+    row.check_episodes = [
+        {**ep, "training_seed": run.training_seed} if entry.multi_seed else ep
+        for run, episodes in zip(runs, second)
+        for ep in episodes
+    ]

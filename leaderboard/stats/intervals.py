@@ -1,8 +1,9 @@
-"""Point estimates with confidence intervals: the bootstrap mean, the interquartile mean and its stratified bootstrap.
+"""Point estimates with confidence intervals: the bootstrap mean, the interquartile mean and its hierarchical bootstrap.
 
 A row of a single agent or a baseline gets :func:`bootstrap_ci` (BCa) of each metric; a row of a multi-seed entry
-:func:`stratified_bootstrap_ci` of its (training seed x evaluation episode) matrix (the method of Agarwal et al.,
-NeurIPS 2021, as in their ``rliable`` library). The rules: ``docs/leaderboard.md``, Statistics.
+:func:`hierarchical_bootstrap_ci` of its (training seed x task draw) matrix: the draws resampled first, then the
+training seeds within each draw; :func:`bootstrap_difference` compares two sets of draws (the generalisation check).
+The rules: ``docs/leaderboard.md``, Statistics.
 """
 
 from __future__ import annotations
@@ -150,7 +151,86 @@ def _point(x: np.ndarray, estimator: str) -> np.ndarray:
     return x.mean(axis=1)
 
 
-def stratified_bootstrap_ci(
+def _nan_point(x: np.ndarray, estimator: str) -> np.ndarray:
+    """The point estimate of each row of ``x`` (2-D; NaN cells are missing).
+
+    The mean, or the IQM as ``scipy.stats.trim_mean(row, 0.25)`` of the row's finite cells (``int(0.25 n)`` cut from
+    each end).
+    """
+    if estimator == "mean":
+        return np.nanmean(x, axis=1)
+    ordered = np.sort(x, axis=1)  # NaN last
+    finite = np.isfinite(ordered)
+    n = finite.sum(axis=1)
+    cut = (n * IQM_PROPORTION).astype(int)
+    sums = np.concatenate([np.zeros((x.shape[0], 1)), np.cumsum(np.where(finite, ordered, 0.0), axis=1)], axis=1)
+    rows = np.arange(x.shape[0])
+    return (sums[rows, n - cut] - sums[rows, cut]) / (n - 2 * cut)
+
+
+def hierarchical_bootstrap_estimates(
+    matrix: Sequence[Sequence[float]] | np.ndarray,
+    *,
+    estimator: str = "iqm",
+    n_resamples: int = N_RESAMPLES,
+    seed: int = BOOTSTRAP_SEED,
+) -> tuple[float, np.ndarray, int]:
+    """The point estimate of a (training seed x task draw) matrix and its hierarchical bootstrap resamples.
+
+    A resample draws the task draws (columns) first, as many as there are, with replacement; then, for each drawn
+    column, as many of its runs (training seeds) as it has, with replacement, among them; and evaluates the
+    estimator on the pooled values. The draws' variance (which circle, which hydrodynamics) is so in the
+    interval, and the training seeds' within each draw: the interval covers what another set of draws shows
+    (``docs/leaderboard.md``, Statistics). A column evaluated by one training seed (the randomised tasks spread
+    their draws over the seeds) keeps that seed's value; a matrix with one column (a deterministic task) resamples
+    the training seeds only.
+
+    Non-finite cells are missing (an episode without an RMSE, a draw another seed evaluates): a column resamples
+    its finite cells, a column without one is left out. Reproducible from ``seed``: ``rng =
+    numpy.random.default_rng(seed)``, then ``rng.integers(0, c, size=(n_resamples, c))`` for the ``c`` columns and
+    ``rng.random((n_resamples, c, k_max))`` for the runs within them.
+
+    Returns:
+        ``(point, estimates, n)``: the estimator of every finite cell, the ``n_resamples`` resampled estimates
+        (empty with fewer than 2 finite cells) and the number of finite cells.
+
+    Raises:
+        ValueError: ``matrix`` is not 2-D, or an unknown ``estimator``.
+    """
+    if estimator not in ESTIMATORS:
+        raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
+    x = np.asarray(matrix, dtype=float)
+    if x.ndim != 2:
+        raise ValueError(f"a hierarchical bootstrap needs a (runs, draws) matrix, got shape {x.shape}")
+    finite = np.isfinite(x)
+    pooled = x[finite]
+    n = int(pooled.size)
+    if n == 0:
+        return math.nan, np.empty(0), 0
+    point = float(_point(pooled[np.newaxis, :], estimator)[0])
+    if n < 2:
+        return point, np.empty(0), n
+    columns = [x[finite[:, j], j] for j in range(x.shape[1]) if finite[:, j].any()]
+    counts = np.array([c.size for c in columns])
+    values = np.full((len(columns), int(counts.max())), math.nan)
+    for j, column in enumerate(columns):
+        values[j, : column.size] = column
+    rng = np.random.default_rng(seed)
+    drawn = rng.integers(0, len(columns), size=(n_resamples, len(columns)))
+    k = counts[drawn]
+    runs = (rng.random((n_resamples, len(columns), values.shape[1])) * k[..., np.newaxis]).astype(int)
+    resampled = values[drawn[..., np.newaxis], runs]
+    resampled[np.arange(values.shape[1]) >= k[..., np.newaxis]] = math.nan
+    return point, _nan_point(resampled.reshape(n_resamples, -1), estimator), n
+
+
+def _percentile_interval(estimates: np.ndarray, confidence: float) -> tuple[float, float]:
+    tail = 100.0 * (1.0 - confidence) / 2.0
+    low, high = (float(v) for v in np.percentile(estimates, [tail, 100.0 - tail]))
+    return low, high
+
+
+def hierarchical_bootstrap_ci(
     matrix: Sequence[Sequence[float]] | np.ndarray,
     *,
     estimator: str = "iqm",
@@ -158,23 +238,15 @@ def stratified_bootstrap_ci(
     n_resamples: int = N_RESAMPLES,
     seed: int = BOOTSTRAP_SEED,
 ) -> Stat:
-    """Point estimate and stratified bootstrap CI of a (training seed x evaluation episode) score matrix.
+    """Point estimate and hierarchical bootstrap CI (draws, then training seeds) of a (run x draw) score matrix.
 
-    The scheme of ``rliable.library.StratifiedBootstrap`` (Agarwal et al., NeurIPS 2021) with the evaluation
-    episodes as the strata (rliable's tasks): every resample draws, for each evaluation episode (column)
-    independently, as many runs as the column has, with replacement, from that column's runs, and evaluates the
-    estimator on the pooled resampled values; the interval is the percentile interval of the ``n_resamples``
-    estimates (``numpy.percentile``, linear interpolation), widened to contain the point estimate if it falls
-    outside. Why this scheme: ``docs/leaderboard.md``, Statistics.
-
-    Non-finite cells are missing values (an episode without an RMSE): a column resamples its finite cells only, a
-    column without one is left out. Random draws, reproducible from ``seed``: ``rng =
-    numpy.random.default_rng(seed)``, then for each remaining column in order, with ``k`` finite cells, one
-    ``rng.integers(0, k, size=(n_resamples, k))``.
+    The resampling is :func:`hierarchical_bootstrap_estimates`; the interval is the percentile interval of the
+    ``n_resamples`` estimates (``numpy.percentile``, linear interpolation), widened to contain the point estimate
+    if it falls outside.
 
     Args:
-        matrix: ``(runs, episodes)``; rows are training seeds, columns evaluation episodes (the same evaluation
-            seed in every row).
+        matrix: ``(runs, draws)``; rows are training seeds, columns task draws (evaluation seeds); NaN where a
+            seed did not evaluate a draw.
         estimator: ``"iqm"`` (:func:`iqm` of the pooled values) or ``"mean"``.
         confidence: Coverage of the interval.
         n_resamples: Bootstrap resamples.
@@ -187,33 +259,44 @@ def stratified_bootstrap_ci(
     Raises:
         ValueError: ``matrix`` is not 2-D, or an unknown ``estimator``.
     """
-    if estimator not in ESTIMATORS:
-        raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
-    x = np.asarray(matrix, dtype=float)
-    if x.ndim != 2:
-        raise ValueError(f"a stratified bootstrap needs a (runs, episodes) matrix, got shape {x.shape}")
-    finite = np.isfinite(x)
-    pooled = x[finite]
-    n = int(pooled.size)
-    if n == 0:
-        return Stat(math.nan, math.nan, math.nan, 0, estimator)
-    point = float(_point(pooled[np.newaxis, :], estimator)[0])
+    point, estimates, n = hierarchical_bootstrap_estimates(
+        matrix, estimator=estimator, n_resamples=n_resamples, seed=seed
+    )
     if n < 2:
         return Stat(point, math.nan, math.nan, n, estimator)
+    pooled = np.asarray(matrix, dtype=float)
+    pooled = pooled[np.isfinite(pooled)]
     if np.all(pooled == pooled[0]):
         value = float(pooled[0])
         return Stat(value, value, value, n, estimator)
-    rng = np.random.default_rng(seed)
-    resampled = np.empty((n_resamples, n))
-    start = 0
-    for j in range(x.shape[1]):
-        column = x[finite[:, j], j]
-        k = column.size
-        if k == 0:
-            continue
-        resampled[:, start : start + k] = column[rng.integers(0, k, size=(n_resamples, k))]
-        start += k
-    estimates = _point(resampled, estimator)
-    tail = 100.0 * (1.0 - confidence) / 2.0
-    low, high = (float(v) for v in np.percentile(estimates, [tail, 100.0 - tail]))
+    low, high = _percentile_interval(estimates, confidence)
+    return Stat(point, min(low, point), max(high, point), n, estimator)
+
+
+def bootstrap_difference(
+    first: Sequence[Sequence[float]] | np.ndarray,
+    second: Sequence[Sequence[float]] | np.ndarray,
+    *,
+    estimator: str = "mean",
+    confidence: float = CONFIDENCE,
+    n_resamples: int = N_RESAMPLES,
+    seed: int = BOOTSTRAP_SEED,
+) -> Stat:
+    """``estimate(second) - estimate(first)`` of two independent (run x draw) matrices, with its bootstrap CI.
+
+    Each matrix is resampled on its own (:func:`hierarchical_bootstrap_estimates`, seeds ``seed`` and ``seed + 1``);
+    the interval is the percentile interval of the ``n_resamples`` differences of the resampled estimates, widened
+    to contain the point difference. ``n`` is the smaller number of finite cells. Either side with fewer than 2
+    finite cells: no interval.
+    """
+    point_a, est_a, n_a = hierarchical_bootstrap_estimates(
+        first, estimator=estimator, n_resamples=n_resamples, seed=seed
+    )
+    point_b, est_b, n_b = hierarchical_bootstrap_estimates(
+        second, estimator=estimator, n_resamples=n_resamples, seed=seed + 1
+    )
+    point, n = point_b - point_a, min(n_a, n_b)
+    if est_a.size == 0 or est_b.size == 0:
+        return Stat(point, math.nan, math.nan, n, estimator)
+    low, high = _percentile_interval(est_b - est_a, confidence)
     return Stat(point, min(low, point), max(high, point), n, estimator)

@@ -2,8 +2,8 @@
 
 :func:`aggregate` gives a single agent's or a baseline's row (a mean with its bootstrap interval per metric),
 :func:`aggregate_runs` a multi-seed entry's row (rates as fractions, every other metric as the interquartile mean,
-with stratified bootstrap intervals), :func:`learning_curve_stats` the mean of learning curves over training seeds
-and :func:`timing_summary` where and under what load the controller timings ran.
+with hierarchical bootstrap intervals: task draws, then training seeds), :func:`learning_curve_stats` the mean of
+learning curves over training seeds and :func:`timing_summary` where and under what load the controller timings ran.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from leaderboard.stats.intervals import BOOTSTRAP_SEED, Stat, bootstrap_ci, stratified_bootstrap_ci
+from leaderboard.stats.intervals import BOOTSTRAP_SEED, Stat, bootstrap_ci, hierarchical_bootstrap_ci
 
 RATE_METRICS: tuple[str, ...] = ("contact_free_success", "success", "contact_free")
 """The 0/1 indicators: a multi-seed row reports their rate (the mean), not an IQM (see :func:`aggregate_runs`)."""
@@ -110,7 +110,7 @@ def aggregate(results: Sequence[Mapping[str, Any]]) -> dict[str, Stat]:
 
 
 def run_matrix(runs: Sequence[Sequence[Mapping[str, Any]]], metric: str) -> np.ndarray:
-    """The ``(runs, episodes)`` matrix of ``metric``: one row per run, one column per evaluation seed.
+    """The ``(runs, draws)`` matrix of ``metric``: one row per run, one column per evaluation seed (task draw).
 
     Columns are the sorted evaluation seeds (``result["seed"]``) of all runs; a run without an episode of a seed, or
     an episode without a value of the metric, leaves NaN.
@@ -139,11 +139,12 @@ def aggregate_runs(runs: Sequence[Sequence[Mapping[str, Any]]]) -> dict[str, Sta
 
     Rates (:data:`RATE_METRICS`) are the fraction over all runs x episodes (the mean: an IQM of 0/1 values is
     ``clip(2 p - 1/2, 0, 1)`` of the rate ``p``, not a rate); every other metric is the IQM of the matrix
-    (:func:`iqm`). Both with :func:`stratified_bootstrap_ci` (seed ``BOOTSTRAP_SEED + metric index``, as
+    (:func:`iqm`). Both with :func:`hierarchical_bootstrap_ci` (seed ``BOOTSTRAP_SEED + metric index``, as
     :func:`aggregate`).
 
     Args:
-        runs: One list of per-episode results per training seed (the same evaluation seeds in each).
+        runs: One list of per-episode results per training seed: the same draws in each (a deterministic task), or
+            each its share of the draws (a randomised task, :func:`uvdms_gym.seeds.assign_draws`).
 
     Raises:
         ValueError: No runs.
@@ -153,7 +154,7 @@ def aggregate_runs(runs: Sequence[Sequence[Mapping[str, Any]]]) -> dict[str, Sta
     out = {}
     for index, metric in enumerate(METRICS):
         estimator = "mean" if metric in RATE_METRICS else "iqm"
-        out[metric] = stratified_bootstrap_ci(
+        out[metric] = hierarchical_bootstrap_ci(
             run_matrix(runs, metric), estimator=estimator, seed=BOOTSTRAP_SEED + index
         )
     return out

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
+from leaderboard.stats.generalization import GeneralizationCheck
 from leaderboard.stats.intervals import Stat, intervals_overlap
 from leaderboard.stats.metrics import timing_summary
 from leaderboard.suite.entries import Entry
@@ -24,7 +25,11 @@ value would be ranked apart)."""
 
 @dataclass
 class RankedRow:
-    """A (track, task, entry) cell of the leaderboard."""
+    """A (track, task, entry) cell of the leaderboard.
+
+    ``episodes`` are those of the ranking's split; a randomised task of a run on the ``test`` split also has the
+    generalisation ``check`` and the episodes of the second test set it was computed from (``check_episodes``).
+    """
 
     entry: Entry
     task: Task
@@ -32,6 +37,8 @@ class RankedRow:
     episodes: list[dict[str, Any]]
     rank: int = 0
     tied: bool = False
+    check: GeneralizationCheck | None = None
+    check_episodes: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def rank_label(self) -> str:

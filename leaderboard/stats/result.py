@@ -19,6 +19,7 @@ class LeaderboardResult:
     entries: list[Entry]
     tasks: tuple[Task, ...]
     seeds: list[int]
+    """The draws of a randomised task on ``split`` (a deterministic task evaluates the first)."""
     computed: int
     cached: int
     corrupt: list[Path]
@@ -26,3 +27,7 @@ class LeaderboardResult:
     markdown: str = ""
     timing: dict[str, Any] = field(default_factory=dict)
     reused: int = 0
+    split: str = "test"
+    """The seed split the ranking used (:mod:`uvdms_gym.seeds`)."""
+    check_seeds: list[int] = field(default_factory=list)
+    """The draws of the generalisation check's second test set (empty without the check)."""

@@ -1,4 +1,9 @@
-"""The task suite (the paper's three tasks and their held-out randomised variants), tracks and evaluation seeds."""
+"""The task suite (the paper's three tasks and their held-out randomised variants), tracks and each task's draws.
+
+The draws are the seeds of the protocol of :mod:`uvdms_gym.seeds`: draw ``i`` of a split is its seed ``start + i``;
+a deterministic task (the paper's: a fixed start, no randomisation) has one draw, a randomised task
+:data:`DEFAULT_EPISODES`.
+"""
 
 from __future__ import annotations
 
@@ -8,14 +13,19 @@ from typing import Any
 
 from gymnasium.envs.registration import parse_env_id
 
+from uvdms_gym.seeds import split_seeds
 from uvdms_gym.utils.kwargs import env_family  # re-exported: the one home of the versionless id
 
-SEED_BASE = 2_000_000_000
-"""Evaluation seed of episode ``i`` is ``SEED_BASE + i`` (``docs/leaderboard.md``, Seeds)."""
 TRACKS: tuple[str, ...] = ("velocity", "torque")
 """The two tracks, by the action mode their entries command."""
-DEFAULT_EPISODES = 20
+DEFAULT_EPISODES = 100
+"""Draws of a randomised task (a rate near 0.5 then has a 95 % interval of about +-0.1)."""
 QUICK_EPISODES = 2
+"""Draws of a randomised task with ``--quick`` (which runs the deterministic paper tasks only)."""
+DEFAULT_SPLIT = "test"
+"""The split the leaderboard ranks on (:mod:`uvdms_gym.seeds`)."""
+CHECK_SPLIT = "test2"
+"""The second test set: the randomised tasks' generalisation check (:mod:`leaderboard.stats.generalization`)."""
 
 
 @dataclass(frozen=True)
@@ -30,6 +40,8 @@ class Task:
         paper: One of the paper's tasks (run by ``--quick``).
         trajectory: Store the minimum distance over time of the first episode (for the distance plot).
         max_episode_steps: Step limit override (``None``: the registered limit).
+        deterministic: A fixed start and no randomisation: every seed gives the same episode, so the task has one
+            draw, which every training seed of an entry evaluates (:meth:`draws`).
     """
 
     name: str
@@ -39,6 +51,11 @@ class Task:
     paper: bool = True
     trajectory: bool = False
     max_episode_steps: int | None = None
+    deterministic: bool = False
+
+    def draws(self, split: str, episodes: int) -> list[int]:
+        """The task's draws on ``split``: one for a deterministic task, else ``episodes`` (``split_seeds``)."""
+        return split_seeds(split, 1 if self.deterministic else episodes)
 
     def spec(self, track: str, env_id: str | None = None) -> dict[str, Any]:
         """The environment specification of this task on ``track`` (part of the cache key).
@@ -70,9 +87,9 @@ CIRCLE_ID, TRANSPORT_ID = "uvdms/CircleTrack-v0", "uvdms/Transport-v0"
 OBSTACLES_ID = "uvdms/TransportObstacles-v1"
 HYDRO_RANDOMIZATION = 0.3
 TASKS: tuple[Task, ...] = (
-    Task("case1", "Case 1", CIRCLE_ID, {"case": 1}, paper=True, trajectory=True),
-    Task("case2", "Case 2", CIRCLE_ID, {"case": 2}, paper=True, trajectory=True),
-    Task("transport", "Transport", TRANSPORT_ID, {"goal": "paper"}, paper=True),
+    Task("case1", "Case 1", CIRCLE_ID, {"case": 1}, paper=True, trajectory=True, deterministic=True),
+    Task("case2", "Case 2", CIRCLE_ID, {"case": 2}, paper=True, trajectory=True, deterministic=True),
+    Task("transport", "Transport", TRANSPORT_ID, {"goal": "paper"}, paper=True, deterministic=True),
     Task(
         "circle-random",
         "Random circles, hydro ±30 %",
@@ -114,8 +131,3 @@ def select_tasks(names: Sequence[str] | None = None, *, quick: bool = False) -> 
     else:
         tasks = TASKS
     return tuple(t for t in tasks if t.paper) if quick else tasks
-
-
-def evaluation_seeds(episodes: int, base: int = SEED_BASE) -> list[int]:
-    """The evaluation seeds ``base + i`` for ``i < episodes``."""
-    return [base + i for i in range(episodes)]
