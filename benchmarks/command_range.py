@@ -2,12 +2,14 @@
 
     python benchmarks/command_range.py [--controller campc] [--task circle-random] [--episodes 3] [--scale 0.3]
 
-Runs ``--episodes`` held-out episodes of the task (the leaderboard's seeds, from ``SEED_BASE``) with the controller
-and, over the steps after the task's transient (the samples its RMSE counts: ``t >= env.unwrapped.tracking_transient``,
-:mod:`uvdms_gym.evaluation`), prints per action axis the 99th percentile and the maximum of
-``|action|``, and the fraction of steps on which any axis exceeds ``--scale``. An end-to-end learner trained with
-``action_scale`` s commands at most ``s`` of ``zeta_max`` on every axis; where the tracking controller needs more,
-the learner cannot track as it does, however long it trains (``docs/LEARNED_CONTROLLERS.md``, pure RL).
+Runs ``--episodes`` episodes of the task on the first validation draws
+(``uvdms_gym.seeds.split_seeds("validation", n)``, the seeds ``2_000_000_000 + i``: a development tool never uses
+the leaderboard's test seeds) with the controller and, over the steps after the task's transient (the samples its
+RMSE counts: ``t >= env.unwrapped.tracking_transient``, :mod:`uvdms_gym.evaluation`), prints per action axis the
+99th percentile and the maximum of ``|action|``, and the fraction of steps on which any axis exceeds ``--scale``.
+An end-to-end learner trained with ``action_scale`` s commands at most ``s`` of ``zeta_max`` on every axis; where
+the tracking controller needs more, the learner cannot track as it does, however long it trains
+(``docs/LEARNED_CONTROLLERS.md``, pure RL).
 """
 
 from __future__ import annotations
@@ -21,7 +23,8 @@ import numpy as np
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 from leaderboard.suite.registry import make_controller
-from leaderboard.suite.tasks import SEED_BASE, select_tasks
+from leaderboard.suite.tasks import select_tasks
+from uvdms_gym.seeds import split_seeds
 
 
 def episode_actions(env: gym.Env, controller: Any, seed: int) -> np.ndarray:
@@ -45,7 +48,7 @@ def command_range(controller_name: str, task_name: str, episodes: int, scale: fl
     env = gym.make(task.env_id, **task.spec("velocity")["env_kwargs"])
     try:
         controller = make_controller(controller_name, env)
-        per_episode = [episode_actions(env, controller, SEED_BASE + i) for i in range(episodes)]
+        per_episode = [episode_actions(env, controller, seed) for seed in split_seeds("validation", episodes)]
     finally:
         env.close()
     actions = np.concatenate(per_episode)

@@ -3,7 +3,8 @@
     python benchmarks/controller_cost.py [--controllers campc trained_agents/distilled-dagger-campc-circle-v1/seed_0]
                                          [--task case1] [--rounds 5] [--max-steps 200]
 
-Each round runs one episode of every controller on the same task and seed, one controller after the other
+Each round runs one episode of every controller on the same task and seed (the first validation draw,
+``uvdms_gym.seeds.VALIDATION.start``), one controller after the other
 (interleaved, so that a change of machine load affects all of them alike); an episode's figure is the median wall
 time of ``controller.predict`` (``controller_ms_median`` of :func:`uvdms_gym.evaluation.run_episode`). The output
 gives, per controller, the median over rounds, and its ratio to the first controller's. The acceptance figure of a
@@ -23,8 +24,9 @@ import numpy as np
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 from leaderboard.suite.registry import make_controller
-from leaderboard.suite.tasks import SEED_BASE, select_tasks
+from leaderboard.suite.tasks import select_tasks
 from uvdms_gym.evaluation import run_episode
+from uvdms_gym.seeds import VALIDATION
 from uvdms_gym.utils.provenance import load_average, machine_info
 
 DEFAULT_CONTROLLERS = ("campc", "trained_agents/distilled-dagger-campc-circle-v1/seed_0")
@@ -38,7 +40,7 @@ def controller_cost(controllers: list[str], task_name: str, rounds: int, max_ste
         for name in controllers:
             env = gym.make(task.env_id, max_episode_steps=max_steps, **task.spec("velocity")["env_kwargs"])
             controller = make_controller(name, env)
-            metrics = run_episode(env, controller, seed=SEED_BASE)
+            metrics = run_episode(env, controller, seed=VALIDATION.start)
             medians[name].append(float(metrics["controller_ms_median"]))
             env.close()
     first = float(np.median(medians[controllers[0]]))

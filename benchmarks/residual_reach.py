@@ -3,16 +3,17 @@
     python benchmarks/residual_reach.py [--episodes 10] [--scales 0.1 0.3 1.0] [--task circle|transport|case1|case2]
                                         [--teacher-margin 0.0]
 
-The oracle residual is CAMPC's correction of plain MPC, clipped to what a residual agent of scale ``s`` can
-send: ``a = clip(a_mpc + s * clip((a_campc - a_mpc) / s, -1, 1), -1, 1)`` (``uvdms_gym.residual``'s formula with
-the policy output ``teacher_residual(a_campc, a_mpc, s)``, the label ``--algo dagger`` learns from). Both MPCs see
-the same state every step. ``s = inf`` (reported as the CAMPC row) sends CAMPC's action itself. If the oracle of
-scale ``s`` is not contact-free, no residual agent of that scale can learn CAMPC's avoidance by imitating it; the
-rows give contact-free rate, success rate and position RMSE on the leaderboard's randomised task (held-out seeds,
-hydro +-30 %; ``case1``/``case2``: the paper's fixed circles), the closest approach of any pair over the episodes,
-and the largest correction CAMPC needed, ``max |a_campc - a_mpc|``. ``--teacher-margin m`` moves CAMPC's collision
-thresholds out by ``m`` (the DAgger teacher of ``teacher_margin=m``): the closest approach then says how much
-imitation error a learner of that teacher can afford before it reaches ``d1``.
+The oracle residual is CAMPC's correction of plain MPC, clipped to what a residual agent of scale ``s`` can send:
+``a = clip(a_mpc + s * clip((a_campc - a_mpc) / s, -1, 1), -1, 1)`` (``uvdms_gym.residual``'s formula with the
+policy output ``teacher_residual(a_campc, a_mpc, s)``, the label ``--algo dagger`` learns from). Both MPCs see the
+same state every step. ``s = inf`` (reported as the CAMPC row) sends CAMPC's action itself. If the oracle of scale
+``s`` is not contact-free, no residual agent of that scale can learn CAMPC's avoidance by imitating it; the rows
+give contact-free rate, success rate and position RMSE on the leaderboard's randomised task (the first validation
+draws, ``uvdms_gym.seeds.split_seeds("validation", n)``, never test seeds; hydro +-30 %; ``case1``/``case2``: the
+paper's fixed circles), the closest approach of any pair over the episodes, and the largest correction CAMPC needed,
+``max |a_campc - a_mpc|``. ``--teacher-margin m`` moves CAMPC's collision thresholds out by ``m`` (the DAgger
+teacher of ``teacher_margin=m``): the closest approach then says how much imitation error a learner of that teacher
+can afford before it reaches ``d1``.
 """
 
 from __future__ import annotations
@@ -27,9 +28,10 @@ import numpy as np
 import uvdms_gym  # noqa: F401  (registers the ids)
 from baselines.controllers import make_baseline
 from leaderboard.suite.registry import BaselineFactory
-from leaderboard.suite.tasks import SEED_BASE, TASKS
+from leaderboard.suite.tasks import TASKS
 from uvdms_gym.evaluation import run_episode, summarize
 from uvdms_gym.residual import compose_residual, teacher_residual
+from uvdms_gym.seeds import split_seeds
 
 
 class OracleResidual:
@@ -69,7 +71,7 @@ def main() -> None:
     for scale in [*args.scales, None]:
         env = gym.make(task.env_id, **task.spec("velocity")["env_kwargs"])
         controller = OracleResidual(env, scale, args.teacher_margin)
-        results = [run_episode(env, controller, SEED_BASE + i) for i in range(args.episodes)]
+        results = [run_episode(env, controller, seed) for seed in split_seeds("validation", args.episodes)]
         env.close()
         summary = summarize(results)
         out["rows"]["campc" if scale is None else f"s={scale:g}"] = {

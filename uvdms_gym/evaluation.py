@@ -43,11 +43,12 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from uvdms_gym.seeds import PROTOCOL, protocol_record, split_of
 from uvdms_gym.utils.io import to_jsonable, write_json_atomic
 from uvdms_gym.utils.provenance import git_info, package_versions, timing_record
 
@@ -345,6 +346,18 @@ def controller_settings(controller: Any) -> dict:
     return to_jsonable(out)
 
 
+def seed_protocol(seeds: Sequence[int]) -> dict[str, Any]:
+    """What a result records of the seed protocol (:mod:`uvdms_gym.seeds`) its episodes' ``seeds`` follow.
+
+    Returns:
+        ``{"protocol": PROTOCOL, "split": split}``: the split holding every one of ``seeds`` (``"validation"``,
+        ``"test"``, ...), or ``None`` when they lie in no split or in several.
+    """
+    splits = {split_of(int(s)) for s in seeds}
+    split = splits.pop() if len(splits) == 1 else None
+    return protocol_record(split) if split is not None else {"protocol": PROTOCOL, "split": None}
+
+
 def evaluate_controller(
     make_controller: Callable[[Any], Any],
     env_id: str,
@@ -352,20 +365,25 @@ def evaluate_controller(
     episodes: int = 5,
     seed: int = 0,
     *,
+    seeds: Sequence[int] | None = None,
     label: str = "controller",
     out: str | None = None,
     save_trajectory: bool = False,
     progress: bool = True,
     check: Callable[[Any, Any], None] | None = None,
 ) -> dict:
-    """Evaluate the controller ``make_controller(env)`` over ``episodes`` seeded episodes (``seed, seed + 1, ...``).
+    """Evaluate the controller ``make_controller(env)`` over ``episodes`` seeded episodes.
+
+    The episodes' seeds are ``seed, seed + 1, ...`` unless ``seeds`` names them (the draws of a split,
+    :func:`uvdms_gym.seeds.split_seeds`, or the share of one training seed, :func:`uvdms_gym.seeds.assign_draws`).
 
     Args:
         make_controller: Builds the controller for the environment (called once, inside the timed block).
         env_id: Gymnasium id, e.g. ``"uvdms/CircleTrack-v0"``.
         env_kwargs: ``gymnasium.make`` keyword arguments (the effective ones are recorded in ``meta``).
         episodes: Number of episodes (>= 1).
-        seed: Seed of the first episode.
+        seed: Seed of the first episode (not used when ``seeds`` is given).
+        seeds: The episodes' seeds, in order; ``len(seeds)`` must equal ``episodes``.
         label: What ``meta["controller"]`` records (a baseline name, an agent path) and the progress bar shows.
         out: JSON file to write (:func:`uvdms_gym.utils.io.write_json_atomic`); ``None`` writes nothing.
         save_trajectory: Keep each episode's time series.
@@ -374,13 +392,15 @@ def evaluate_controller(
 
     Returns:
         ``{"episodes": [...], "summary": {...}, "meta": {...}}``; ``meta`` holds the controller label, env id,
-        effective env kwargs, seeds, package versions, git revision, wall time, the machine and the load
-        around the timed episodes (``timing``: :func:`uvdms_gym.utils.provenance.timing_record`; the per-episode
-        ``controller_ms_median`` is only comparable between runs with ``overloaded`` false on the same
-        machine) and the controller's settings (:func:`controller_settings`).
+        effective env kwargs, seeds, the seed protocol they follow (``seed_protocol``: :func:`seed_protocol`),
+        package versions, git revision, wall time, the machine and the load around the timed episodes
+        (``timing``: :func:`uvdms_gym.utils.provenance.timing_record`; the per-episode ``controller_ms_median`` is
+        only comparable between runs with ``overloaded`` false on the same machine) and the controller's settings
+        (:func:`controller_settings`).
 
     Raises:
-        ValueError: ``episodes < 1``, or what ``make_controller`` and ``check`` raise.
+        ValueError: ``episodes < 1``, ``seeds`` of another length, or what ``make_controller`` and ``check``
+            raise.
     """
     import gymnasium as gym
 
@@ -388,8 +408,10 @@ def evaluate_controller(
 
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
+    seeds = [int(seed) + i for i in range(episodes)] if seeds is None else [int(s) for s in seeds]
+    if len(seeds) != episodes:
+        raise ValueError(f"episodes={episodes} but {len(seeds)} seeds were given")
     kwargs = dict(env_kwargs or {})
-    seeds = [int(seed) + i for i in range(episodes)]
     env = gym.make(env_id, **kwargs)
     try:
         with timing_record() as timing:
@@ -425,6 +447,7 @@ def evaluate_controller(
                 "env_kwargs": kwargs,
                 "episodes": episodes,
                 "seeds": seeds,
+                "seed_protocol": seed_protocol(seeds),
                 "versions": package_versions(),
                 "git": git_info(),
                 "wall_s": wall_s,

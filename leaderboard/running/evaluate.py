@@ -3,26 +3,37 @@
 :func:`evaluate` evaluates a named baseline or an agent path, resolved and composed by
 :mod:`leaderboard.suite.registry`, through :func:`uvdms_gym.evaluation.evaluate_controller`.
 :func:`evaluate_entry` resolves the controller (a shipped agent's name from any working directory, a former name
-of a renamed shipped folder) and evaluates it with :func:`evaluate`. A folder of training seeds
-(``<entry>/seed_<k>/``, :func:`leaderboard.suite.entries.multi_seed_entry`) is evaluated seed by seed on the same
-evaluation seeds and aggregated as the leaderboard aggregates such an entry
-(:func:`leaderboard.stats.metrics.aggregate_runs`: rates as the fraction of all seeds x episodes, every other metric
-as the interquartile mean, with the stratified bootstrap interval). A path to one seed folder evaluates that seed
-alone.
+of a renamed shipped folder) and evaluates it with :func:`evaluate`. The episodes' seeds are given as a list of
+draws (``uvdms evaluate`` passes those of a split, :func:`uvdms_gym.seeds.split_seeds`) or as a first seed.
+
+A folder of training seeds (``<entry>/seed_<k>/``, :func:`leaderboard.suite.entries.multi_seed_entry`) is
+evaluated seed by seed. By default the draws are spread over the training seeds as the leaderboard spreads them on
+its randomised tasks (:func:`uvdms_gym.seeds.assign_draws`: draw ``i`` is evaluated once, by the ``i % n``-th
+seed folder), so that ``N`` draws cost ``N`` episodes; the episodes pool into one sample (rates as the fraction,
+every other metric as the interquartile mean, with a bootstrap interval over the episodes: :func:`aggregate_spread`).
+With ``every_seed`` every training seed evaluates every draw, and the row is aggregated as
+:func:`leaderboard.stats.metrics.aggregate_runs` aggregates seeds x episodes (the stratified bootstrap interval).
+A path to one seed folder evaluates that seed alone, on every draw.
 
 The multi-seed result is ``{"episodes": [...], "summary": {...}, "meta": {...}}`` like a single controller's, where
 ``summary`` holds ``entry``, ``seeds`` (folder name -> training seed), ``aggregation`` (how), ``aggregate`` (metric
--> ``{"mean", "low", "high", "n"[, "estimator"]}``, the leaderboard's row) and ``per_seed`` (folder name -> that
-seed's own summary); every episode carries its ``seed_folder`` and ``training_seed``.
+-> ``{"mean", "low", "high", "n"[, "estimator"]}``, the entry's row) and ``per_seed`` (folder name -> that seed's
+own summary); every episode carries its ``seed_folder`` and ``training_seed``. ``meta`` is the first seed's, with
+``episodes``, ``seeds`` and ``seed_protocol`` of all the draws and ``draw_assignment`` (``rule``: ``"spread"`` or
+``"every_seed"``, ``description``, and ``by_seed_folder``: folder name -> the draws it evaluated).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from leaderboard.running.cache import compact_result
-from leaderboard.stats.metrics import aggregate_runs
+from leaderboard.stats.intervals import BOOTSTRAP_SEED, Stat, stratified_bootstrap_ci
+from leaderboard.stats.metrics import METRICS, RATE_METRICS, aggregate_runs, run_matrix
 from leaderboard.suite.entries import is_multi_seed_folder, multi_seed_entry
 from leaderboard.suite.registry import (
     CONTROLLERS,
@@ -34,13 +45,25 @@ from leaderboard.suite.registry import (
     unknown_controller,
     with_safety_filter,
 )
+from uvdms_gym.evaluation import seed_protocol
+from uvdms_gym.seeds import assign_draws
 from uvdms_gym.utils.io import write_json_atomic
 
 AGGREGATION = (
     "over training seeds x episodes: rates as the fraction, every other metric as the interquartile mean (IQM); "
     "95% stratified bootstrap intervals (the leaderboard's multi-seed rows)"
 )
-"""How a multi-seed summary's ``aggregate`` was computed."""
+"""How a multi-seed summary's ``aggregate`` was computed when every training seed evaluated every draw."""
+AGGREGATION_SPREAD = (
+    "over the episodes of all training seeds, each draw evaluated once: rates as the fraction, every other metric "
+    "as the interquartile mean (IQM); 95% bootstrap intervals over the episodes"
+)
+"""How a multi-seed summary's ``aggregate`` was computed when the draws were spread over the training seeds."""
+DRAW_RULES = {
+    "spread": "draw i is evaluated once, by the (i % n)-th of the n seed folders (uvdms_gym.seeds.assign_draws)",
+    "every_seed": "every seed folder evaluates every draw",
+}
+"""How a multi-seed evaluation gives the draws to the training seeds (``meta["draw_assignment"]["rule"]``)."""
 
 
 def evaluate(
@@ -50,13 +73,14 @@ def evaluate(
     episodes: int = 5,
     seed: int = 0,
     *,
+    seeds: Sequence[int] | None = None,
     out: str | None = None,
     save_trajectory: bool = False,
     progress: bool = True,
     trust: bool = False,
     safety_filter: bool = False,
 ) -> dict:
-    """Evaluate a named controller or an agent over ``episodes`` seeded episodes (seeds ``seed, seed + 1, ...``).
+    """Evaluate a named controller or an agent over ``episodes`` seeded episodes (``seed, seed + 1, ...`` or ``seeds``).
 
     A named controller's required ``action_mode`` is filled into ``env_kwargs`` when not given (an explicit,
     different one raises ``ValueError``); an agent's environment gets the ``action_mode`` the agent was trained
@@ -67,7 +91,8 @@ def evaluate(
         env_id: Gymnasium id, e.g. ``"uvdms/CircleTrack-v0"``.
         env_kwargs: ``gymnasium.make`` keyword arguments.
         episodes: Number of episodes (>= 1).
-        seed: Seed of the first episode.
+        seed: Seed of the first episode (not used when ``seeds`` is given).
+        seeds: The episodes' seeds (e.g. draws of a split); ``len(seeds)`` must equal ``episodes``.
         out: JSON file to write (atomically); ``None`` writes nothing.
         save_trajectory: Keep each episode's time series.
         progress: Show a tqdm progress bar.
@@ -128,6 +153,7 @@ def evaluate(
         kwargs,
         episodes,
         seed,
+        seeds=seeds,
         label=controller_spec,
         out=out,
         save_trajectory=save_trajectory,
@@ -143,28 +169,41 @@ def evaluate_entry(
     episodes: int = 5,
     seed: int = 0,
     *,
+    seeds: Sequence[int] | None = None,
+    every_seed: bool = False,
     out: str | None = None,
     **options: Any,
 ) -> dict[str, Any]:
     """Evaluate a baseline, an agent or a multi-seed entry folder over seeded episodes (module docstring).
 
-    The arguments are those of :func:`evaluate` (``options``: ``save_trajectory``,
-    ``progress``, ``trust``, ``safety_filter``).
+    The arguments are those of :func:`evaluate` (``options``: ``save_trajectory``, ``progress``, ``trust``,
+    ``safety_filter``); the draws are ``seeds`` if given, else ``seed, ..., seed + episodes - 1``. A multi-seed
+    folder spreads them over its training seeds (:func:`draw_shares`) unless ``every_seed``.
 
     Raises:
-        ValueError: As :func:`evaluate`; for a multi-seed folder, as
+        ValueError: As :func:`evaluate`; ``every_seed`` for a controller that is not a folder of training seeds;
+            for a multi-seed folder, fewer draws than training seeds to spread them over, or as
             :func:`leaderboard.suite.entries.multi_seed_entry` (a malformed folder of seeds).
     """
+    draws = [int(seed) + i for i in range(episodes)] if seeds is None else [int(s) for s in seeds]
     spec = resolve_controller(controller_spec)
     if spec in CONTROLLERS or not is_multi_seed_folder(spec):
-        return evaluate(spec, env_id, env_kwargs, episodes, seed, out=out, **options)
+        if every_seed:
+            raise ValueError(
+                f"--every-seed applies to a folder of training seeds (seed_<k>/ sub-folders); {controller_spec} is "
+                "one controller, which evaluates every draw anyway"
+            )
+        return evaluate(spec, env_id, env_kwargs, len(draws), seeds=draws, out=out, **options)
     entry = multi_seed_entry(spec, trust=bool(options.get("trust", False)))
+    members = {Path(member.spec).name: member for member in entry.members}
+    shares = draw_shares(list(members), draws, every_seed)
     per_seed = {
-        Path(member.spec).name: (member, evaluate(member.spec, env_id, env_kwargs, episodes, seed, **options))
-        for member in entry.members
+        name: (member, evaluate(member.spec, env_id, env_kwargs, len(shares[name]), seeds=shares[name], **options))
+        for name, member in members.items()
     }
     runs = [[compact_result(ep) for ep in result["episodes"]] for _, result in per_seed.values()]
-    stats = aggregate_runs(runs)
+    stats = aggregate_runs(runs) if every_seed else aggregate_spread(runs)
+    rule = "every_seed" if every_seed else "spread"
     result = {
         "episodes": [
             {**ep, "seed_folder": name, "training_seed": member.training_seed}
@@ -173,13 +212,56 @@ def evaluate_entry(
         ],
         "summary": {
             "entry": spec,
-            "seeds": {name: member.training_seed for name, (member, _) in per_seed.items()},
-            "aggregation": AGGREGATION,
+            "seeds": {name: member.training_seed for name, member in members.items()},
+            "aggregation": AGGREGATION if every_seed else AGGREGATION_SPREAD,
             "aggregate": {metric: stat.to_json() for metric, stat in stats.items()},
             "per_seed": {name: one["summary"] for name, (_, one) in per_seed.items()},
         },
-        "meta": next(iter(per_seed.values()))[1]["meta"],
+        "meta": {
+            **next(iter(per_seed.values()))[1]["meta"],
+            "episodes": len(draws),
+            "seeds": draws,
+            "seed_protocol": seed_protocol(draws),
+            "draw_assignment": {"rule": rule, "description": DRAW_RULES[rule], "by_seed_folder": shares},
+        },
     }
     if out is not None:
         write_json_atomic(out, result)
     return result
+
+
+def draw_shares(folders: Sequence[str], draws: Sequence[int], every_seed: bool = False) -> dict[str, list[int]]:
+    """The draws each seed folder of a multi-seed entry evaluates: all of them (``every_seed``) or its share.
+
+    The share of the ``k``-th of ``n`` folders is ``draws[i]`` for ``i % n == k``
+    (:func:`uvdms_gym.seeds.assign_draws`).
+
+    Raises:
+        ValueError: Fewer draws than folders to spread them over (a folder would evaluate nothing).
+    """
+    if every_seed:
+        return {name: list(draws) for name in folders}
+    if len(draws) < len(folders):
+        raise ValueError(
+            f"{len(draws)} episode(s) cannot be spread over {len(folders)} training seeds (draw i goes to seed "
+            f"folder i % {len(folders)}): give --episodes {len(folders)} or more, or --every-seed"
+        )
+    return {name: assign_draws(draws, len(folders), k) for k, name in enumerate(folders)}
+
+
+def aggregate_spread(runs: Sequence[Sequence[dict[str, Any]]]) -> dict[str, Stat]:
+    """The row of a multi-seed entry whose draws were spread over its training seeds (each draw evaluated once).
+
+    The episodes of all runs pool into one sample, in the order of their seeds: rates (:data:`RATE_METRICS`) as the
+    fraction, every other metric as the interquartile mean, with the bootstrap interval over the episodes
+    (:func:`leaderboard.stats.intervals.stratified_bootstrap_ci` of one stratum holding them all; seed
+    ``BOOTSTRAP_SEED + metric index``, as :func:`leaderboard.stats.metrics.aggregate_runs`). The stratified interval
+    of :func:`aggregate_runs` would have one episode per stratum here, and no width.
+    """
+    out = {}
+    for index, metric in enumerate(METRICS):
+        by_seed = run_matrix(runs, metric).T  # one row per draw (sorted seeds), one column per run
+        pooled = by_seed[np.isfinite(by_seed)].reshape(-1, 1)
+        estimator = "mean" if metric in RATE_METRICS else "iqm"
+        out[metric] = stratified_bootstrap_ci(pooled, estimator=estimator, seed=BOOTSTRAP_SEED + index)
+    return out

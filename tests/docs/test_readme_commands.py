@@ -196,10 +196,10 @@ SHRUNK: dict[str, Shrunk] = {
         creates=("exported/sac_case1/agent.json", "exported/sac_case1/policy.pt"),
     ),
     "uvdms evaluate --controller trained_agents/ppo-circle-case1-v0 --env uvdms/CircleTrack-v0 --env-kwargs case=1 "
-    "--episodes 10 --seed 1000 --out out/eval.json": Shrunk(
+    "--episodes 10 --split validation --out out/eval.json": Shrunk(
         "evaluate",
         "uvdms evaluate --controller trained_agents/ppo-circle-case1-v0 --env uvdms/CircleTrack-v0 --env-kwargs case=1 "
-        "max_episode_steps=20 --episodes 1 --seed 1000 --out out/eval.json --no-progress",
+        "max_episode_steps=20 --episodes 1 --split validation --out out/eval.json --no-progress",
         creates=("out/eval.json",),
         stdout_json=True,
     ),
