@@ -9,10 +9,10 @@ draws (``uvdms evaluate`` passes those of a split, :func:`uvdms_gym.seeds.split_
 A folder of training seeds (``<entry>/seed_<k>/``, :func:`leaderboard.suite.entries.multi_seed_entry`) is
 evaluated seed by seed. By default the draws are spread over the training seeds as the leaderboard spreads them on
 its randomised tasks (:func:`uvdms_gym.seeds.assign_draws`: draw ``i`` is evaluated once, by the ``i % n``-th
-seed folder), so that ``N`` draws cost ``N`` episodes; the episodes pool into one sample (rates as the fraction,
-every other metric as the interquartile mean, with a bootstrap interval over the episodes: :func:`aggregate_spread`).
-With ``every_seed`` every training seed evaluates every draw, and the row is aggregated as
-:func:`leaderboard.stats.metrics.aggregate_runs` aggregates seeds x episodes (the stratified bootstrap interval).
+seed folder), so that ``N`` draws cost ``N`` episodes; with ``every_seed`` every training seed evaluates every draw.
+Either way the row is aggregated as the leaderboard aggregates it (:func:`leaderboard.stats.metrics.aggregate_runs`:
+rates as the fraction, every other metric as the interquartile mean, with a hierarchical bootstrap interval that
+resamples the draws, then the training seeds within each draw).
 A path to one seed folder evaluates that seed alone, on every draw.
 
 The multi-seed result is ``{"episodes": [...], "summary": {...}, "meta": {...}}`` like a single controller's, where
@@ -29,11 +29,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from leaderboard.running.cache import compact_result
-from leaderboard.stats.intervals import BOOTSTRAP_SEED, Stat, stratified_bootstrap_ci
-from leaderboard.stats.metrics import METRICS, RATE_METRICS, aggregate_runs, run_matrix
+from leaderboard.stats.metrics import aggregate_runs
 from leaderboard.suite.entries import is_multi_seed_folder, multi_seed_entry
 from leaderboard.suite.registry import (
     CONTROLLERS,
@@ -50,15 +47,11 @@ from uvdms_gym.seeds import assign_draws
 from uvdms_gym.utils.io import write_json_atomic
 
 AGGREGATION = (
-    "over training seeds x episodes: rates as the fraction, every other metric as the interquartile mean (IQM); "
-    "95% stratified bootstrap intervals (the leaderboard's multi-seed rows)"
+    "over the episodes of all training seeds: rates as the fraction, every other metric as the interquartile mean "
+    "(IQM); 95% hierarchical bootstrap intervals (draws, then training seeds within each draw; the leaderboard's "
+    "multi-seed rows)"
 )
-"""How a multi-seed summary's ``aggregate`` was computed when every training seed evaluated every draw."""
-AGGREGATION_SPREAD = (
-    "over the episodes of all training seeds, each draw evaluated once: rates as the fraction, every other metric "
-    "as the interquartile mean (IQM); 95% bootstrap intervals over the episodes"
-)
-"""How a multi-seed summary's ``aggregate`` was computed when the draws were spread over the training seeds."""
+"""How a multi-seed summary's ``aggregate`` was computed."""
 DRAW_RULES = {
     "spread": "draw i is evaluated once, by the (i % n)-th of the n seed folders (uvdms_gym.seeds.assign_draws)",
     "every_seed": "every seed folder evaluates every draw",
@@ -202,7 +195,7 @@ def evaluate_entry(
         for name, member in members.items()
     }
     runs = [[compact_result(ep) for ep in result["episodes"]] for _, result in per_seed.values()]
-    stats = aggregate_runs(runs) if every_seed else aggregate_spread(runs)
+    stats = aggregate_runs(runs)
     rule = "every_seed" if every_seed else "spread"
     result = {
         "episodes": [
@@ -213,7 +206,7 @@ def evaluate_entry(
         "summary": {
             "entry": spec,
             "seeds": {name: member.training_seed for name, member in members.items()},
-            "aggregation": AGGREGATION if every_seed else AGGREGATION_SPREAD,
+            "aggregation": AGGREGATION,
             "aggregate": {metric: stat.to_json() for metric, stat in stats.items()},
             "per_seed": {name: one["summary"] for name, (_, one) in per_seed.items()},
         },
@@ -247,21 +240,3 @@ def draw_shares(folders: Sequence[str], draws: Sequence[int], every_seed: bool =
             f"folder i % {len(folders)}): give --episodes {len(folders)} or more, or --every-seed"
         )
     return {name: assign_draws(draws, len(folders), k) for k, name in enumerate(folders)}
-
-
-def aggregate_spread(runs: Sequence[Sequence[dict[str, Any]]]) -> dict[str, Stat]:
-    """The row of a multi-seed entry whose draws were spread over its training seeds (each draw evaluated once).
-
-    The episodes of all runs pool into one sample, in the order of their seeds: rates (:data:`RATE_METRICS`) as the
-    fraction, every other metric as the interquartile mean, with the bootstrap interval over the episodes
-    (:func:`leaderboard.stats.intervals.stratified_bootstrap_ci` of one stratum holding them all; seed
-    ``BOOTSTRAP_SEED + metric index``, as :func:`leaderboard.stats.metrics.aggregate_runs`). The stratified interval
-    of :func:`aggregate_runs` would have one episode per stratum here, and no width.
-    """
-    out = {}
-    for index, metric in enumerate(METRICS):
-        by_seed = run_matrix(runs, metric).T  # one row per draw (sorted seeds), one column per run
-        pooled = by_seed[np.isfinite(by_seed)].reshape(-1, 1)
-        estimator = "mean" if metric in RATE_METRICS else "iqm"
-        out[metric] = stratified_bootstrap_ci(pooled, estimator=estimator, seed=BOOTSTRAP_SEED + index)
-    return out

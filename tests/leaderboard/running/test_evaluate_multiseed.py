@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from leaderboard.running.cache import compact_result
-from leaderboard.running.evaluate import aggregate_spread, draw_shares, evaluate
+from leaderboard.running.evaluate import draw_shares, evaluate
 from leaderboard.stats.intervals import iqm
 from leaderboard.stats.metrics import aggregate_runs
 from uvdms_cli.main import main
@@ -87,11 +87,9 @@ def test_a_folder_of_seeds_spreads_the_validation_draws_over_its_seeds(tmp_path,
         assert _behaviour(summary["per_seed"][name]) == _behaviour(alone["summary"])
         assert alone["meta"]["seeds"] == share
         runs.append([compact_result(ep) for ep in alone["episodes"]])
-    expected = {metric: stat.to_json() for metric, stat in aggregate_spread(runs).items()}
+    expected = {metric: stat.to_json() for metric, stat in aggregate_runs(runs).items()}
     assert _behaviour(summary["aggregate"]) == _behaviour(json.loads(json.dumps(expected)))
-    assert (
-        summary["aggregate"]["return"]["n"] == 4 and "bootstrap intervals over the episodes" in summary["aggregation"]
-    )
+    assert summary["aggregate"]["return"]["n"] == 4 and "hierarchical bootstrap" in summary["aggregation"]
 
 
 def _episodes(values: dict[int, float]) -> list[dict]:
@@ -100,12 +98,12 @@ def _episodes(values: dict[int, float]) -> list[dict]:
 
 def test_spread_draws_pool_into_one_sample_whatever_seed_evaluated_them():
     values = {100 + i: float(v) for i, v in enumerate([3, -1, 4, 1, -5, 9, 2, 6])}
-    one_way = aggregate_spread([_episodes(dict(list(values.items())[k::3])) for k in range(3)])
-    other_way = aggregate_spread([_episodes(dict(list(values.items())[:5])), _episodes(dict(list(values.items())[5:]))])
+    one_way = aggregate_runs([_episodes(dict(list(values.items())[k::3])) for k in range(3)])
+    other_way = aggregate_runs([_episodes(dict(list(values.items())[:5])), _episodes(dict(list(values.items())[5:]))])
     assert {k: v.to_json() for k, v in one_way.items()} == {k: v.to_json() for k, v in other_way.items()}
     stat = one_way["return"]
     assert stat.mean == pytest.approx(iqm(np.array(list(values.values())))) and stat.n == 8
-    assert stat.low < stat.mean < stat.high  # a real interval (one episode per stratum would give none)
+    assert stat.low < stat.mean < stat.high  # a real interval: the draws are resampled
     assert one_way["success"].mean == pytest.approx(6 / 8) and one_way["success"].estimator == "mean"
 
 
