@@ -53,6 +53,7 @@ from agents.distributed.worker import CheckpointStore, RunJob, StoreClient, relo
 from agents.training.args import DEFAULT_GYM_PACKAGES
 from agents.training.rundir import RunDirError, latest_checkpoint, run_dir_for, utc_now
 from agents.training.spec import RunSpec
+from uvdms_gym.seeds import SeedProtocolError
 from uvdms_gym.utils.cluster import ray_session
 from uvdms_gym.utils.kwargs import check_make_kwargs, parse_kv
 
@@ -184,7 +185,10 @@ def plan_sweep(
             composition_factories(cfg, components)  # a residual or the filter needs the components
         except ConfigError as exc:
             raise ConfigError(f"{where}: {exc}") from None
-        check_seeds(seeds, cfg.n_envs, cfg.n_eval_envs)  # with this grid point's envs
+        try:
+            check_seeds(seeds, cfg.n_envs, cfg.n_eval_envs)  # with this grid point's envs
+        except SeedProtocolError as exc:
+            raise SeedProtocolError(f"{where}: {exc}") from None
         assert config_text is not None  # resolve_config read the file
         out_subdir = f"grid_{index}" if axes else ""
         for seed in seeds:
