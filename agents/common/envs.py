@@ -7,7 +7,13 @@ resulting picklable factories.
 
 Seed scheme (``seed`` = ``--seed``; segment k = 0 for a fresh run, k = 1, 2, ... for each ``--resume``):
 training env ``i`` of segment ``k`` is reset with seed ``seed + 1000 * k + i`` (:func:`train_env_seed`); the
-evaluation envs with ``seed + 1_000_000 + i`` before every evaluation (:func:`eval_env_seed`).
+evaluation envs with ``seed + 1_000_000 + i`` before every evaluation (:func:`eval_env_seed`). Under the seed
+protocol :data:`uvdms_gym.seeds.PROTOCOL` (:mod:`uvdms_gym.seeds`) ``seed`` and every seed derived from it are
+``training`` seeds (``[0, 1e9)``), never test seeds: :func:`check_training_seed` refuses, in one line, a seed
+whose derived seeds (:func:`largest_derived_seeds`: every training env of every segment up to
+:data:`MAX_SEGMENTS`, every evaluation env) would leave that range, e.g. any seed above ``1e9 - 1_000_001``.
+``uvdms train`` (fresh runs and resumes), ``uvdms sweep`` (each of ``--seeds``) and ``uvdms tune`` (the trials'
+``--seed``) check it before anything runs.
 """
 
 from __future__ import annotations
@@ -29,11 +35,16 @@ from agents.common.rollouts import RolloutVecEnv
 from agents.common.vecenv import HybridVecEnv
 from agents.common.wrappers import AliveBonus, ScalarInfo, ScaledAction
 from uvdms_gym.residual import ControllerFactory, FilteredAction, FilterFactory, ResidualAction, TeacherLabel
+from uvdms_gym.seeds import check_seeds
 
 SEGMENT_SEED_STRIDE = 1000
 """Seed distance between training segments (so at most 1000 training envs)."""
 EVAL_SEED_OFFSET = 1_000_000
 """Seed offset of the evaluation envs (so fewer than 1000 segments)."""
+MAX_SEGMENTS = EVAL_SEED_OFFSET // SEGMENT_SEED_STRIDE
+"""Segments a run may have (a fresh run and its resumes): more would reset training envs with evaluation seeds."""
+TRAINING_SPLIT = "training"
+"""The split of :mod:`uvdms_gym.seeds` that training seeds and all their derived seeds belong to."""
 
 
 class EnvironmentNotFoundError(LookupError):
@@ -234,3 +245,40 @@ def train_env_seed(seed: int, segment: int, rank: int) -> int:
 def eval_env_seed(seed: int, rank: int) -> int:
     """Seed of evaluation env ``rank`` (the same for every evaluation and segment)."""
     return seed + EVAL_SEED_OFFSET + rank
+
+
+def largest_derived_seeds(seed: int, n_envs: int, n_eval_envs: int, segments: int = MAX_SEGMENTS) -> dict[str, int]:
+    """The largest seed each derivation of the training seed ``seed`` reaches, by derivation (for messages).
+
+    The training envs of segment ``segments - 1`` (the last one allowed; rank ``n_envs - 1``) and the evaluation
+    envs (rank ``n_eval_envs - 1``); every other derived seed lies between ``seed`` and these.
+    """
+    derived = {
+        f"training env {n_envs - 1} of segment {segments - 1}: seed + {SEGMENT_SEED_STRIDE} * segment + rank": (
+            train_env_seed(seed, segments - 1, n_envs - 1)
+        )
+    }
+    if n_eval_envs > 0:
+        derived[f"evaluation env {n_eval_envs - 1}: seed + {EVAL_SEED_OFFSET} + rank"] = eval_env_seed(
+            seed, n_eval_envs - 1
+        )
+    return derived
+
+
+def check_training_seed(seed: int, n_envs: int, n_eval_envs: int, what: str = "training seed") -> None:
+    """Refuse, in one line, a training seed outside the ``training`` split or whose derived seeds leave it.
+
+    Args:
+        seed: The base seed (``--seed``).
+        n_envs: Training envs per segment.
+        n_eval_envs: Evaluation envs.
+        what: What the seed is, for the message (``"--seed"``, ``"--seeds"``).
+
+    Raises:
+        uvdms_gym.seeds.SeedProtocolError: The seed, or the largest seed one of its derivations reaches
+            (:func:`largest_derived_seeds`), is not a training seed; the message names the seed and the derivation.
+    """
+    check_seeds([seed], TRAINING_SPLIT, f"{what} {seed}")
+    derivations = largest_derived_seeds(seed, n_envs, n_eval_envs).items()
+    for derivation, derived in sorted(derivations, key=lambda item: -item[1]):  # the farthest one is named
+        check_seeds([derived], TRAINING_SPLIT, f"{what} {seed} (its {derivation})")

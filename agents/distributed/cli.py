@@ -69,7 +69,13 @@ def register(
     """
     sweep = subparsers.add_parser("sweep", help=_SWEEP_HELP, description=_SWEEP_HELP, epilog=_SWEEP_EPILOG)
     _common(sweep)
-    sweep.add_argument("--seeds", nargs="*", default=[], metavar="S", help="base seeds, one run each (distinct)")
+    sweep.add_argument(
+        "--seeds",
+        nargs="*",
+        default=[],
+        metavar="S",
+        help="base seeds, one run each (distinct training seeds, uvdms_gym.seeds)",
+    )
     sweep.add_argument(
         "--hyperparams", nargs="*", default=[], metavar="K=V", help="config overrides of every run (YAML literals)"
     )
@@ -92,7 +98,9 @@ def register(
         "--hyperparams", nargs="*", default=[], metavar="K=V", help="fixed config keys (left out of the search)"
     )
     tune.add_argument("--search-space", type=Path, help="default: train_configs/search_spaces/<algo>.yml")
-    tune.add_argument("--seed", type=int, default=0, help="training seed of every trial and sampler seed (0)")
+    tune.add_argument(
+        "--seed", type=int, default=0, help="training seed of every trial (uvdms_gym.seeds) and sampler seed (0)"
+    )
     tune.add_argument("--n-startup-trials", type=int, default=10, help="random trials before TPE (10)")
     tune.add_argument("--grace-period", type=int, help="steps before a trial can be pruned (default: eval_freq)")
     tune.add_argument("--reduction-factor", type=float, default=3.0, help="ASHA keeps the best 1/F per rung (3)")

@@ -1,9 +1,11 @@
 """Training sweeps: one ordinary ``uvdms train`` run per seed and grid point, run locally or as Ray tasks.
 
 :func:`sweep` (command line: ``uvdms sweep``) plans one run per seed (``--seeds``) and per point of the
-hyperparameter grid (``--grid``, :func:`parse_grid`), checks every run's configuration before anything starts,
-runs them, and writes a summary. Each run is a normal run directory of :func:`agents.training.train.train` (``uvdms
-evaluate``, ``uvdms export-agent`` and ``uvdms train --resume`` take it), under ``--out``::
+hyperparameter grid (``--grid``, :func:`parse_grid`), checks every run's configuration before anything starts, runs
+them, and writes a summary. Every seed is a ``training`` seed of the seed protocol (:mod:`uvdms_gym.seeds`) with all
+the seeds its run derives from it (:func:`check_seeds`): no run sees a validation or test seed. Each run is a normal
+run directory of :func:`agents.training.train.train` (``uvdms evaluate``, ``uvdms export-agent`` and
+``uvdms train --resume`` take it), under ``--out``::
 
     <out>/<env id, '/' and ':' replaced by '_'>/<algo>_<seed>/              (no --grid)
     <out>/grid_<k>/<env id ...>/<algo>_<seed>/                             (grid point k)
@@ -43,7 +45,7 @@ from typing import Any
 
 import yaml
 
-from agents.common.envs import ActionComponents, check_env_id
+from agents.common.envs import ActionComponents, check_env_id, check_training_seed
 from agents.common.threads import run_cpus
 from agents.config import ConfigError
 from agents.distributed.report import evaluation_summary, write_summary
@@ -51,6 +53,7 @@ from agents.distributed.worker import CheckpointStore, RunJob, StoreClient, relo
 from agents.training.args import DEFAULT_GYM_PACKAGES
 from agents.training.rundir import RunDirError, latest_checkpoint, run_dir_for, utc_now
 from agents.training.spec import RunSpec
+from uvdms_gym.seeds import SeedProtocolError
 from uvdms_gym.utils.cluster import ray_session
 from uvdms_gym.utils.kwargs import check_make_kwargs, parse_kv
 
@@ -123,16 +126,20 @@ def grid_points(axes: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
     return [dict(zip(keys, values)) for values in itertools.product(*(axes[k] for k in keys))]
 
 
-def check_seeds(seeds: Sequence[int]) -> list[int]:
-    """The seeds as a list, or a :class:`ValueError`: none, a repeated one, or one outside ``0 .. 2**31 - 1``."""
+def check_seeds(seeds: Sequence[int], n_envs: int = 1, n_eval_envs: int = 1) -> list[int]:
+    """The seeds as a list, or a :class:`ValueError`: none, a repeated one, or one that is not a training seed.
+
+    A training seed of the seed protocol (:mod:`uvdms_gym.seeds`) with all the seeds a run with ``n_envs`` training
+    and ``n_eval_envs`` evaluation envs derives from it (:func:`agents.common.envs.check_training_seed`: a
+    ``SeedProtocolError``, itself a ``ValueError``, naming the seed and its derivation).
+    """
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise ValueError("--seeds: give at least one seed")
     for i, seed in enumerate(seeds):
         if seed in seeds[:i]:
             raise ValueError(f"--seeds: seed {seed} is given twice (each seed is one run directory)")
-        if not 0 <= seed < 2**31 - 1_001_000:  # the seed scheme adds up to 1_001_000 (agents.common.envs)
-            raise ValueError(f"--seeds: seed {seed} is outside 0 .. {2**31 - 1_001_001}")
+        check_training_seed(seed, n_envs, n_eval_envs, "--seeds: training seed")
     return seeds
 
 
@@ -152,7 +159,9 @@ def plan_sweep(
     Raises:
         ConfigError: Bad budget or configuration, a key in both ``hyperparams`` and ``grid``, ...
         EnvironmentNotFoundError: The env id is not registered.
-        ValueError: Bad seeds or ``env_kwargs`` keys the environment does not take.
+        ValueError: Bad seeds (``uvdms_gym.seeds.SeedProtocolError``: one that is not a training seed with all its
+            derived seeds, for the configuration of any grid point) or ``env_kwargs`` keys the environment does not
+            take.
     """
     from agents.training.composition import composition_factories
 
@@ -176,6 +185,10 @@ def plan_sweep(
             composition_factories(cfg, components)  # a residual or the filter needs the components
         except ConfigError as exc:
             raise ConfigError(f"{where}: {exc}") from None
+        try:
+            check_seeds(seeds, cfg.n_envs, cfg.n_eval_envs)  # with this grid point's envs
+        except SeedProtocolError as exc:
+            raise SeedProtocolError(f"{where}: {exc}") from None
         assert config_text is not None  # resolve_config read the file
         out_subdir = f"grid_{index}" if axes else ""
         for seed in seeds:
@@ -228,7 +241,8 @@ def sweep(
     Args:
         algo: Algorithm name.
         env_id: Environment id.
-        seeds: Base seeds, one run each (distinct).
+        seeds: Base seeds, one run each (distinct ``training`` seeds of :mod:`uvdms_gym.seeds`, with their derived
+            seeds: :func:`check_seeds`).
         env_kwargs: ``gymnasium.make`` keyword arguments of every run.
         config_path: Configuration file (default ``train_configs/<algo>.yml``).
         hyperparams: Config overrides of every run.

@@ -9,10 +9,13 @@ fall behind at its rungs (``grace_period``, ``grace_period * reduction_factor``,
 those trials were pruned (as RL Zoo's pruner does). A trial that trains to the end reports a last time with
 ``completed`` set; the best configuration is the completed trial with the highest last evaluation return.
 
-Every trial trains with the same ``--seed`` (common random numbers: trials differ only in their
-hyperparameters). The sampler is seeded with ``--seed`` too, but with more than one trial at a time the order
-in which results arrive (and so what TPE sees when it samples) depends on timing; ``--max-concurrent 1``
-makes a search repeatable. CPUs: a trial declares :func:`agents.common.threads.run_cpus` (as a sweep run).
+Every trial trains with the same ``--seed`` (common random numbers: trials differ only in their hyperparameters), a
+training seed of the seed protocol (:mod:`uvdms_gym.seeds`): it and every seed a trial derives from it
+(:func:`agents.common.envs.check_training_seed`, the evaluations included) are in the ``training`` split, never a
+test split, or the search is refused before Ray starts. The sampler is seeded with ``--seed`` too, but with more
+than one trial at a time the order in which results arrive (and so what TPE sees when it samples) depends on timing;
+``--max-concurrent 1`` makes a search repeatable. CPUs: a trial declares :func:`agents.common.threads.run_cpus` (as
+a sweep run).
 
 Output under ``--out``: ``<algo>.yml`` (the best configuration as an entry of an RL Zoo hyperparameter file, in
 the format of ``train_configs/<algo>.yml``, so ``uvdms train --algo A --env ID --config <out>/<algo>.yml``
@@ -37,7 +40,7 @@ import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 
 from agents.algos import ALGOS
-from agents.common.envs import check_env_id
+from agents.common.envs import check_env_id, check_training_seed
 from agents.common.threads import run_cpus
 from agents.config import ConfigError, default_config_path
 from agents.config.zoo import TRAIN_OPTIONS, zoo_entry
@@ -254,7 +257,8 @@ def tune(
         n_envs: Training envs per trial.
         vec_env: ``dummy`` or ``subproc``.
         gym_packages: Packages imported to register the env id.
-        seed: Training seed of every trial and seed of the TPE sampler.
+        seed: Training seed of every trial (a ``training`` seed of :mod:`uvdms_gym.seeds`, with its derived seeds)
+            and seed of the TPE sampler.
         n_startup_trials: Trials sampled at random before TPE models the results (Optuna's default 10).
         grace_period: Steps before ASHA may stop a trial (default: the configuration's ``eval_freq``).
         reduction_factor: ASHA keeps the best ``1 / reduction_factor`` of the trials at each rung.
@@ -267,7 +271,8 @@ def tune(
             refused before Ray starts.
 
     Raises:
-        ConfigError, ValueError: Bad arguments, configuration or search space (before Ray starts).
+        ConfigError, ValueError: Bad arguments, configuration or search space (before Ray starts); a seed that is
+            not a training seed is a ``uvdms_gym.seeds.SeedProtocolError``.
         RunDirError: ``out_dir`` already holds a search.
         NoTrialCompletedError: No trial completed.
     """
@@ -287,6 +292,7 @@ def tune(
         gym_packages=tuple(gym_packages),
     )
     cfg = spec.resolve()
+    check_training_seed(seed, cfg.n_envs, cfg.n_eval_envs, "--seed")  # the seed of every trial
     composition_factories(cfg, components)  # a residual or the filter needs the components
     budget, grace = _trial_budget(cfg, grace_period)
     space_path = Path(search_space_path) if search_space_path is not None else default_search_space_path(algo)

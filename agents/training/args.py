@@ -52,7 +52,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         help="override config keys, values parsed as YAML (learning_rate=1.0e-4)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="base seed, a training seed in [0, 1e9) with all its derived seeds (uvdms_gym.seeds; default 0)",
+    )
     parser.add_argument(
         "--total-timesteps", type=int, help="fresh run: total steps (default: n_timesteps); resume: additional steps"
     )

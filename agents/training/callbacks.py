@@ -15,6 +15,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback,
 
 from agents.common.learning_curve import INFO_KEY, LearningCurve, curve_point
 from agents.training.rundir import _write_json
+from uvdms_gym.seeds import check_not_test
 
 
 class LatestBufferCheckpointCallback(CheckpointCallback):
@@ -39,7 +40,9 @@ class SeededEvalCallback(EvalCallback):
 
     Args:
         *args: ``EvalCallback`` arguments.
-        eval_seed: Seed passed to ``eval_env.seed`` before each evaluation.
+        eval_seed: Seed passed to ``eval_env.seed`` before each evaluation (env ``i`` gets ``eval_seed + i``): never a
+            test seed of :mod:`uvdms_gym.seeds` (training runs pass :func:`agents.common.envs.eval_env_seed`, a
+            training seed).
         learning_curve: Where the evaluations' metrics are recorded (``None``: not recorded).
         segment: Index of the training segment (recorded in each point).
         **kwargs: ``EvalCallback`` keyword arguments.
@@ -49,6 +52,8 @@ class SeededEvalCallback(EvalCallback):
         self, *args: Any, eval_seed: int, learning_curve: LearningCurve | None = None, segment: int = 0, **kwargs: Any
     ) -> None:
         super().__init__(*args, **kwargs)
+        n_envs = getattr(self.eval_env, "num_envs", 1)
+        check_not_test([eval_seed, eval_seed + n_envs - 1], "the evaluation callback's seeds")
         self.eval_seed = eval_seed
         self.learning_curve = learning_curve
         self.segment = segment

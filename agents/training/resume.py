@@ -15,7 +15,7 @@ from typing import Any
 import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 
-from agents.common.envs import ActionComponents, check_env_id
+from agents.common.envs import ActionComponents, check_env_id, check_training_seed
 from agents.common.names import DEFAULT_GYM_PACKAGES, NO_BASE, VEC_ENV_TYPES
 from agents.config import ConfigError, TrainConfig, parse_entry
 from agents.training.composition import check_vec_env, composition_factories
@@ -59,9 +59,11 @@ def resume_run(
     Raises:
         ConfigError: The request disagrees with the run, or there are no steps left to train.
         RunDirError: ``run_dir`` is not a resumable run directory.
+        SeedProtocolError: The run's seed or one of its derived seeds is not a training seed (``uvdms_gym.seeds``).
     """
     resolved, cfg = _resumed_config(run_dir, request)
     env_id, seed = resolved["env_id"], int(resolved["seed"])
+    check_training_seed(seed, cfg.n_envs, cfg.n_eval_envs, f"--resume {run_dir}: the run's seed")
     vec_env = request.vec_env or _last_vec_env(run_dir)
     check_vec_env(cfg, vec_env)
     factories = composition_factories(cfg, components)

@@ -23,7 +23,8 @@ from typing import Any
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from agents.common.envs import EVAL_SEED_OFFSET, SEGMENT_SEED_STRIDE
+from agents.common.envs import EVAL_SEED_OFFSET, SEGMENT_SEED_STRIDE, TRAINING_SPLIT
+from uvdms_gym.seeds import PROTOCOL
 from uvdms_gym.utils.io import to_jsonable, write_json_atomic
 from uvdms_gym.utils.provenance import git_info, package_versions
 
@@ -144,6 +145,9 @@ def create_run_dir(
 ) -> Path:
     """Create a fresh run directory with its ``config.yml`` and a ``meta.json`` without segments.
 
+    ``meta.json`` records the seed, the seed protocol (``seed_protocol``: :data:`uvdms_gym.seeds.PROTOCOL`) and
+    the split of the seed and its derived seeds (``seed_split``: ``training``), and the seed scheme.
+
     Args:
         run_dir: The directory (:func:`run_dir_for`).
         algo: Algorithm name.
@@ -180,6 +184,8 @@ def create_run_dir(
         "algo": algo,
         "env_id": env_id,
         "seed": seed,
+        "seed_protocol": PROTOCOL,  # uvdms_gym.seeds: the seed and all its derived seeds are in this split
+        "seed_split": TRAINING_SPLIT,
         "seed_scheme": {
             "train_env": f"seed + {SEGMENT_SEED_STRIDE} * segment + rank",
             "model": f"seed + {SEGMENT_SEED_STRIDE} * segment",

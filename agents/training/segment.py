@@ -28,8 +28,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 from agents.algos import ALGOS, is_off_policy
 from agents.algos.ppo_lagrangian import HISTORY_FILE, LagrangianHistory, PPOLagrangian
 from agents.common.envs import (
-    EVAL_SEED_OFFSET,
-    SEGMENT_SEED_STRIDE,
+    MAX_SEGMENTS,
     EnvFactory,
     eval_env_seed,
     make_vec_env,
@@ -133,8 +132,8 @@ class TrainingSegment:
         """Append the command and the segment's record (seeds, composition, versions) to the run's files."""
         self.meta = json.loads((self.run_dir / "meta.json").read_text(encoding="utf-8"))
         segment = len(self.meta["segments"])
-        if segment >= EVAL_SEED_OFFSET // SEGMENT_SEED_STRIDE:
-            raise RunDirError(f"{self.run_dir}: too many segments for the seed scheme")
+        if segment >= MAX_SEGMENTS:
+            raise RunDirError(f"{self.run_dir}: too many segments for the seed scheme ({MAX_SEGMENTS} at most)")
         with (self.run_dir / "command.txt").open("a", encoding="utf-8") as f:
             f.write(shlex.join(self.command) + "\n")
         (self.run_dir / "monitor").mkdir(exist_ok=True)

@@ -11,7 +11,8 @@ Run directory ``<out>/<env id, '/' and ':' replaced by '_'>/<algo>_<seed>/``::
 
     config.yml                  resolved configuration (algo, env id, seed, gym packages, flat entry)
     command.txt                 one equivalent command line per training segment (fresh run, resumes)
-    meta.json                   package versions, git revision + dirty flag, seeds, per-segment records
+    meta.json                   package versions, git revision + dirty flag, seeds and seed protocol,
+                                per-segment records
     final_model.zip             model at the end of the latest segment (also written on Ctrl-C)
     vecnormalize.pkl            VecNormalize statistics of final_model.zip (only with ``normalize``)
     replay_buffer.pkl           replay buffer of final_model.zip (only with ``save_replay_buffer``)
@@ -35,6 +36,12 @@ Seed scheme (``seed`` = ``--seed``; segment k = 0 for a fresh run, k = 1, 2, ...
 * evaluation env ``i`` is reset with seed ``seed + 1_000_000 + i`` before *every* evaluation, so all
   evaluations of a run use the same episodes (common random numbers for choosing the best model) and
   never the training seeds (requires fewer than 1000 segments).
+
+Seed protocol (:mod:`uvdms_gym.seeds`, recorded in ``meta.json`` as ``seed_protocol`` and ``seed_split``): ``seed``
+and all these derived seeds are ``training`` seeds (``[0, 1e9)``), never validation or test seeds. A seed whose
+derived seeds would leave that range (up to 1000 segments and every evaluation env; so any seed above
+``1e9 - 1_000_000 - n_eval_envs``), or a negative one, is refused in one line before anything runs
+(:func:`agents.common.envs.check_training_seed`; ``uvdms_gym.seeds.SeedProtocolError``).
 
 A fresh run that fails or is interrupted before it saved any model removes its directory again (nothing
 there could be resumed), so the same command can be rerun; errors creating the environments (a bad
@@ -76,6 +83,7 @@ from agents.common.envs import (
     EnvFactory,
     EnvironmentNotFoundError,
     check_env_id,
+    check_training_seed,
     eval_env_seed,
     import_gym_packages,
     train_env_seed,
@@ -102,6 +110,7 @@ from agents.training.rundir import (
 )
 from agents.training.segment import TrainingSegment
 from agents.training.spec import RunSpec, resolve_config
+from uvdms_gym.seeds import SeedProtocolError
 from uvdms_gym.utils.kwargs import check_make_kwargs
 from uvdms_gym.utils.kwargs import parse_kv as _parse_key_values
 from uvdms_gym.utils.provenance import git_info, package_versions
@@ -118,6 +127,7 @@ __all__ = [  # the names other modules and the tests import from here (the imple
     "RunDirError",
     "ScaledAction",
     "check_env_id",
+    "check_training_seed",
     "composition_factories",
     "eval_env_seed",
     "git_info",
@@ -169,7 +179,7 @@ def train(
         env_id: Gymnasium environment id; optional when resuming.
         env_kwargs: Extra ``gymnasium.make`` keyword arguments (override the config's ``env_kwargs``).
         config_path: YAML config; default ``train_configs/<algo>.yml``.
-        seed: Base seed (see the module docstring for the seed scheme).
+        seed: Base seed, a training seed of :mod:`uvdms_gym.seeds` (see the module docstring for the seed scheme).
         total_timesteps: Fresh run: total steps (overrides ``n_timesteps``). Resume: additional steps
             (default: the steps missing to ``n_timesteps``).
         n_envs: Number of training environments (overrides the config).
@@ -210,6 +220,7 @@ def train(
         ConfigError: Invalid configuration or arguments.
         EnvironmentNotFoundError: The env id is not registered.
         RunDirError: The run directory exists (fresh run) or is not resumable.
+        SeedProtocolError: The seed or one of its derived seeds is not a training seed (module docstring).
     """
     if vec_env is not None and vec_env not in VEC_ENV_TYPES:
         raise ConfigError(f"vec_env must be one of {VEC_ENV_TYPES}, got {vec_env!r}")
@@ -275,10 +286,12 @@ def train_run(
         ConfigError: Invalid configuration or arguments.
         EnvironmentNotFoundError: The env id is not registered.
         RunDirError: The run directory exists.
+        SeedProtocolError: The seed or one of its derived seeds is not a training seed.
     """
     torch.set_num_threads(1)
     check_env_id(spec.env_id, spec.gym_packages)
     cfg = spec.resolve()
+    check_training_seed(spec.seed, cfg.n_envs, cfg.n_eval_envs, "--seed")
     for kwargs in (cfg.env_kwargs, {**cfg.env_kwargs, **cfg.eval_env_kwargs}):
         try:
             check_make_kwargs(spec.env_id, kwargs)  # a key the env does not take, or radius=abc: one clear line
@@ -371,7 +384,7 @@ def main(argv: Sequence[str] | None = None, *, components: ActionComponents | No
             safety_filter=True if args.safety_filter else None,
             components=components,
         )
-    except (ConfigError, EnvironmentNotFoundError, RunDirError) as exc:
+    except (ConfigError, EnvironmentNotFoundError, RunDirError, SeedProtocolError) as exc:
         print("uvdms: error: " + " ".join(str(exc).split()), file=sys.stderr)  # one line, as the uvdms command
         return 2
     except KeyboardInterrupt:

@@ -95,7 +95,7 @@ def test_parse_grid_rejects(items, message):
 
 def test_check_seeds_and_cpus():
     assert check_seeds([3, 1]) == [3, 1]
-    for bad, message in (([], "at least one"), ([1, 2, 1], "twice"), ([-1], "outside")):
+    for bad, message in (([], "at least one"), ([1, 2, 1], "twice"), ([-1], "no split"), ([3_000_000_000], "test")):
         with pytest.raises(ValueError, match=message):
             check_seeds(bad)
     assert (run_cpus(4, "dummy"), run_cpus(4, "subproc"), run_cpus(3, "hybrid")) == (1, 4, 3)
@@ -163,6 +163,8 @@ def test_zoo_entry_round_trips_every_shipped_entry(tmp_path):
         ({"--seeds": []}, "--seeds: give at least one seed"),
         ({"--seeds": ["0", "1", "0"]}, "seed 0 is given twice"),
         ({"--seeds": ["x"]}, "'x' is not an integer"),
+        ({"--seeds": ["0", "3000000000"]}, "--seeds: training seed 3000000000: seed 3000000000 is in the test split"),
+        ({"--seeds": ["999999999"]}, r"training seed 999999999 \(its evaluation env 0: .*\): seed 1000999999"),
         ({"--grid": ["learning_rate"]}, "--grid: expected key=value"),
         ({"--grid": ["learning_rate=1.0e-3,1.0e-3"]}, "lists the value 0.001 twice"),
         ({"--grid": ["learning_rat=1.0e-3,3.0e-4"]}, "grid point 0 .* unknown key 'learning_rat'"),

@@ -143,6 +143,8 @@ def _tune_argv(config: Path, out: Path, *extra: str) -> list[str]:
         (["--total-timesteps", "50"], "eval_freq (100) must be in 1 .. --total-timesteps (50)"),
         (["--grace-period", "500"], "--grace-period must be in 1 .. --total-timesteps (400)"),
         (["--reduction-factor", "1"], "--reduction-factor must be > 1"),
+        (["--seed", "3000000000"], "--seed 3000000000: seed 3000000000 is in the test split"),
+        (["--seed", "999999999"], "--seed 999999999 (its evaluation env 0: seed + 1000000 + rank): seed 1000999999"),
         (["--env", "uvdms/Nope-v0"], "is not registered"),
         # the command passes the composition layer's factories: a residual is checked by them, before Ray starts
         (["--hyperparams", "n_steps=64", "residual_base=campc-di", "residual_scale=0.5"], "is a torque-mode"),

@@ -24,6 +24,7 @@ from agents.training.train import (
     zip_num_timesteps,
 )
 from tests.support.agent_runs import COST_ALGOS, RUNS, TEST_ENVS, TINY, write_config
+from uvdms_gym.seeds import PROTOCOL
 
 
 @pytest.mark.parametrize(("algo", "env_id"), RUNS)
@@ -62,6 +63,7 @@ def test_training_writes_complete_run_dir(runs, algo, env_id):
         assert meta["versions"][package]
     assert re.fullmatch(r"[0-9a-f]{40}", meta["git"]["revision"])
     assert isinstance(meta["git"]["dirty"], bool)
+    assert (meta["seed"], meta["seed_protocol"], meta["seed_split"]) == (7, PROTOCOL, "training")
     (segment,) = meta["segments"]
     assert segment["status"] == "completed"
     assert segment["end_num_timesteps"] >= 300
