@@ -1,6 +1,7 @@
 """Reuse the per-episode results of a previous leaderboard output (``uvdms leaderboard --reuse DIR``).
 
-A leaderboard output folder keeps every episode's result in ``entries/<entry>.json``. Adding an entry to a
+A leaderboard output folder keeps every episode's result in ``entries/<entry>.json`` (the ranking's under each
+task's ``episodes``, the generalisation check's under its ``check``). Adding an entry to a
 published leaderboard (``docs/leaderboard``) should not recompute the episodes of every other entry: for each
 planned episode that is not in the cache, :func:`reusable_results` looks for the same episode in such a folder,
 and the runner stores what it finds in the cache as if it had computed it (with the timing record of the run
@@ -76,9 +77,7 @@ def reusable_results(jobs: Sequence[Job], entries: Sequence[Entry], reuse_dir: s
         doc = docs[parent.slug]
         if doc is None:
             continue
-        row = doc.get("tasks", {}).get(job.task.name)
-        episodes = row.get("episodes", []) if isinstance(row, Mapping) else []
-        result, keyless = _match(job, parent, doc, episodes)
+        result, keyless = _match(job, parent, doc, _recorded_episodes(doc, job.task.name))
         if result is not None:
             found[job.path] = result
             if keyless:
@@ -91,6 +90,16 @@ def reusable_results(jobs: Sequence[Job], entries: Sequence[Entry], reuse_dir: s
             entries_dir / f"{slug}.json",
         )
     return found
+
+
+def _recorded_episodes(doc: Mapping[str, Any], task: str) -> list[Any]:
+    """Every episode a document records for ``task``: the ranking's and the generalisation check's (``check``)."""
+    row = doc.get("tasks", {}).get(task)
+    if not isinstance(row, Mapping):
+        return []
+    check = row.get("check")
+    extra = check.get("episodes", []) if isinstance(check, Mapping) else []
+    return [*row.get("episodes", []), *(extra if isinstance(extra, list) else [])]
 
 
 def check_reuse_dir(reuse_dir: str | Path) -> Path:
