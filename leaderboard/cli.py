@@ -56,6 +56,37 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="shipped-agents folder (default: ./trained_agents, else the repository's trained_agents/)",
     )
     p.add_argument("--tasks", nargs="+", default=None, metavar="TASK", help="subset of the task suite (by name)")
+    _add_draw_arguments(p)
+    p.add_argument("--force", action="store_true", help="recompute every episode instead of using the cache")
+    p.add_argument(
+        "--reuse",
+        default=None,
+        metavar="DIR",
+        help="a previous leaderboard output (e.g. docs/leaderboard) whose recorded episodes are reused for "
+        "the same entry, task and seeds instead of recomputing them (the first episode of the paper circle "
+        "tasks, whose distance trajectory is plotted, is always run)",
+    )
+    p.add_argument(
+        "--trust",
+        action="store_true",
+        help="allow loading full SB3 zips (pickles) from outside the repository's trained_agents/ folder",
+    )
+    _add_execution_arguments(p)
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument(
+        "--page-only",
+        default=None,
+        metavar="DIR",
+        help="evaluate nothing: (re)write DIR/index.html from DIR's leaderboard.csv, entries/*.json and plots/ "
+        "(entry documents that do not record their composition and training take them from the agent folders "
+        "in --agents-dir whose files have the recorded checksums)",
+    )
+    p.set_defaults(func=_cmd_leaderboard)
+
+
+def _add_draw_arguments(p: argparse.ArgumentParser) -> None:
+    """The options that choose the draws: how many, of which split, with or without the check; the step limit."""
     p.add_argument(
         "--episodes",
         type=int,
@@ -80,20 +111,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="N",
         help="cut every episode after N steps (smoke tests: the metrics then describe the first N steps only)",
     )
-    p.add_argument("--force", action="store_true", help="recompute every episode instead of using the cache")
-    p.add_argument(
-        "--reuse",
-        default=None,
-        metavar="DIR",
-        help="a previous leaderboard output (e.g. docs/leaderboard) whose recorded episodes are reused for "
-        "the same entry, task and seeds instead of recomputing them (the first episode of the paper circle "
-        "tasks, whose distance trajectory is plotted, is always run)",
-    )
-    p.add_argument(
-        "--trust",
-        action="store_true",
-        help="allow loading full SB3 zips (pickles) from outside the repository's trained_agents/ folder",
-    )
+
+
+def _add_execution_arguments(p: argparse.ArgumentParser) -> None:
+    """The options that say where the episodes run: local processes or Ray."""
     p.add_argument("--jobs", type=int, default=1, help="worker processes of the local backend (default 1)")
     p.add_argument(
         "--backend",
@@ -108,17 +129,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--max-retries", type=int, default=None, help="re-runs of an episode whose Ray worker dies (default 3)"
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument(
-        "--page-only",
-        default=None,
-        metavar="DIR",
-        help="evaluate nothing: (re)write DIR/index.html from DIR's leaderboard.csv, entries/*.json and plots/ "
-        "(entry documents that do not record their composition and training take them from the agent folders "
-        "in --agents-dir whose files have the recorded checksums)",
-    )
-    p.set_defaults(func=_cmd_leaderboard)
 
 
 def _cmd_page_only(args: argparse.Namespace) -> int:

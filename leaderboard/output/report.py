@@ -147,10 +147,16 @@ def timing_text(result: LeaderboardResult) -> str:
 def seeds_text(result: LeaderboardResult) -> str:
     """One sentence: the seed protocol, the split, the draws of the randomised tasks and the check's draws."""
     seeds = result.seeds
+    if any(not task.deterministic for task in result.tasks):
+        draws = (
+            f"{len(seeds)} draw(s) of each randomised task (seeds {_span(seeds)}; the deterministic paper tasks "
+            "run the first)"
+        )
+    else:
+        draws = f"one draw of each deterministic paper task (seed {seeds[0]})"
     text = (
-        f"Seed protocol `{PROTOCOL}` (`uvdms_gym/seeds.py`): the `{result.split}` split, {len(seeds)} draw(s) of "
-        f"each randomised task (seeds {_span(seeds)}; the deterministic paper tasks run the first), disjoint from "
-        "every training and validation seed"
+        f"Seed protocol `{PROTOCOL}` (`uvdms_gym/seeds.py`): the `{result.split}` split, {draws}, disjoint from every "
+        "training seed" + (" and every validation seed" if result.split != "validation" else "")
     )
     if result.check_seeds:
         text += f"; the generalisation check's second test set `test2`: seeds {_span(result.check_seeds)}"
@@ -182,8 +188,9 @@ def _markdown_document(result: LeaderboardResult, command: str | None, plot_file
         "first entry of the current group (RMSE intervals less than 0.1 mm apart count as overlapping) is tied "
         "with it (`2=`). Success: the episode ran to its time limit without contact and, on the circle tasks, "
         "with RMSE <= 30 mm; on transport, with the object at the goal at the end (`uvdms_gym/evaluation.py`). "
-        "The paper's tasks have a fixed start and no randomisation: a deterministic controller repeats the "
-        "same episode there (zero-width intervals); the randomised tasks carry the spread. Agents run only on "
+        "The paper's tasks have a fixed start and no randomisation: every seed gives the same episode, so they run "
+        "one episode per entry and training seed (no interval for a single agent or baseline); the randomised "
+        "tasks carry the spread. Agents run only on "
         "the tasks of the environment they were trained on.",
         "",
         timing_text(result),

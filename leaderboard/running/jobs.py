@@ -140,7 +140,13 @@ def store_result(job: Job, result: dict[str, Any]) -> dict[str, Any]:
 
 
 def plan_jobs(
-    entries: Sequence[Entry], tasks: Sequence[Task], split: str, episodes: int, cache_dir: str | Path
+    entries: Sequence[Entry],
+    tasks: Sequence[Task],
+    split: str,
+    episodes: int,
+    cache_dir: str | Path,
+    *,
+    trajectories: bool = True,
 ) -> list[Job]:
     """Every (entry, task, draw) episode of a run on the seed split ``split``, grouped by entry and task.
 
@@ -148,8 +154,9 @@ def plan_jobs(
     multi-seed entry contributes the episodes of each of its members (:meth:`Entry.runs`), each cached on its own:
     every member evaluates a deterministic task's draw, and the draws of a randomised task are spread over the
     members (:func:`uvdms_gym.seeds.assign_draws`: draw ``i`` to member ``i % members``), so that ``episodes``
-    draws cost ``episodes`` episodes whatever the number of training seeds. The first episode of each run of a
-    ``trajectory`` task stores its distance trajectory.
+    draws cost ``episodes`` episodes whatever the number of training seeds (a member beyond the ``episodes``-th gets
+    none). With ``trajectories``, the first episode of each run of a ``trajectory`` task stores its distance
+    trajectory (the distance plot; the generalisation check's jobs store none).
     """
     jobs = []
     for entry in entries:
@@ -161,7 +168,7 @@ def plan_jobs(
             for index, run in enumerate(runs):
                 seeds = draws if task.deterministic else assign_draws(draws, len(runs), index)
                 for i, seed in enumerate(seeds):
-                    save = task.trajectory and i == 0
+                    save = trajectories and task.trajectory and i == 0
                     material = cache_material(run, task, seed, save)
                     key = cache_key(material)
                     path = cache_path(cache_dir, run, task, seed, key)

@@ -171,19 +171,11 @@ def run_leaderboard(
         ConnectionError: The Ray cluster at ``address`` cannot be reached.
     """
     backend = backend if backend is not None else DEFAULT_BACKEND
-    _check_options(entries, episodes, executor, address, num_cpus, max_retries, jobs, force, reuse_from)
-    if split not in EVALUATION_SPLITS or split == CHECK_SPLIT:
-        raise ValueError(f"the leaderboard ranks on the test or validation split, not {split!r}")
+    _check_options(entries, episodes, executor, address, num_cpus, max_retries, jobs, force, reuse_from, split)
     out = Path(out_dir)
     with output_lock(out):  # one run per output folder: a second one refuses
         cache = _prepare_cache(Path(cache_dir) if cache_dir is not None else out / "cache")
-        seeds = split_seeds(split, episodes)
-        check_tasks = [t for t in tasks if not t.deterministic] if generalization and split == DEFAULT_SPLIT else []
-        check_seeds = split_seeds(CHECK_SPLIT, episodes) if check_tasks else []
-        check_seed_disjointness(seeds + check_seeds, entries)
-
-        all_jobs = plan_jobs(entries, tasks, split, episodes, cache)
-        all_jobs += plan_jobs(entries, check_tasks, CHECK_SPLIT, episodes, cache)
+        all_jobs, seeds, check_seeds = _plan(entries, tasks, split, episodes, generalization, cache)
         results, corrupt, todo = _read_cache(all_jobs, force)
         n_reused = 0
         if reuse_from is not None and todo:
@@ -195,14 +187,9 @@ def run_leaderboard(
         log.info(
             "leaderboard (%s split): %d entries, %d tasks, %d draws per randomised task%s: %d cached, %d reused, "
             "%d to compute",
-            split,
-            len(entries),
-            len(tasks),
-            episodes,
+            *(split, len(entries), len(tasks), episodes),
             f" (and {len(check_seeds)} of {CHECK_SPLIT})" if check_seeds else "",
-            n_cached,
-            n_reused,
-            len(todo),
+            *(n_cached, n_reused, len(todo)),
         )
         with timing_record() as run_record:  # the run's machine and load (each episode has its own record)
             execute = functools.partial(
@@ -244,8 +231,11 @@ def _check_options(
     jobs: int,
     force: bool,
     reuse_from: str | Path | None,
+    split: str,
 ) -> None:
     """The argument checks of :func:`run_leaderboard` (its ``Raises``), before anything runs or is written."""
+    if split not in EVALUATION_SPLITS or split == CHECK_SPLIT:
+        raise ValueError(f"the leaderboard ranks on the test or validation split, not {split!r}")
     if not entries:
         raise ValueError("no entries to evaluate")
     if episodes < 1:
@@ -260,6 +250,23 @@ def _check_options(
         raise ValueError("force recomputes every episode: it cannot be combined with reuse_from")
     if reuse_from is not None:
         check_reuse_dir(reuse_from)
+
+
+def _plan(
+    entries: Sequence[Entry], tasks: Sequence[Task], split: str, episodes: int, generalization: bool, cache: Path
+) -> tuple[list[Job], list[int], list[int]]:
+    """``(jobs, the split's draws, the check's draws)`` of a run, the seeds checked against the training seeds.
+
+    The jobs are the ranking's episodes on ``split`` and, with ``generalization`` on the test split, the randomised
+    tasks' on the second test set.
+    """
+    seeds = split_seeds(split, episodes)
+    check_tasks = [t for t in tasks if not t.deterministic] if generalization and split == DEFAULT_SPLIT else []
+    check_seeds = split_seeds(CHECK_SPLIT, episodes) if check_tasks else []
+    check_seed_disjointness(seeds + check_seeds, entries)
+    jobs = plan_jobs(entries, tasks, split, episodes, cache)
+    jobs += plan_jobs(entries, check_tasks, CHECK_SPLIT, episodes, cache, trajectories=False)
+    return jobs, seeds, check_seeds
 
 
 def _prepare_cache(cache: Path) -> Path:
@@ -346,7 +353,7 @@ def _ranked_rows(
         for task in tasks:
             if not entry.runs_on(task):
                 continue
-            row = row_for(entry, task, {run: by_run[split, run, task.name] for run in entry.runs()})
+            row = row_for(entry, task, {run: by_run.get((split, run, task.name), []) for run in entry.runs()})
             if (CHECK_SPLIT, entry.runs()[0], task.name) in by_run:
                 _attach_check(row, entry, task, by_run, split)
             rows.append(row)
@@ -364,8 +371,8 @@ def _attach_check(
 ) -> None:
     """Add the generalisation check (``split`` against the second test set) and its episodes to ``row``."""
     runs = entry.runs()
-    first = [by_run[split, run, task.name] for run in runs]
-    second = [by_run[CHECK_SPLIT, run, task.name] for run in runs]
+    first = [by_run.get((split, run, task.name), []) for run in runs]  # (a seed beyond the draws has none)
+    second = [by_run.get((CHECK_SPLIT, run, task.name), []) for run in runs]
     row.check = generalization_check(first, second)
     row.check_episodes = [
         {**ep, "training_seed": run.training_seed} if entry.multi_seed else ep

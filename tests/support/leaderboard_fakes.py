@@ -1,4 +1,9 @@
-"""The leaderboard's tests' fake backend (no physics) and a tiny baseline leaderboard run on it."""
+"""The leaderboard's tests' fake backend (no physics) and a tiny baseline leaderboard run on it.
+
+The tiny suite has a task of each kind of the seed protocol (:mod:`uvdms_gym.seeds`): the deterministic ``case1``
+(one draw, which every training seed runs) and the randomised ``circle-random`` (``episodes`` draws of the split,
+spread over training seeds, and as many of the second test set for the generalisation check).
+"""
 
 from __future__ import annotations
 
@@ -8,10 +13,16 @@ import leaderboard as lb
 from leaderboard.running.jobs import Backend
 
 CIRCLE = "uvdms/CircleTrack-v0"
+RANDOM_KWARGS = {"case": "random", "hydro_randomization": 0.3}
 TINY_TASKS = (
-    lb.Task("case1", "Case 1", CIRCLE, {"case": 1}, paper=True, trajectory=True, max_episode_steps=3),
-    lb.Task("case2", "Case 2", CIRCLE, {"case": 2}, paper=True, trajectory=True, max_episode_steps=3),
+    lb.Task(
+        "case1", "Case 1", CIRCLE, {"case": 1}, paper=True, trajectory=True, max_episode_steps=3, deterministic=True
+    ),
+    lb.Task(
+        "circle-random", "Random circles", CIRCLE, RANDOM_KWARGS, paper=False, trajectory=True, max_episode_steps=3
+    ),
 )
+DETERMINISTIC, RANDOMISED = TINY_TASKS
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -47,7 +58,8 @@ def fake_make_controller(spec, env, trust):
 
 def fake_run_episode(env, controller, seed, save_trajectory):
     CALLS.append((controller.name, seed))
-    rng = np.random.default_rng([seed, sum(map(ord, controller.name)), env.spec_["env_kwargs"].get("case", 0)])
+    case = env.spec_["env_kwargs"].get("case", 0)
+    rng = np.random.default_rng([seed, sum(map(ord, controller.name)), case if isinstance(case, int) else 9])
     contacts = int(rng.integers(0, 2)) if controller.name == "mpc" else 0
     result = {
         "seed": seed,
@@ -84,6 +96,17 @@ def fake_run_episode(env, controller, seed, save_trajectory):
 
 FAKE = Backend(make_env=fake_make_env, make_controller=fake_make_controller, run_episode=fake_run_episode)
 BASELINE_ENTRIES = lb.resolve_entries(["baselines"])
+
+
+def planned_episodes(entries, tasks=TINY_TASKS, episodes=3, *, check=True) -> int:
+    """Episodes of a run on the test split: per run of an entry, 1 on a deterministic task; ``episodes`` draws of a
+    randomised task per entry (spread over its runs), and as many of ``test2`` with the generalisation ``check``."""
+    total = 0
+    for entry in entries:
+        for task in tasks:
+            if entry.runs_on(task):
+                total += len(entry.runs()) if task.deterministic else episodes * (2 if check else 1)
+    return total
 
 
 def _run(tmp_path, *, entries=BASELINE_ENTRIES, episodes=3, plots=False, **kwargs):

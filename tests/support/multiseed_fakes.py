@@ -13,9 +13,13 @@ from leaderboard.running.jobs import Backend
 
 CIRCLE = "uvdms/CircleTrack-v0"
 TINY_TASKS = (
-    lb.Task("case1", "Case 1", CIRCLE, {"case": 1}, paper=True, trajectory=True, max_episode_steps=3),
-    lb.Task("case2", "Case 2", CIRCLE, {"case": 2}, paper=True, max_episode_steps=3),
+    lb.Task(
+        "case1", "Case 1", CIRCLE, {"case": 1}, paper=True, trajectory=True, max_episode_steps=3, deterministic=True
+    ),
+    lb.Task("circle-random", "Random circles", CIRCLE, {"case": "random"}, paper=False, max_episode_steps=3),
 )
+"""A deterministic task (every training seed runs its one draw, with a trajectory) and a randomised one (the draws
+spread over the training seeds, and a generalisation check on ``test2``)."""
 
 
 def _agent_folder(

@@ -53,7 +53,12 @@ def board(tmp_path_factory) -> Path:
 
 
 class _Rows(HTMLParser):
-    """The ranking rows of a page (``<tr data-entry>``): their attributes and cells (attributes and text)."""
+    """The ranking rows of a page (``<tr data-track>``): their attributes and cells (attributes and text).
+
+    ``selector`` picks other rows by an attribute (``data-flagged``: the generalisation check's).
+    """
+
+    selector = "data-track"
 
     def __init__(self) -> None:
         super().__init__()
@@ -63,7 +68,7 @@ class _Rows(HTMLParser):
 
     def handle_starttag(self, tag, attrs):
         attributes = dict(attrs)
-        if tag == "tr" and "data-entry" in attributes:
+        if tag == "tr" and self.selector in attributes:
             self._row = {"attrs": attributes, "cells": []}
             self.rows.append(self._row)
         elif tag == "td" and self._row is not None:
@@ -88,6 +93,12 @@ def page_rows(page: str) -> dict[tuple[str, str, str], dict]:
     rows = {(r["attrs"]["data-track"], r["attrs"]["data-task"], r["attrs"]["data-entry"]): r for r in parser.rows}
     assert len(rows) == len(parser.rows), "a (track, task, entry) appears twice"
     return rows
+
+
+def n_cell(page_row: dict) -> str:
+    """The ``n`` cell of a ranking row: the one after the metric cells."""
+    last_metric = max(i for i, cell in enumerate(page_row["cells"]) if "data-metric" in cell)
+    return page_row["cells"][last_metric + 1]["text"]
 
 
 def csv_rows(folder: Path) -> list[dict[str, str]]:
@@ -130,7 +141,17 @@ def test_the_page_holds_every_csv_row_with_its_figures_and_intervals(board):
     page = (board / PAGE_NAME).read_text(encoding="utf-8")
     multi = next(r for r in rows if r["entry"] == RESIDUAL)
     assert "[" in metric_cell_text(multi, "rmse_pos")  # a multi-seed row has an interval
-    assert f"{RESIDUAL} (3 seeds)" in page and "3 × 3" in page  # label and n as in leaderboard.md
+    assert f"{RESIDUAL} (3 seeds)" in page  # label as in leaderboard.md
+    # n as in leaderboard.md: every seed's episode of the deterministic case1, the 3 draws of circle-random
+    shown = page_rows(page)
+    assert [n_cell(shown["velocity", task, RESIDUAL]) for task in ("case1", "circle-random")] == ["3 × 1", "3"]
+    assert (
+        n_cell(shown["velocity", "case1", "campc"]) == "1"
+        and n_cell(shown["velocity", "circle-random", "campc"]) == "3"
+    )
+    markdown = (board / "leaderboard.md").read_text(encoding="utf-8").split("## Generalisation check")[0]
+    lines = [line for line in markdown.splitlines() if line.startswith("| ") and f"| {RESIDUAL} (3 seeds) |" in line]
+    assert [line.rsplit("|", 2)[1].strip() for line in lines] == ["3 × 1", "3"]
 
 
 def test_the_page_loads_nothing(board):

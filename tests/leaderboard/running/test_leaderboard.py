@@ -6,6 +6,7 @@ import json
 import logging
 import math
 import zipfile
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -17,9 +18,17 @@ from leaderboard.running.cache import cache_key, cache_material
 from leaderboard.running.jobs import DEFAULT_BACKEND, Backend
 from leaderboard.suite.agent_files import training_seeds
 from leaderboard.suite.entries import agent_entry, check_seed_disjointness
-from leaderboard.suite.tasks import SEED_BASE, evaluation_seeds
-from tests.support.leaderboard_fakes import BASELINE_ENTRIES, CALLS, CIRCLE, FAKE, TINY_TASKS, _run
+from tests.support.leaderboard_fakes import (
+    BASELINE_ENTRIES,
+    CALLS,
+    CIRCLE,
+    FAKE,
+    TINY_TASKS,
+    _run,
+    planned_episodes,
+)
 from uvdms_cli.main import main as uvdms_main
+from uvdms_gym.seeds import PROTOCOL, TEST, TEST2, VALIDATION, split_of, split_seeds
 from uvdms_gym.utils.io import _umask, mirror_file, write_json_atomic
 
 
@@ -33,8 +42,16 @@ def _cache_files(tmp_path) -> list[Path]:
 def test_second_run_computes_nothing_and_outputs_are_written(tmp_path):
     first = _run(tmp_path, plots=True)
     pairs = [(e, t) for e in BASELINE_ENTRIES for t in TINY_TASKS if e.runs_on(t)]
-    n = len(pairs) * 3  # campc-inner runs on the obstacle task only
+    assert len(pairs) == 2 * len(BASELINE_ENTRIES) == 8  # campc-inner (the obstacle task only) is not among them
+    # per baseline: the one draw of the deterministic case1, 3 test and 3 test2 draws of circle-random
+    n = len(BASELINE_ENTRIES) * (1 + 3 + 3)
+    assert n == planned_episodes(BASELINE_ENTRIES)
     assert first.computed == n and first.cached == 0 and len(CALLS) == n
+    assert first.split == "test" and first.seeds == split_seeds("test", 3)
+    assert first.check_seeds == split_seeds("test2", 3)
+    assert sorted(seed for _name, seed in CALLS) == sorted(
+        [TEST.start] * 4 + split_seeds("test", 3) * 4 + split_seeds("test2", 3) * 4
+    )
     assert len(_cache_files(tmp_path)) == n
     out = tmp_path / "out"
     for name in ("leaderboard.md", "leaderboard.csv"):
@@ -43,7 +60,13 @@ def test_second_run_computes_nothing_and_outputs_are_written(tmp_path):
     pngs = {p.name for p in (out / "plots").glob("*.png")}
     assert {"velocity_contact_free_success.png", "torque_rmse_pos.png", "min_distance_case1.png"} <= pngs
     doc = json.loads((out / "entries" / "campc.json").read_text())
-    assert set(doc["tasks"]) == {"case1", "case2"} and len(doc["tasks"]["case1"]["episodes"]) == 3
+    assert set(doc["tasks"]) == {"case1", "circle-random"}
+    case1, randomised = doc["tasks"]["case1"], doc["tasks"]["circle-random"]
+    assert [ep["seed"] for ep in case1["episodes"]] == [TEST.start] and "check" not in case1
+    assert [ep["seed"] for ep in randomised["episodes"]] == split_seeds("test", 3)
+    assert [ep["seed"] for ep in randomised["check"]["episodes"]] == split_seeds("test2", 3)
+    assert case1["seed_protocol"] == randomised["seed_protocol"] == {"protocol": PROTOCOL, "split": "test"}
+    assert randomised["check"]["seed_protocol"] == {"protocol": PROTOCOL, "split": "test2"}
     markdown = (out / "leaderboard.md").read_text()
 
     second = _run(tmp_path)
@@ -117,20 +140,47 @@ def test_mirror_file_copies_keeps_itself_and_removes_a_stale_copy(tmp_path):
 
 def test_cache_key_depends_on_entry_task_seed_and_format_not_on_the_version(monkeypatch, release):
     entry, task = BASELINE_ENTRIES[0], TINY_TASKS[0]
-    base = cache_key(cache_material(entry, task, 1, False))
-    assert base == cache_key(cache_material(entry, task, 1, False))
-    assert base != cache_key(cache_material(entry, task, 2, False))
-    assert base != cache_key(cache_material(entry, TINY_TASKS[1], 1, False))
-    assert base != cache_key(cache_material(BASELINE_ENTRIES[1], task, 1, False))
+    seed = TEST.start + 1
+    base = cache_key(cache_material(entry, task, seed, False))
+    assert base == cache_key(cache_material(entry, task, seed, False))
+    assert base != cache_key(cache_material(entry, task, seed + 1, False))
+    assert base != cache_key(cache_material(entry, TINY_TASKS[1], seed, False))
+    assert base != cache_key(cache_material(BASELINE_ENTRIES[1], task, seed, False))
+    assert cache_material(entry, task, seed, False)["seed_protocol"] == {"protocol": PROTOCOL, "split": "test"}
+    assert cache_material(entry, task, TEST2.start, False)["seed_protocol"]["split"] == "test2"
+    assert cache_material(entry, task, VALIDATION.start, False)["seed_protocol"]["split"] == "validation"
     release("9.9.9")
-    assert base == cache_key(cache_material(entry, task, 1, False))
+    assert base == cache_key(cache_material(entry, task, seed, False))
+    monkeypatch.setattr(leaderboard.running.cache, "PROTOCOL", "uvdms-seeds-2")  # another seed protocol
+    assert base != cache_key(cache_material(entry, task, seed, False))
+    monkeypatch.setattr(leaderboard.running.cache, "PROTOCOL", PROTOCOL)
     monkeypatch.setattr(leaderboard.running.cache, "CACHE_FORMAT", leaderboard.running.cache.CACHE_FORMAT + 1)
-    assert base != cache_key(cache_material(entry, task, 1, False))
+    assert base != cache_key(cache_material(entry, task, seed, False))
+
+
+def test_earlier_cache_keys_are_the_keys_of_formats_3_and_2(release):
+    """Written out independently: the material of format 3 (no seed protocol) and of format 2 (the version too)."""
+    entry, task = BASELINE_ENTRIES[0], TINY_TASKS[1]
+    material = cache_material(entry, task, VALIDATION.start + 4, True)
+    assert material["format"] == leaderboard.running.cache.CACHE_FORMAT == 4
+    format3 = {
+        "format": 3,
+        "entry": entry.identity(),
+        "task": entry.task_spec(task),
+        "seed": VALIDATION.start + 4,
+        "trajectory": True,
+        "qp_solver": leaderboard.running.cache.PROXSUITE_BUILD,
+    }
+    format2 = {**format3, "format": 2, "package_version": "0.1.0"}
+    earlier = leaderboard.running.cache.earlier_cache_keys(material, "0.1.0")
+    assert earlier == {cache_key(format3), cache_key(format2)}
+    assert leaderboard.running.cache.earlier_cache_keys(material, None) == {cache_key(format3)}
+    assert cache_key(material) not in earlier
 
 
 def test_a_version_bump_recomputes_no_cached_episode(tmp_path, release):
     first = _run(tmp_path)
-    assert first.computed == len(CALLS) == len(BASELINE_ENTRIES) * len(TINY_TASKS) * 3
+    assert first.computed == len(CALLS) == planned_episodes(BASELINE_ENTRIES)
     release("0.4.0")
     second = _run(tmp_path)
     assert (second.computed, second.cached, CALLS) == (0, first.computed, [])
@@ -142,9 +192,9 @@ def test_a_version_bump_recomputes_no_cached_episode(tmp_path, release):
 def test_baseline_cache_key_depends_on_the_proxsuite_build(monkeypatch):
     entry, task = BASELINE_ENTRIES[0], TINY_TASKS[0]
     assert entry.kind == "baseline"
-    base = cache_key(cache_material(entry, task, 1, False))
+    base = cache_key(cache_material(entry, task, TEST.start, False))
     monkeypatch.setattr(leaderboard.running.cache, "PROXSUITE_BUILD", "proxsuite_pywrap_avx512")
-    assert base != cache_key(cache_material(entry, task, 1, False))
+    assert base != cache_key(cache_material(entry, task, TEST.start, False))
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -175,21 +225,32 @@ def test_training_seeds_are_read_and_evaluation_seeds_are_disjoint(tmp_path):
     entry = agent_entry(folder, trust=True)
     assert entry.env_id == CIRCLE and entry.track == "velocity"
     assert entry.training_seeds == {7, 8, 1007, 1008, 1_000_007}
-    seeds = evaluation_seeds(10)
-    assert min(seeds) >= SEED_BASE
+    seeds = split_seeds("test", 10) + split_seeds("test2", 10) + split_seeds("validation", 10)
+    assert min(seeds) >= VALIDATION.start
     check_seed_disjointness(seeds, [entry])
-    # the agents.training.train scheme (seed + 1000 k + i, eval seed + 1_000_000 + i) never reaches SEED_BASE for seeds
-    # < 1e9
-    assert 999_999_999 + 1_000_000 + 1000 < SEED_BASE
+    # the agents.training.train scheme (seed + 1000 k + i, eval seed + 1_000_000 + i) never reaches the validation
+    # and test ranges for training seeds < 1e9
+    assert 999_999_999 + 1_000_000 + 1000 < VALIDATION.start < TEST.start
 
 
 def test_clashing_seed_is_refused(tmp_path):
-    folder = _agent_folder(tmp_path, "sac_clash", seed=SEED_BASE + 1)
+    folder = _agent_folder(tmp_path, "sac_clash", seed=TEST.start + 1)
     entry = agent_entry(folder, trust=True)
     with pytest.raises(ValueError, match="disjoint"):
-        check_seed_disjointness(evaluation_seeds(5), [entry])
+        check_seed_disjointness(split_seeds("test", 5), [entry])
     with pytest.raises(ValueError, match="disjoint"):
         _run(tmp_path, entries=[entry], episodes=3)
+    assert CALLS == []  # refused before any episode
+
+
+def test_a_training_seed_in_the_second_test_set_clashes_only_with_the_generalisation_check(tmp_path):
+    entry = agent_entry(_agent_folder(tmp_path, "sac_test2", seed=TEST2.start + 1), trust=True)
+    with pytest.raises(ValueError, match="disjoint"):
+        _run(tmp_path, entries=[entry], episodes=3)
+    assert CALLS == []
+    result = _run(tmp_path, entries=[entry], episodes=3, generalization=False)  # no test2 draw is evaluated
+    assert result.check_seeds == [] and all(row.check is None for row in result.rows)
+    assert len(CALLS) == planned_episodes([entry], check=False) == 1 + 3
 
 
 def test_agent_track_and_tasks_follow_its_config(tmp_path):
@@ -259,7 +320,7 @@ def test_weights_only_submission_evaluates_and_ranks_without_trust(tmp_path, tin
     rows = {r.entry.name: r for r in result.rows}
     assert set(rows) == {"campc", "submission"}
     assert sorted(r.rank for r in rows.values())[0] == 1
-    assert all(len(r.episodes) == 2 for r in rows.values())
+    assert all([ep["seed"] for ep in r.episodes] == [TEST.start] for r in rows.values())  # deterministic: one draw
     assert "submission" in lb.markdown_tables(result)
 
 
@@ -293,8 +354,9 @@ def test_cli_prints_ranked_tables_and_reuses_the_cache(tmp_path, monkeypatch, ca
     CALLS.clear()
     assert uvdms_main(argv) == 0
     out = capsys.readouterr().out
-    assert "### Velocity track" in out and "### Torque track" in out and "±" in out
-    assert len(CALLS) == 2 * 2 * lb.QUICK_EPISODES
+    assert "### Velocity track" in out and "### Torque track" in out and "(n=1)" in out
+    # the paper tasks are deterministic: one episode per entry and task, whatever QUICK_EPISODES
+    assert sorted(CALLS) == sorted((name, TEST.start) for name in ("campc", "campc-nndi") for _task in range(2))
     CALLS.clear()
     assert uvdms_main(argv) == 0
     assert CALLS == [] and capsys.readouterr().out == out
@@ -322,7 +384,7 @@ def test_agents_of_another_env_version_run_the_tasks_on_their_version():
     assert base.task_spec(transport)["env_id"] == "uvdms/Transport-v0"
     with pytest.raises(ValueError, match="another environment"):
         circle.spec("velocity", "uvdms/Transport-v1")
-    material = cache_material(v1, circle, 2_000_000_000, False)
+    material = cache_material(v1, circle, TEST.start, False)
     assert material["task"]["env_id"] == "uvdms/CircleTrack-v1"
 
 
@@ -354,3 +416,27 @@ def test_a_v1_agent_runs_its_version_and_the_table_says_whose_return_it_is(tmp_p
         backend=backend,
     )
     assert "Returns are in the reward" not in lb.markdown_tables(alone)  # one version: no note
+
+
+def test_cli_split_episodes_and_generalisation_check_options(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(leaderboard.running.runner, "DEFAULT_BACKEND", FAKE)
+    argv = ["leaderboard", "--entries", "campc", "--tasks", "case1", "circle-random", "--episodes", "3"]
+    argv += ["--no-progress", "--no-plots", "--agents-dir", str(tmp_path)]
+    runs = {
+        "full": ([], {"test": 1 + 3, "test2": 3}),  # --episodes: the draws of the randomised task, on both test sets
+        "validation": (["--split", "validation"], {"validation": 1 + 3}),
+        "nocheck": (["--no-generalization-check"], {"test": 1 + 3}),
+    }
+    for name, (extra, expected) in runs.items():
+        CALLS.clear()
+        assert uvdms_main([*argv, *extra, "--out", str(tmp_path / name)]) == 0
+        assert Counter(split_of(seed) for _entry, seed in CALLS) == expected, name
+        markdown = (tmp_path / name / "leaderboard.md").read_text()
+        assert (" ".join(extra) in markdown.split("\n")[2]) and ("## Generalisation check" in markdown) == (
+            name == "full"
+        )
+    assert "the `validation` split" in (tmp_path / "validation" / "leaderboard.md").read_text()
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        uvdms_main([*argv, "--split", "test2", "--out", str(tmp_path / "x")])
+    assert "invalid choice: 'test2'" in capsys.readouterr().err and not (tmp_path / "x").exists()

@@ -18,7 +18,6 @@ import leaderboard as lb
 from leaderboard.running.cache import read_cached
 from leaderboard.running.distributed import agent_files, materialise
 from leaderboard.running.jobs import plan_jobs
-from leaderboard.suite.tasks import evaluation_seeds
 from tests.support.ray_cluster import in_background, kill_when
 from uvdms_cli.main import main
 
@@ -77,20 +76,21 @@ def test_two_node_cluster(tmp_path, ray_processes):
         argv += ["--max-episode-steps", "6", "--backend", "ray", "--address", cluster.address]
         assert main(leaderboard_argv(out, *argv)) == 0
         rows = quality_columns(out / "leaderboard.csv")
-        assert sorted((row["entry"], row["episodes"]) for row in rows) == [("mpc", "2"), ("sac-circle-case1-v0", "2")]
+        assert sorted((row["entry"], row["episodes"]) for row in rows) == [("mpc", "1"), ("sac-circle-case1-v0", "1")]
         entries = lb.resolve_entries(["mpc", str(SHIPPED_SAC)])
         tasks = [replace(t, max_episode_steps=6) for t in lb.TASKS if t.name == "case1"]
-        check_cache(out / "cache", plan_jobs(entries, tasks, evaluation_seeds(2), out / "cache"))
+        # case1 is deterministic: its one test draw per entry, whatever --episodes
+        check_cache(out / "cache", plan_jobs(entries, tasks, "test", 2, out / "cache"))
     finally:
         cluster.shutdown()
 
 
 def test_a_killed_worker_is_retried_and_every_episode_is_cached_once(tmp_path, ray_processes):
     entries = lb.resolve_entries(["mpc", "campc"])
-    tasks = [t for t in lb.TASKS if t.name == "case2"]
+    tasks = [t for t in lb.TASKS if t.name == "circle-random"]  # randomised: 3 draws per entry
     tasks = [replace(t, max_episode_steps=60) for t in tasks]
     cache = tmp_path / "ray" / "cache"
-    jobs = plan_jobs(entries, tasks, evaluation_seeds(3), cache)
+    jobs = plan_jobs(entries, tasks, "test", 3, cache)
     thread, outcome = in_background(
         lambda: lb.run_leaderboard(
             entries,
@@ -101,6 +101,7 @@ def test_a_killed_worker_is_retried_and_every_episode_is_cached_once(tmp_path, r
             num_cpus=2,
             progress=False,
             plots=False,
+            generalization=False,  # (the test draws only: the jobs planned above)
         )
     )
     killed = kill_when("ray::episode ", thread, settle=0.5)  # into the episode: its steps are running
@@ -112,7 +113,9 @@ def test_a_killed_worker_is_retried_and_every_episode_is_cached_once(tmp_path, r
     check_cache(cache, jobs)
     assert all(len(row.episodes) == 3 for row in result.rows)
     # the retried episode is the one a first attempt gives: the local backend's results, bit for bit
-    lb.run_leaderboard(entries, out_dir=tmp_path / "local", tasks=tasks, episodes=3, progress=False, plots=False)
+    lb.run_leaderboard(
+        entries, out_dir=tmp_path / "local", tasks=tasks, episodes=3, progress=False, plots=False, generalization=False
+    )
     assert quality_columns(tmp_path / "ray" / "leaderboard.csv") == quality_columns(
         tmp_path / "local" / "leaderboard.csv"
     )

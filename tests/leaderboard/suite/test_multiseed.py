@@ -1,9 +1,10 @@
-"""Multi-seed entries: IQM and stratified bootstrap CIs, the seed-folder layout, one row per entry, learning curves.
+"""Multi-seed entries: the IQM, the seed-folder layout, one row per entry, learning curves.
 
-The statistics are checked against independent computations (``scipy.stats.trim_mean``, a sort-and-slice IQM, a
-per-resample loop with the same random draws, and rliable's ``StratifiedBootstrap.update_indices`` transcribed:
-``rliable`` itself does not import with the pinned pandas 3, see ``CHANGELOG.md``). The committed leaderboard
-(``docs/leaderboard``) is recomputed from its own episodes to show that single-seed rows are unchanged.
+The IQM is checked against independent computations (``scipy.stats.trim_mean``, a sort-and-slice IQM); the
+hierarchical bootstrap of a multi-seed row: ``tests/leaderboard/stats/test_hierarchical_bootstrap.py``. Under the
+seed protocol a multi-seed entry runs the one draw of a deterministic task with every training seed and spreads the
+draws of a randomised task over them (draw ``i`` to seed ``i % k``). The committed leaderboard (``docs/leaderboard``)
+is recomputed from its own episodes with the aggregation of the code that wrote it.
 """
 
 from __future__ import annotations
@@ -20,12 +21,21 @@ from scipy import stats as sps
 
 import leaderboard as lb
 from leaderboard.output.plots import write_learning_curves
-from leaderboard.stats.intervals import Stat, bootstrap_ci, iqm, stratified_bootstrap_ci
-from leaderboard.stats.metrics import aggregate, aggregate_runs, learning_curve_stats, run_matrix
+from leaderboard.output.report import check_table
+from leaderboard.stats.generalization import GeneralizationCheck, generalization_check
+from leaderboard.stats.intervals import BOOTSTRAP_SEED, N_RESAMPLES, Stat, iqm
+from leaderboard.stats.metrics import (
+    METRICS,
+    RATE_METRICS,
+    aggregate,
+    aggregate_runs,
+    learning_curve_stats,
+    run_matrix,
+)
 from leaderboard.stats.ranking import RankedRow, rank_rows
 from leaderboard.stats.result import LeaderboardResult
 from leaderboard.suite.entries import agent_entry, check_seed_disjointness, find_agent_folders
-from leaderboard.suite.tasks import SEED_BASE, TRACKS, evaluation_seeds
+from leaderboard.suite.tasks import TRACKS
 from tests.support.multiseed_fakes import (
     CALLS,
     CIRCLE,
@@ -35,11 +45,10 @@ from tests.support.multiseed_fakes import (
     _multi_seed,
     _write_curve,
 )
+from uvdms_gym.seeds import PROTOCOL, TEST, TEST2, assign_draws, split_of, split_seeds
 
 REPO = Path(__file__).resolve().parents[3]
 TRANSPORT = "uvdms/Transport-v0"
-FEW = 999
-"""Bootstrap resamples in the cross-checks that loop over resamples in Python."""
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -66,82 +75,8 @@ def test_iqm_ignores_outliers_and_missing_values():
 
 
 # ------------------------------------------------------------------------------------------------------
-# Stratified bootstrap
+# Aggregation of a multi-seed row
 # ------------------------------------------------------------------------------------------------------
-def _loop_resampling(x: np.ndarray, statistic, seed: int, n_resamples: int) -> tuple[float, float]:
-    """The documented draws, one resample at a time: an explicit resampled matrix per resample."""
-    rng = np.random.default_rng(seed)
-    columns = [x[np.isfinite(x[:, j]), j] for j in range(x.shape[1])]
-    columns = [c for c in columns if c.size]
-    draws = [rng.integers(0, c.size, size=(n_resamples, c.size)) for c in columns]
-    estimates = []
-    for b in range(n_resamples):
-        resampled = [c[d[b]] for c, d in zip(columns, draws, strict=True)]
-        estimates.append(statistic(np.concatenate(resampled)))
-    low, high = np.percentile(estimates, [2.5, 97.5])
-    return float(low), float(high)
-
-
-@pytest.mark.parametrize("estimator", ["iqm", "mean"])
-def test_interval_matches_an_independent_resampling_with_the_same_seed(estimator):
-    x = np.random.default_rng(1).normal(0.05, 0.02, size=(3, 8))
-    x[1, 2] = math.nan  # an episode without a value: its column resamples the other two runs
-    stat = stratified_bootstrap_ci(x, estimator=estimator, n_resamples=FEW, seed=123)
-    statistic = (lambda v: sps.trim_mean(v, 0.25)) if estimator == "iqm" else np.mean
-    low, high = _loop_resampling(x, statistic, 123, FEW)
-    assert stat.n == 23 and stat.estimator == estimator
-    assert stat.mean == pytest.approx(statistic(x[np.isfinite(x)]), rel=1e-14)
-    assert (stat.low, stat.high) == pytest.approx((low, high), rel=1e-12)
-    assert stat.low <= stat.mean <= stat.high
-    assert stratified_bootstrap_ci(x, estimator=estimator, n_resamples=FEW, seed=123) == stat
-    assert stratified_bootstrap_ci(x, estimator=estimator, n_resamples=FEW, seed=124) != stat
-
-
-def test_interval_agrees_with_rliables_stratified_bootstrap_scheme():
-    """rliable's ``update_indices`` (a run index drawn for every cell, the column kept) with its own draws."""
-    rng = np.random.default_rng(2)
-    x = np.linspace(0.01, 0.1, 10) + rng.gamma(2.0, 0.005, size=(4, 10))  # episodes differ: the strata matter
-    n_resamples = 20_000
-    rng = np.random.default_rng(99)
-    num_runs, num_tasks = x.shape
-    estimates = np.empty(n_resamples)
-    task_index = np.ogrid[0:num_tasks]  # rliable: self._strata_indices (the column of each cell)
-    for b in range(n_resamples):
-        indices = rng.choice(num_runs, x.shape, replace=True)  # rliable: np.random.choice(num_runs, args_shape)
-        estimates[b] = sps.trim_mean(x[indices, task_index], 0.25, axis=None)  # rliable: metrics.aggregate_iqm
-    low, high = np.percentile(estimates, [2.5, 97.5])  # rliable's default method='percentile'
-    ours = stratified_bootstrap_ci(x, n_resamples=n_resamples)
-    width = high - low
-    assert ours.mean == sps.trim_mean(x, 0.25, axis=None)
-    assert abs(ours.low - low) < 0.05 * width and abs(ours.high - high) < 0.05 * width  # Monte Carlo error only
-
-
-def test_interval_reflects_the_spread_between_training_seeds():
-    # a deterministic task: each run repeats one episode, the runs differ
-    runs = np.array([[0.010] * 6, [0.020] * 6, [0.035] * 6])
-    stat = stratified_bootstrap_ci(runs)
-    assert stat.low < stat.mean < stat.high and stat.low >= 0.010 and stat.high <= 0.035
-    for row in runs:  # every run on its own has a zero-width interval over its episodes
-        assert bootstrap_ci(row).half_width == 0.0
-    same = stratified_bootstrap_ci(np.full((3, 4), 0.02))
-    assert (same.low, same.mean, same.high) == (0.02, 0.02, 0.02)
-    one = stratified_bootstrap_ci([[0.5, math.nan], [math.nan, math.nan]])
-    assert one.n == 1 and one.mean == 0.5 and math.isnan(one.low)
-    assert stratified_bootstrap_ci(np.full((2, 2), math.nan)).n == 0
-    with pytest.raises(ValueError, match="matrix"):
-        stratified_bootstrap_ci([1.0, 2.0])
-    with pytest.raises(ValueError, match="estimator"):
-        stratified_bootstrap_ci(runs, estimator="median")
-
-
-def test_interval_covers_the_point_on_skewed_small_samples():
-    rng = np.random.default_rng(3)
-    for _ in range(20):
-        x = rng.exponential(size=(int(rng.integers(2, 5)), int(rng.integers(1, 6))))
-        stat = stratified_bootstrap_ci(x, n_resamples=FEW)
-        assert stat.low <= stat.mean <= stat.high
-
-
 def _episode(seed: int, *, rmse: float | None, success: bool, contacts: int = 0) -> dict:
     return {"seed": seed, "rmse_pos": rmse, "success": success, "contacts": contacts, "return": -rmse if rmse else 0.0}
 
@@ -262,10 +197,11 @@ def test_identical_seed_folders_are_refused(tmp_path):
 
 
 def test_a_clashing_training_seed_names_its_seed_folder(tmp_path):
-    folder = _multi_seed(tmp_path, seeds=(0, SEED_BASE + 1))
+    folder = _multi_seed(tmp_path, seeds=(0, TEST.start + 1))
     entry = agent_entry(folder, trust=True)
-    with pytest.raises(ValueError, match=rf"sac_multi/seed_{SEED_BASE + 1}.*disjoint"):
-        check_seed_disjointness(evaluation_seeds(3), [entry])
+    with pytest.raises(ValueError, match=rf"sac_multi/seed_{TEST.start + 1}.*disjoint"):
+        check_seed_disjointness(split_seeds("test", 3), [entry])
+    check_seed_disjointness(split_seeds("validation", 3), [entry])  # the validation draws do not clash
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -278,43 +214,79 @@ def test_multi_seed_entry_is_one_row_aggregated_over_its_seeds(tmp_path):
     _agent_folder(tmp_path / "agents" / "sac_single", 5)
     entries = lb.resolve_entries(["agents"], agents_dir=tmp_path / "agents", trust=True)
     assert [e.name for e in entries] == ["sac_multi", "sac_single"]
+    deterministic, randomised = TINY_TASKS
+    assert deterministic.deterministic and not randomised.deterministic
     CALLS.clear()
     out = tmp_path / "out"
     result = lb.run_leaderboard(
         entries, out_dir=out, tasks=TINY_TASKS, episodes=4, progress=False, plots=True, backend=FAKE
     )
-    assert len(CALLS) == (3 + 1) * len(TINY_TASKS) * 4 and result.computed == len(CALLS)
+    # case1: its one draw by each of the 3 + 1 runs; circle-random: 4 draws per entry, on test and on test2
+    test, test2 = split_seeds("test", 4), split_seeds("test2", 4)
+    expected = [(f"seed_{k}", TEST.start) for k in range(3)] + [("sac_single", TEST.start)]
+    expected += [(f"seed_{i % 3}", seed) for draws in (test, test2) for i, seed in enumerate(draws)]
+    expected += [("sac_single", seed) for seed in test + test2]
+    assert sorted((Path(spec).name, seed) for spec, seed in CALLS) == sorted(expected)
+    assert result.computed == len(CALLS) == 4 + 2 * 4 + 2 * 4
     rows = {(r.entry.name, r.task.name): r for r in result.rows}
     assert set(rows) == {(e, t.name) for e in ("sac_multi", "sac_single") for t in TINY_TASKS}
-    multi = rows["sac_multi", "case1"]
-    assert len(multi.episodes) == 12 and {ep["training_seed"] for ep in multi.episodes} == {0, 1, 2}
+
+    multi = rows["sac_multi", "case1"]  # every training seed on the one draw: the seeds' spread
+    assert [(ep["training_seed"], ep["seed"]) for ep in multi.episodes] == [(k, TEST.start) for k in (0, 1, 2)]
     by_seed = [[ep for ep in multi.episodes if ep["training_seed"] == k] for k in (0, 1, 2)]
     assert multi.stats == aggregate_runs(by_seed)
     assert multi.stats["rmse_pos"].estimator == "iqm"
     assert multi.stats["rmse_pos"].mean == pytest.approx(iqm([ep["rmse_pos"] for ep in multi.episodes]))
-    assert multi.stats["success"].mean == np.mean([ep["success"] for ep in multi.episodes])
     assert multi.stats["rmse_pos"].low < multi.stats["rmse_pos"].mean < multi.stats["rmse_pos"].high
-    plain = rows["sac_single", "case1"]
+    assert multi.check is None and multi.check_episodes == []
+    spread = rows["sac_multi", "circle-random"]  # the draws spread over the training seeds: draw i to seed i % 3
+    assert [(ep["training_seed"], ep["seed"]) for ep in spread.episodes] == sorted(
+        [(i % 3, seed) for i, seed in enumerate(test)]
+    )
+    by_seed = [[ep for ep in spread.episodes if ep["training_seed"] == k] for k in (0, 1, 2)]
+    assert spread.stats == aggregate_runs(by_seed)
+    assert spread.stats["success"].mean == np.mean([ep["success"] for ep in spread.episodes])
+    assert spread.stats["success"].n == 4
+    assert spread.check is not None and spread.check.metric == "contact_free_success"
+    assert sorted((ep["training_seed"], ep["seed"]) for ep in spread.check_episodes) == sorted(
+        (i % 3, seed) for i, seed in enumerate(test2)
+    )
+    plain = rows["sac_single", "circle-random"]
     assert plain.stats == aggregate(plain.episodes) and "training_seed" not in plain.episodes[0]
+    assert [ep["seed"] for ep in plain.episodes] == test and [ep["seed"] for ep in plain.check_episodes] == test2
 
     tables = lb.markdown_tables(result)
-    assert "| sac_multi (3 seeds) |" in tables and "| 3 × 4 |" in tables and "| sac_single |" in tables
-    assert "interquartile mean" in (out / "leaderboard.md").read_text()
+    assert "| sac_multi (3 seeds) |" in tables and "| sac_single |" in tables
+    multi_lines = [line for line in tables.splitlines() if "| sac_multi (3 seeds) |" in line]
+    assert [line.rsplit("|", 2)[1].strip() for line in multi_lines] == ["3 × 1", "4"]  # case1, then circle-random
+    markdown = (out / "leaderboard.md").read_text()
+    assert "interquartile mean" in markdown and "hierarchical bootstrap" in markdown
     with (out / "leaderboard.csv").open() as f:
         csv_rows = {(r["entry"], r["task"]): r for r in csv.DictReader(f)}
     assert csv_rows["sac_multi", "case1"]["training_seeds"] == "3"
-    assert csv_rows["sac_multi", "case1"]["aggregation"] == "seeds-iqm-stratified"
+    assert csv_rows["sac_multi", "case1"]["aggregation"] == "seeds-iqm-hierarchical"
+    assert (
+        csv_rows["sac_multi", "case1"]["episodes"] == "3" and csv_rows["sac_multi", "circle-random"]["episodes"] == "4"
+    )
     assert csv_rows["sac_single", "case1"]["training_seeds"] == ""
+    assert csv_rows["sac_single", "case1"]["aggregation"] == "episodes-mean-bca"
     assert float(csv_rows["sac_multi", "case1"]["rmse_pos_mean"]) == pytest.approx(multi.stats["rmse_pos"].mean, 1e-5)
     doc = json.loads((out / "entries" / "sac_multi.json").read_text())
     assert [s["folder"] for s in doc["seeds"]] == ["seed_0", "seed_1", "seed_2"] and "aggregation" in doc
+    assert "hierarchical" in doc["aggregation"]["interval"]
     assert doc["tasks"]["case1"]["stats"]["rmse_pos"]["estimator"] == "iqm"
+    assert doc["tasks"]["case1"]["seed_protocol"] == {"protocol": PROTOCOL, "split": "test"}
+    check = doc["tasks"]["circle-random"]["check"]
+    assert check["seed_protocol"] == {"protocol": PROTOCOL, "split": "test2"}
+    assert sorted((ep["training_seed"], ep["seed"]) for ep in check["episodes"]) == sorted(
+        (i % 3, seed) for i, seed in enumerate(test2)
+    )
     assert "seeds" not in json.loads((out / "entries" / "sac_single.json").read_text())
     cached = {p.parent.parent.name for p in (out / "cache").rglob("*.json")}
     assert cached == {"sac_multi_seed_0", "sac_multi_seed_1", "sac_multi_seed_2", "sac_single"}
     plots = {p.name for p in (out / "plots").glob("*.png")}
     assert "learning_curves_sac_multi.png" in plots and "learning_curves_sac_single.png" not in plots
-    assert "plots/learning_curves_sac_multi.png" in (out / "leaderboard.md").read_text()
+    assert "plots/learning_curves_sac_multi.png" in markdown
 
     CALLS.clear()
     again = lb.run_leaderboard(
@@ -322,11 +294,23 @@ def test_multi_seed_entry_is_one_row_aggregated_over_its_seeds(tmp_path):
     )
     assert CALLS == [] and again.cached == result.computed
     assert lb.markdown_tables(again) == tables
-    (next((out / "cache").glob("sac_multi_seed_1/case2/*.json"))).unlink()
+    (next((out / "cache").glob("sac_multi_seed_1/circle-random/*.json"))).unlink()
     again = lb.run_leaderboard(
         entries, out_dir=out, tasks=TINY_TASKS, episodes=4, progress=False, plots=False, backend=FAKE
     )
     assert again.computed == 1 and CALLS[0][0].endswith("seed_1")
+
+
+def test_fewer_draws_than_training_seeds_leave_a_seed_without_episodes_on_a_randomised_task(tmp_path):
+    entries = lb.resolve_entries([str(_multi_seed(tmp_path / "agents"))], trust=True)
+    CALLS.clear()
+    result = lb.run_leaderboard(
+        entries, out_dir=tmp_path / "out", tasks=TINY_TASKS[1:], episodes=2, progress=False, plots=False, backend=FAKE
+    )
+    (row,) = result.rows
+    assert sorted((ep["training_seed"], ep["seed"]) for ep in row.episodes) == [(0, TEST.start), (1, TEST.start + 1)]
+    assert row.stats["success"].n == 2
+    assert sorted(ep["seed"] for ep in row.check_episodes) == [TEST2.start, TEST2.start + 1]
 
 
 def test_learning_curve_plot_skips_a_broken_curve(tmp_path, caplog):
@@ -342,7 +326,7 @@ def test_learning_curve_plot_skips_a_broken_curve(tmp_path, caplog):
 
 
 # ------------------------------------------------------------------------------------------------------
-# Single-seed rows are unchanged: the committed leaderboard recomputed from its own episodes
+# The committed leaderboard recomputed from its own episodes (with the aggregation of the code that wrote it)
 # ------------------------------------------------------------------------------------------------------
 def _close(a, b, rel=1e-12):
     """Equal structures, floats to a relative ``rel``."""
@@ -364,11 +348,96 @@ def _committed_stats(stats: dict) -> dict:
     }
 
 
+def _sorted_iqm(x: np.ndarray, axis: int | None = None) -> np.ndarray:
+    """The 25 % trimmed mean (``int(0.25 n)`` off each end) by sorting: ``scipy.stats.trim_mean`` to rounding."""
+    x = np.sort(x, axis=-1) if axis is not None else np.sort(np.ravel(x))
+    cut = int(0.25 * x.shape[-1])
+    return x[..., cut : x.shape[-1] - cut].mean(axis=-1)
+
+
+def _stratified_bootstrap_0_4(matrix: np.ndarray, estimator: str, seed: int) -> Stat:
+    """The interval of a multi-seed row before the seed protocol (0.4.0's ``stratified_bootstrap_ci``, transcribed).
+
+    rliable's scheme with the evaluation episodes as strata: for each column in order, with ``k`` finite cells, one
+    ``rng.integers(0, k, size=(N_RESAMPLES, k))`` of ``rng = default_rng(seed)``; the estimator of the pooled
+    resample; the percentile interval widened to the point. Kept here to check a leaderboard it wrote.
+    """
+    x = np.asarray(matrix, dtype=float)
+    finite = np.isfinite(x)
+    pooled = x[finite]
+    statistic = _sorted_iqm if estimator == "iqm" else np.mean
+    if pooled.size == 0:
+        return Stat(math.nan, math.nan, math.nan, 0, estimator)
+    point = float(statistic(pooled))
+    if pooled.size < 2:
+        return Stat(point, math.nan, math.nan, 1, estimator)
+    if np.all(pooled == pooled[0]):
+        return Stat(float(pooled[0]), float(pooled[0]), float(pooled[0]), int(pooled.size), estimator)
+    rng = np.random.default_rng(seed)
+    columns = [x[finite[:, j], j] for j in range(x.shape[1]) if finite[:, j].any()]
+    resampled = np.concatenate([c[rng.integers(0, c.size, size=(N_RESAMPLES, c.size))] for c in columns], axis=1)
+    low, high = np.percentile(statistic(resampled, axis=1), [2.5, 97.5])
+    return Stat(point, min(float(low), point), max(float(high), point), int(pooled.size), estimator)
+
+
+def _aggregate_runs_0_4(runs) -> dict[str, Stat]:
+    """0.4.0's ``aggregate_runs``: rates as means, the rest as IQMs, each with its stratified bootstrap interval."""
+    return {
+        metric: _stratified_bootstrap_0_4(
+            run_matrix(runs, metric), "mean" if metric in RATE_METRICS else "iqm", BOOTSTRAP_SEED + index
+        )
+        for index, metric in enumerate(METRICS)
+    }
+
+
+def _n_cells_before_the_protocol(tables: str, rows: list[RankedRow]) -> str:
+    """``tables`` with the ``n`` cell 0.4.0 wrote for a multi-seed row on a randomised task (``k × episodes``)."""
+    lines = tables.splitlines()
+    for row in rows:
+        if row.entry.multi_seed and not row.task.deterministic:
+            k, n = len(row.entry.members), len(row.episodes)
+            prefix = f"| {row.task.label} | {row.rank_label} | {row.entry.label} |"
+            (i,) = [i for i, line in enumerate(lines) if line.startswith(prefix)]
+            assert lines[i].endswith(f" {n} |")
+            lines[i] = lines[i][: -len(f" {n} |")] + f" {k} × {n / k:g} |"
+    return "\n".join(lines) + ("\n" if tables.endswith("\n") else "")
+
+
+def _committed_check(check: dict) -> GeneralizationCheck:
+    parts = {part: _committed_stats({part: check[part]})[part] for part in ("test", "test2", "difference")}
+    return GeneralizationCheck(metric=check["metric"], **parts)
+
+
 @pytest.mark.portability
 def test_committed_leaderboard_is_reproduced_from_its_episodes():
     root = REPO / "docs" / "leaderboard"
-    tasks = {t.name: t for t in lb.TASKS}
+    assert len(list((root / "entries").glob("*.json"))) > 20
+    assert_reproduced_from_its_episodes(root, lb.TASKS)
+
+
+def test_a_leaderboard_of_the_seed_protocol_is_reproduced_from_its_episodes(tmp_path):
+    """The same check of a tiny leaderboard written now (fake episodes): the branch a regenerated board takes."""
+    folder = _multi_seed(tmp_path / "agents")
+    _agent_folder(tmp_path / "agents" / "sac_single", 5)
+    entries = lb.resolve_entries(["agents", "mpc"], agents_dir=tmp_path / "agents", trust=True)
+    out = tmp_path / "out"
+    lb.run_leaderboard(entries, out_dir=out, tasks=TINY_TASKS, episodes=7, progress=False, plots=False, backend=FAKE)
+    assert folder.name == "sac_multi" and "## Generalisation check" in (out / "leaderboard.md").read_text()
+    assert_reproduced_from_its_episodes(out, TINY_TASKS)
+
+
+def assert_reproduced_from_its_episodes(root: Path, task_list) -> None:
+    """Every cell's statistics from its episodes, then the tables from the committed statistics.
+
+    A leaderboard of the seed protocol (its cells record their ``seed_protocol``): the draws of each task on its
+    split, the aggregation of this code, the generalisation check from the ``test2`` episodes. One from before it
+    (the evaluation seeds ``2_000_000_000 + i`` of every task, by every training seed): its multi-seed rows with
+    the stratified bootstrap that wrote them, single-seed rows unchanged.
+    """
+    tasks = {t.name: t for t in task_list}
+    markdown = (root / "leaderboard.md").read_text(encoding="utf-8")
     rows = []
+    protocols = set()
     for path in sorted((root / "entries").glob("*.json")):
         doc = json.loads(path.read_text(encoding="utf-8"))
         seeds = [s["training_seed"] for s in doc.get("seeds") or []]
@@ -392,21 +461,46 @@ def test_committed_leaderboard_is_reproduced_from_its_episodes():
             members=members,
         )
         for name, cell in doc["tasks"].items():
-            if seeds:  # a multi-seed entry: its own aggregation (IQM, stratified bootstrap) over seeds x episodes
-                runs = [[e for e in cell["episodes"] if e["training_seed"] == k] for k in seeds]
+            task = tasks[name]
+            protocol = cell.get("seed_protocol")
+            protocols.add(None if protocol is None else protocol["protocol"])
+            runs = [[e for e in cell["episodes"] if e["training_seed"] == k] for k in seeds]
+            if protocol is not None:  # each run's draws as the protocol assigns them
+                split = protocol["split"]
+                draws = sorted({e["seed"] for e in cell["episodes"]})
+                assert draws == split_seeds(split, len(draws)), (doc["name"], name)
+                assert len(draws) == 1 or not task.deterministic, (doc["name"], name)
+                for i, run in enumerate(runs):
+                    mine = draws if task.deterministic else assign_draws(draws, len(runs), i)
+                    assert sorted(e["seed"] for e in run) == mine, (doc["name"], name)
+                stats = aggregate_runs(runs) if seeds else aggregate(cell["episodes"])
+            else:  # 0.4.0: every training seed on the same evaluation seeds
                 assert all(len(run) == len(runs[0]) > 0 for run in runs), (doc["name"], name)
-                stats = aggregate_runs(runs)
-            else:
-                stats = aggregate(cell["episodes"])
+                stats = _aggregate_runs_0_4(runs) if seeds else aggregate(cell["episodes"])
             # equal to rounding: the bootstrap's sums may round differently on another CPU (1e-15 seen)
             assert _close({m: s.to_json() for m, s in stats.items()}, cell["stats"]), (doc["name"], name)
             # the tables from the committed statistics: the same bits on any CPU (a last-bit difference of the
             # recomputed ones could move a rounded digit or an interval's overlap)
-            rows.append(RankedRow(entry, tasks[name], _committed_stats(cell["stats"]), cell["episodes"]))
-    assert len(rows) > 20
+            row = RankedRow(entry, task, _committed_stats(cell["stats"]), cell["episodes"])
+            if "check" in cell:
+                check = cell["check"]
+                test2 = [[e for e in check["episodes"] if e["training_seed"] == k] for k in seeds] or [
+                    check["episodes"]
+                ]
+                again = generalization_check(runs or [cell["episodes"]], test2).to_json()
+                assert _close(again, {k: v for k, v in check.items() if k not in ("episodes", "seed_protocol")})
+                assert {split_of(e["seed"]) for e in check["episodes"]} == {"test2"}
+                row.check = _committed_check(check)
+            rows.append(row)
+    assert len(rows) >= 4 and len(protocols) == 1, protocols  # one protocol for the whole leaderboard
     ranked = []
     for track in TRACKS:
-        for task in lb.TASKS:
+        for task in task_list:
             ranked += rank_rows([r for r in rows if r.entry.track == track and r.task is task])
-    result = LeaderboardResult(ranked, [], lb.TASKS, [], 0, 0, [], root)
-    assert lb.markdown_tables(result) in (root / "leaderboard.md").read_text(encoding="utf-8")
+    result = LeaderboardResult(ranked, [], tuple(task_list), [], 0, 0, [], root)
+    tables = lb.markdown_tables(result)
+    if protocols == {None}:
+        tables = _n_cells_before_the_protocol(tables, ranked)
+    else:
+        assert check_table(result) in markdown
+    assert tables in markdown
