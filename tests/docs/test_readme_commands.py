@@ -118,6 +118,23 @@ SHRUNK: dict[str, Shrunk] = {
         "uvdms export-agent trained_agents/ppo-circle-case1-v0 out/my_export",
         creates=("out/my_export/agent.json", "out/my_export/policy.pt"),
     ),
+    # docs/seeds.md: development on validation draws
+    "uvdms evaluate --controller campc --env uvdms/CircleTrack-v0 --env-kwargs case=random --episodes 2 "
+    "--out out/val.json": Shrunk(
+        "evaluate",
+        "uvdms evaluate --controller campc --env uvdms/CircleTrack-v0 --env-kwargs case=random max_episode_steps=20 "
+        "--episodes 2 --out out/val.json --no-progress",
+        creates=("out/val.json",),
+        stdout_json=True,
+        contains=(("out/val.json", '"split": "validation"'),),
+    ),
+    "uvdms leaderboard --split validation --tasks circle-random --entries campc hold --out out/lb-validation": Shrunk(
+        "leaderboard",
+        "uvdms leaderboard --split validation --tasks circle-random --entries campc hold --out out/lb-validation "
+        "--episodes 2 --max-episode-steps 20 --no-progress",
+        creates=("out/lb-validation/leaderboard.csv",),
+        contains=(("out/lb-validation/leaderboard.md", "the `validation` split"),),
+    ),
     # docs/OBSTACLES.md: a scripted obstacle through --env-kwargs
     "uvdms evaluate --controller campc --env uvdms/TransportObstacles-v1 --episodes 1 --env-kwargs "
     "'obstacles=[{shape: sphere, radius: 0.08, position: [3.5, 1.5, 29.0], velocity: [-0.05, 0.02, 0.01]}]'": Shrunk(
