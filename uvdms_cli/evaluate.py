@@ -28,7 +28,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the JSON records the split (meta.seed_protocol). A folder of training seeds (seed_<k>/ sub-folders, as "
         "the leaderboard ranks them) spreads the draws over its seeds (draw i evaluated once, by the (i % n)-th "
         "seed folder, as the leaderboard does on its randomised tasks; --every-seed: every seed runs every draw) "
-        "and aggregates the episodes (rates as fractions, IQM otherwise, bootstrap intervals; summary keys "
+        "and aggregates the episodes (rates as fractions, IQM otherwise, hierarchical bootstrap intervals: draws, "
+        "then training seeds; summary keys "
         "aggregate, per_seed).",
     )
     ev.add_argument(
@@ -67,7 +68,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--every-seed",
         action="store_true",
         help="for a folder of training seeds: every seed evaluates every draw (N episodes per seed, aggregated "
-        "over seeds x episodes with the stratified bootstrap) instead of spreading the draws over the seeds",
+        "over seeds x episodes as the leaderboard does) instead of spreading the draws over the seeds",
     )
     ev.add_argument(
         "--max-episode-steps",
