@@ -23,7 +23,7 @@ def test_a_changed_cell_is_rewritten_and_missing_columns_are_named():
     board = (REPO / "docs" / "leaderboard" / "leaderboard.md").read_text(encoding="utf-8")
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     row = next(line for line in readme.splitlines() if line.startswith("| Case 1 | 1 | campc |"))
-    stale = readme.replace(row, row.replace("| 0.5 ± 0.0 |", "| 9.9 ± 0.0 |"), 1)
+    stale = readme.replace(row, row.replace("| 0.5 (n=1) |", "| 9.9 (n=1) |"), 1)
     assert stale != readme and tables.update_readme(stale, board) == readme
     with pytest.raises(ValueError, match=r"no column\(s\) \['Ctrl ms'\]"):
         tables.readme_table(board.replace("| Ctrl ms |", "| Ctrl |"), "Velocity track")
