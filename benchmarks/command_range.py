@@ -3,7 +3,7 @@
     python benchmarks/command_range.py [--controller campc] [--task circle-random] [--episodes 3] [--scale 0.3]
 
 Runs ``--episodes`` episodes of the task on the first validation draws
-(``uvdms_gym.seeds.split_seeds("validation", n)``, the seeds ``2_000_000_000 + i``: a development tool never uses
+(``uvdms_gym.seeds.split_seeds("validation", n)``: a development tool never uses
 the leaderboard's test seeds) with the controller and, over the steps after the task's transient (the samples its
 RMSE counts: ``t >= env.unwrapped.tracking_transient``, :mod:`uvdms_gym.evaluation`), prints per action axis the
 99th percentile and the maximum of ``|action|``, and the fraction of steps on which any axis exceeds ``--scale``.
