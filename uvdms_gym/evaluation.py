@@ -358,6 +358,27 @@ def seed_protocol(seeds: Sequence[int]) -> dict[str, Any]:
     return protocol_record(split) if split is not None else {"protocol": PROTOCOL, "split": None}
 
 
+def _run_episodes(
+    env: Any, controller: Any, seeds: Sequence[int], save_trajectory: bool, progress_label: str | None
+) -> list[dict]:
+    """:func:`run_episode` on each of ``seeds`` in turn, behind a tqdm bar named ``progress_label`` (``None``: none)."""
+    bar = None
+    if progress_label is not None:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(seeds, desc=progress_label, unit="ep", leave=False)
+    results = []
+    for s in bar if bar is not None else seeds:
+        ep = run_episode(env, controller, s, save_trajectory=save_trajectory)
+        results.append(ep)
+        if bar is not None:
+            rmse = f"{ep['rmse_pos']:.4f}" if ep["rmse_pos"] is not None else "nan"
+            bar.set_postfix(rmse=rmse, c=ep["contacts"])
+    if bar is not None:
+        bar.close()
+    return results
+
+
 def evaluate_controller(
     make_controller: Callable[[Any], Any],
     env_id: str,
@@ -419,20 +440,9 @@ def evaluate_controller(
             controller = make_controller(env)
             if check is not None:
                 check(controller, env)
-            bar = None
-            if progress:
-                from tqdm.auto import tqdm
-
-                bar = tqdm(seeds, desc=f"{label} on {env_id}", unit="ep", leave=False)
-            results = []
-            for s in bar if bar is not None else seeds:
-                ep = run_episode(env, controller, s, save_trajectory=save_trajectory)
-                results.append(ep)
-                if bar is not None:
-                    rmse = f"{ep['rmse_pos']:.4f}" if ep["rmse_pos"] is not None else "nan"
-                    bar.set_postfix(rmse=rmse, c=ep["contacts"])
-            if bar is not None:
-                bar.close()
+            results = _run_episodes(
+                env, controller, seeds, save_trajectory, f"{label} on {env_id}" if progress else None
+            )
             wall_s = time.perf_counter() - t_start
         settings = controller_settings(controller)
     finally:

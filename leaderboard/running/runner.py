@@ -176,14 +176,8 @@ def run_leaderboard(
     with output_lock(out):  # one run per output folder: a second one refuses
         cache = _prepare_cache(Path(cache_dir) if cache_dir is not None else out / "cache")
         all_jobs, seeds, check_seeds = _plan(entries, tasks, split, episodes, generalization, cache)
-        results, corrupt, todo = _read_cache(all_jobs, force)
-        n_reused = 0
-        if reuse_from is not None and todo:
-            todo, n_reused = _reuse(todo, entries, reuse_from, results)
+        results, corrupt, todo, n_reused = _to_compute(all_jobs, entries, force, reuse_from)
         n_cached = len(all_jobs) - len(todo) - n_reused
-        # the model-based baselines' episodes first: they are the long ones (an MPC QP per step), and workers that
-        # finish the short agent episodes last leave less idle time at the end (the results do not depend on order)
-        todo.sort(key=lambda job: job.entry.kind != "baseline")
         log.info(
             "leaderboard (%s split): %d entries, %d tasks, %d draws per randomised task%s: %d cached, %d reused, "
             "%d to compute",
@@ -295,6 +289,22 @@ def _read_cache(all_jobs: Sequence[Job], force: bool) -> tuple[dict[Path, dict[s
             corrupt.append(job.path)
             todo.append(job)
     return results, corrupt, todo
+
+
+def _to_compute(
+    all_jobs: Sequence[Job], entries: Sequence[Entry], force: bool, reuse_from: str | Path | None
+) -> tuple[dict[Path, dict[str, Any]], list[Path], list[Job], int]:
+    """``(results found, corrupt cache files, jobs to compute, episodes reused)``: the cache, then ``reuse_from``.
+
+    The jobs to compute come baselines first: they are the long ones (an MPC QP per step), and workers that finish
+    the short agent episodes last leave less idle time at the end (the results do not depend on order).
+    """
+    results, corrupt, todo = _read_cache(all_jobs, force)
+    n_reused = 0
+    if reuse_from is not None and todo:
+        todo, n_reused = _reuse(todo, entries, reuse_from, results)
+    todo.sort(key=lambda job: job.entry.kind != "baseline")
+    return results, corrupt, todo, n_reused
 
 
 def _reuse(
