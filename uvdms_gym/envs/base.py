@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Sequence
-from typing import Any, ClassVar, NamedTuple
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -44,9 +44,13 @@ from uvdms_gym.physics.params import D1, D2, UVDMSParams
 from uvdms_gym.physics.render import CAMERA_YAW_OFFSET_DEG, ReferenceScene
 from uvdms_gym.physics.sim import UVDMSSim
 from uvdms_gym.physics.state import PhysicsError
+from uvdms_gym.realism.config import RealismConfig, parse_realism
 from uvdms_gym.utils.display import gui_available, require_display
 from uvdms_gym.utils.kwargs import check_init_kwargs
 from uvdms_gym.utils.legacy import MOVED_NAMES, moved_names
+
+if TYPE_CHECKING:  # the realism layer is imported where it is built (realism > 0 or thrusters mode)
+    from uvdms_gym.envs.realism_layer import Measurements, RealismLayer
 
 PREVIEW_TIMES: tuple[float, ...] = (0.0, 0.4, 0.8)
 """Reference preview horizon of the observation, s."""
@@ -54,6 +58,24 @@ OBS_CLIP = 10.0
 CLEARANCE_CLIP = 0.3
 OBS_DIM = 80
 ACTION_DIM = 18
+N_THRUSTERS = 8
+"""Thrusters of the vehicle (``action_mode="thrusters"`` commands them, then the 12 joint torques)."""
+ACTION_MODES: tuple[str, ...] = ("velocity", "torque", "thrusters")
+"""``velocity`` and ``torque``: 18 values; ``thrusters``: 8 thruster commands and 12 joint torques (20 values)."""
+TRUTH_KEYS: tuple[str, ...] = (
+    "eta",
+    "nu",
+    "q",
+    "qdot",
+    "y",
+    "distances",
+    "min_distance",
+    "current",
+    "obstacles",
+    "obstacle_distances",
+    "min_obstacle_distance",
+)
+"""The ``info`` keys that describe the state: measured at ``realism > 0``, true in :meth:`UVDMSEnv.true_state`."""
 CONTACT_MARGIN = 0.01
 """Rows whose exact distance is within this of contact (m) are checked with PyBullet for contact."""
 PHYSICS_ERROR_REWARD = -100.0
@@ -67,14 +89,16 @@ class _Episode(NamedTuple):
     seed: int | None
     options: dict[str, Any] | None
     actions: list[np.ndarray]
+    noise_key: tuple[int, int] = (0, 0)
+    """The sensors' random streams: the seed and the episode's index since it (:func:`noise_streams`)."""
 
 
 def _check_modes(
     action_mode: str, render_mode: str | None, render_modes: list[str], control_dt: float, physics_dt: float
 ) -> None:
     """``ValueError`` naming an unknown action or render mode or a non-positive time step."""
-    if action_mode not in ("velocity", "torque"):
-        raise ValueError(f"action_mode must be 'velocity' or 'torque', got {action_mode!r}")
+    if action_mode not in ACTION_MODES:
+        raise ValueError(f"action_mode must be 'velocity', 'torque' or 'thrusters', got {action_mode!r}")
     if render_mode is not None and render_mode not in render_modes:
         raise ValueError(f"render_mode must be one of {render_modes} or None, got {render_mode!r}")
     if not (physics_dt > 0 and control_dt > 0):
@@ -126,6 +150,10 @@ class UVDMSEnv(gym.Env, EzPickle):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
     with_object: ClassVar[bool] = False
     camera_yaw_deg: ClassVar[float] = CAMERA_YAW_OFFSET_DEG
+    has_outer_obstacles: ClassVar[bool] = False
+    """The task has outer obstacles (their sonar track is measured at ``realism > 0``)."""
+    episode_steps: ClassVar[int | None] = None
+    """The registered ``max_episode_steps`` (a delay or latency of the ``realism`` knobs must be shorter)."""
     """Yaw of the ``rgb_array`` camera relative to the vehicle's heading, degrees (:mod:`uvdms_gym.physics.render`)."""
 
     def __new__(cls, *args: Any, **kwargs: Any) -> UVDMSEnv:
@@ -154,6 +182,7 @@ class UVDMSEnv(gym.Env, EzPickle):
         render_width: int = 320,
         render_height: int = 240,
         params: UVDMSParams | None = None,
+        realism: int | Mapping[str, Any] | RealismConfig | None = 0,
     ) -> None:
         _check_modes(action_mode, render_mode, self.metadata["render_modes"], control_dt, physics_dt)
         if render_mode == "human":
@@ -172,6 +201,9 @@ class UVDMSEnv(gym.Env, EzPickle):
         """The ocean-current process (:mod:`uvdms_gym.physics.current`), or ``None`` for still water."""
         weights = _weights(track_weight, orientation_weight, effort_weight, proximity_weight, contact_weight)
         self.params = params or UVDMSParams()
+        episode_time = None if self.episode_steps is None else self.episode_steps * float(control_dt)
+        self.realism: RealismConfig | None = parse_realism(realism, episode_time=episode_time)
+        """The sensing and actuation realism (:mod:`uvdms_gym.realism`), or ``None`` for the oracle (level 0)."""
         self.action_mode = action_mode
         self.control_dt = float(control_dt)
         self.physics_dt = float(physics_dt)
@@ -190,7 +222,8 @@ class UVDMSEnv(gym.Env, EzPickle):
         """Velocity-mode scale: ``zeta_cmd = action * zeta_max`` (m/s, rad/s)."""
         self.tau_max = self.params.tau_max.copy()
         """Torque-mode scale: ``tau = action * tau_max`` (N, N m)."""
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
+        self.action_dim = N_THRUSTERS + 12 if action_mode == "thrusters" else ACTION_DIM
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (self.action_dim,), np.float32)
         self.observation_space = gym.spaces.Box(-OBS_CLIP, OBS_CLIP, (OBS_DIM,), np.float32)
         self._build_models()
 
@@ -211,6 +244,38 @@ class UVDMSEnv(gym.Env, EzPickle):
         self._nu_scale = self.zeta_max[:6].copy()
         self._qdot_scale = self.zeta_max[6:].copy()
         self._closed = False
+        self._layer = self._make_layer()
+        self._measured_kin = KinematicModel(self.params) if self.realism is not None else None
+        self._truth: dict[str, Any] = {}
+        self._episode_count = 0
+
+    def _make_layer(self) -> RealismLayer | None:
+        """The action path and sensors at ``realism > 0`` or in thrusters mode (``None``: the oracle's direct path)."""
+        if self.realism is None and self.action_mode != "thrusters":
+            return None
+        from uvdms_gym.envs.realism_layer import RealismLayer
+
+        layer = RealismLayer(
+            self.realism or RealismConfig(level=0, thrusters=True),
+            action_mode=self.action_mode,
+            zeta_max=self.zeta_max,
+            tau_max=self.tau_max,
+            physics_dt=self.physics_dt,
+            n_substeps=self.n_substeps,
+            with_obstacles=self.has_outer_obstacles,
+            sensing=self.realism is not None,
+        )
+        loop, zeta_max, tau_max, dt = self._loop, self.zeta_max, self.tau_max, self.physics_dt
+
+        def torque(action: np.ndarray, zeta: np.ndarray, begin: bool) -> np.ndarray:
+            if self.action_mode == "velocity":
+                if begin:
+                    loop.begin(action * zeta_max)  # the kinematic model holds the step's starting state
+                return loop.torque(zeta, dt)
+            return action * tau_max
+
+        self._layer_law = layer.feedback(torque)
+        return layer
 
     def __getstate__(self) -> dict[str, Any]:
         """The constructor's arguments (:class:`~gymnasium.utils.EzPickle`) and, during an episode, the episode."""
@@ -226,8 +291,8 @@ class UVDMSEnv(gym.Env, EzPickle):
         EzPickle.__setstate__(self, state)
         if episode is not None:
             self._np_random, self._np_random_seed = copy.deepcopy(episode.generator), episode.seed
-            self._episode = _Episode(episode.generator, episode.seed, episode.options, [])
-            self._start_episode()
+            self._episode = _Episode(episode.generator, episode.seed, episode.options, [], episode.noise_key)
+            self._start_episode(episode.noise_key)
             for action in episode.actions:
                 self.step(action)
 
@@ -284,17 +349,21 @@ class UVDMSEnv(gym.Env, EzPickle):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Start an episode: draw the task (and hydrodynamic factors) from the seeded generator."""
         super().reset(seed=seed)
-        episode = _Episode(copy.deepcopy(self.np_random), self._np_random_seed, options, [])
+        self._episode_count = 0 if seed is not None else self._episode_count + 1
+        noise_key = (max(int(self._np_random_seed or 0), 0), self._episode_count)
+        episode = _Episode(copy.deepcopy(self.np_random), self._np_random_seed, options, [], noise_key)
         self._episode = None  # until the episode has started: a reset that raises leaves no episode to step or copy
-        out = self._start_episode()
+        out = self._start_episode(noise_key)
         self._episode = episode
         return out
 
-    def _start_episode(self) -> tuple[np.ndarray, dict[str, Any]]:
+    def _start_episode(self, noise_key: tuple[int, int] = (0, 0)) -> tuple[np.ndarray, dict[str, Any]]:
         """The part of :meth:`reset` after the generator is set: draw the task, reset the simulator, observe."""
         if self._closed:  # reset after close: a new client, as Gymnasium's classic environments do
             self._sim = self._make_sim()
             self._closed = False
+        if self._layer is not None and self._layer.sensing:
+            self._sim.set_probe(self._layer.probe)
         self.task = self._build_task(self.np_random)
         self._apply_hydro_randomization()
         self._reset_current()  # after the task and hydro draws: the episodes without a current are unchanged
@@ -303,9 +372,11 @@ class UVDMSEnv(gym.Env, EzPickle):
         self._after_sim_reset()
         self._loop.reset()
         self.t = 0.0
-        self._last_action = np.zeros(ACTION_DIM)
+        self._last_action = np.zeros(self.action_dim)
         obs, info = self._observe()
         info.update({f"reward_{k}": 0.0 for k in self.weights})
+        if self._layer is not None:
+            obs, info = self._reset_layer(noise_key, obs, info)
         return obs, info
 
     def step(self, action):
@@ -339,6 +410,10 @@ class UVDMSEnv(gym.Env, EzPickle):
         terminated = (self.terminate_on_contact and info["contacts"] > 0) or (
             info["tracking_error"] > self.max_tracking_error
         )
+        if self._layer is not None:
+            info.update(self._layer.end_step())
+            if self._layer.sensing:
+                obs, info = self._measured(obs, info, self._layer_measure(info))
         self._last_action = a
         self._last_info = info
         if self.render_mode == "human":
@@ -372,8 +447,8 @@ class UVDMSEnv(gym.Env, EzPickle):
     # ----------------------------------------------------------------- step parts
     def _validate_action(self, action) -> tuple[np.ndarray, bool]:
         a = np.asarray(action, dtype=np.float64)
-        if a.shape != (ACTION_DIM,):
-            raise ValueError(f"action must have shape ({ACTION_DIM},), got {a.shape}")
+        if a.shape != (self.action_dim,):
+            raise ValueError(f"action must have shape ({self.action_dim},), got {a.shape}")
         within = np.abs(a) <= 1.0  # False for NaN/inf and for entries to clip
         if False not in within.tolist():  # (a list scan: ndarray.all() costs several times more)
             return a, False
@@ -385,6 +460,10 @@ class UVDMSEnv(gym.Env, EzPickle):
     def _apply(self, a: np.ndarray) -> tuple[np.ndarray, bool]:
         """Run the control step's physics substeps; return the applied tau and the saturation flag."""
         n, dt = self.n_substeps, self.physics_dt
+        if self._layer is not None:  # realism > 0 or thrusters mode: delay, actuators, sensors (realism_layer)
+            self._layer.begin_step(a)
+            res = self._sim.step(np.zeros(ACTION_DIM), n, feedback=self._layer_law)
+            return res.tau, res.any_saturated
         if self.action_mode == "torque":
             res = self._sim.step(a * self.tau_max, n)
         else:
@@ -420,20 +499,7 @@ class UVDMSEnv(gym.Env, EzPickle):
         refs = self.task.reference(self.t + self._preview_times)
         blocks, pos_err, ori_err = self._errors(y, refs, self._kin.frame_placement("vehicle")[1])
         q = st.q
-        obs = np.concatenate(
-            (
-                blocks,
-                st.eta[3:5],
-                st.nu / self._nu_scale,
-                np.sin(q),
-                np.cos(q),
-                st.qdot / self._qdot_scale,
-                (np.minimum(np.maximum(d, 0.0), CLEARANCE_CLIP) - D1) / (D2 - D1),
-            )
-        )
-        # np.clip(obs, -OBS_CLIP, OBS_CLIP) as two selections (the same values; np.clip's wrapper costs more)
-        np.minimum(np.maximum(obs, -OBS_CLIP, out=obs), OBS_CLIP, out=obs)
-        self._obs = obs.astype(np.float32)
+        self._obs = self._assemble(blocks, st.eta, st.nu, q, st.qdot, d)
         d_min = min(d.tolist())
         cost_contact = 1.0 if contacts > 0 else 0.0
         cost_zone = 1.0 if d_min < D1 else 0.0
@@ -460,6 +526,124 @@ class UVDMSEnv(gym.Env, EzPickle):
         self._last_info = info
         return self._obs.copy(), info
 
+    def _assemble(
+        self, blocks: np.ndarray, eta: np.ndarray, nu: np.ndarray, q: np.ndarray, qdot: np.ndarray, d: np.ndarray
+    ) -> np.ndarray:
+        """The 80 observation values (module docstring) of a state and its clearances ``d``, as float32."""
+        obs = np.concatenate(
+            (
+                blocks,
+                eta[3:5],
+                nu / self._nu_scale,
+                np.sin(q),
+                np.cos(q),
+                qdot / self._qdot_scale,
+                (np.minimum(np.maximum(d, 0.0), CLEARANCE_CLIP) - D1) / (D2 - D1),
+            )
+        )
+        # np.clip(obs, -OBS_CLIP, OBS_CLIP) as two selections (the same values; np.clip's wrapper costs more)
+        np.minimum(np.maximum(obs, -OBS_CLIP, out=obs), OBS_CLIP, out=obs)
+        return obs.astype(np.float32)
+
+    # ----------------------------------------------------------------- realism: measurements and the truth
+    def true_state(self) -> dict[str, Any]:
+        """The true state of the current step: the one documented path to the truth.
+
+        The ``info`` keys of :data:`TRUTH_KEYS` the environment has (``eta``, ``nu``, ``q``, ``qdot``, ``y``, the
+        distances, the current, the obstacles' rows and gaps), computed from the simulator. At ``realism=0`` they
+        equal ``info``'s; at ``realism > 0`` ``info`` holds their measured values instead. For metrics
+        (:func:`uvdms_gym.evaluation.run_episode` judges on it), training-time teachers and the leaderboard's
+        privileged reference rows only: a controller that reads it is not evaluated as a measured one.
+        """
+        if self.task is None:
+            raise RuntimeError("call reset() before true_state()")
+        if self.realism is None:
+            return {k: self._last_info[k] for k in TRUTH_KEYS if k in self._last_info}
+        return dict(self._truth)
+
+    def observe_estimate(
+        self,
+        eta: np.ndarray,
+        nu: np.ndarray,
+        q: np.ndarray,
+        qdot: np.ndarray,
+        obstacles: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """The observation and ``info`` state keys of an estimated (or measured) state, at the current time.
+
+        What the environment builds from the truth at ``realism=0``, built from ``(eta, nu, q, qdot)`` instead: the
+        tracking errors against the reference, the clearances, the scaled velocities (and, with obstacles, their
+        slots from the given rows). The navigation filter's wrapper (:mod:`uvdms_gym.realism.navigation`) puts
+        its estimate where the oracle state was with it.
+
+        Returns:
+            ``(obs, keys)``: the observation and the ``info`` keys ``eta``, ``nu``, ``q``, ``qdot``, ``y``,
+            ``distances``, ``min_distance`` (and the obstacle keys) of that state.
+        """
+        if self.task is None:
+            raise RuntimeError("call reset() before observe_estimate()")
+        kin = self._measured_kin or KinematicModel(self.params)
+        self._measured_kin = kin
+        eta, nu, q, qdot = (np.array(v, dtype=float) for v in (eta, nu, q, qdot))
+        kin.set_state(eta, q, np.concatenate([nu, qdot]))
+        d = compute_distances(kin, "exact").d.copy()
+        y, rot = self._output_at(kin)
+        refs = self.task.reference(self.t + self._preview_times)
+        blocks, _, _ = self._errors_at(y, rot, refs, kin.frame_placement("vehicle")[1])
+        obs = self._assemble(blocks, eta, nu, q, qdot, d)
+        keys = {"eta": eta, "nu": nu, "q": q, "qdot": qdot, "y": y, "distances": d, "min_distance": min(d.tolist())}
+        return obs, keys
+
+    def _output_at(self, kin: KinematicModel) -> tuple[np.ndarray, np.ndarray | None]:
+        """Tracked output ``y`` (6) of a kinematic model's state and the rotation it came from (if any)."""
+        raise NotImplementedError  # pragma: no cover - abstract
+
+    def _errors_at(
+        self, y: np.ndarray, rot: np.ndarray | None, refs: np.ndarray, r_nb: np.ndarray
+    ) -> tuple[np.ndarray, float, float]:
+        """:meth:`_errors` of an output from :meth:`_output_at` (default: the output alone)."""
+        return self._errors(y, refs, r_nb)
+
+    def _obstacle_rows(self, t: float) -> np.ndarray | None:
+        """The outer obstacles' true rows at time ``t`` (``None``: the task has none)."""
+        return None
+
+    def _reset_layer(
+        self, noise_key: tuple[int, int], obs: np.ndarray, info: dict[str, Any]
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start the realism layer's episode at the true initial state; the measured observation at ``realism > 0``."""
+        layer = self._layer
+        assert layer is not None
+        source = self._obstacle_rows if self.has_outer_obstacles else None
+        measurements = layer.reset(*noise_key, info["eta"], info["nu"], info["q"], obstacles_at=source)
+        info.update(tau_cmd=np.zeros(ACTION_DIM), thrust_saturated=False)
+        if layer.thrusters is not None:
+            info["thrust"] = layer.thrusters.thrust.copy()
+        if not layer.sensing:
+            return obs, info
+        return self._measured(obs, info, measurements)
+
+    def _layer_measure(self, info: dict[str, Any]) -> Measurements:
+        """The sensors' samples at the end of the step (from the true ``info``) and what arrived by now."""
+        assert self._layer is not None
+        return self._layer.measure(self.t, info["eta"], info["nu"], info["q"], info.get("obstacles"))
+
+    def _measured(
+        self, obs: np.ndarray, info: dict[str, Any], measurements: Measurements
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Keep the truth aside and put the raw measured state where it was (observation and state keys)."""
+        layer = self._layer
+        assert layer is not None
+        self._truth = {k: info[k] for k in TRUTH_KEYS if k in info}
+        eta, nu, q, qdot = layer.measured_state()
+        rows = info.get("obstacles")
+        obs_m, keys = self.observe_estimate(eta, nu, q, qdot, None if rows is None else layer.measured_obstacles(rows))
+        info.pop("current", None)
+        info.update(keys)
+        info["measurements"] = measurements
+        self._obs = obs_m
+        return obs_m.copy(), info
+
     def _reward_terms(self, a: np.ndarray, info: dict[str, Any]) -> dict[str, float]:
         w = self.weights
         # S(d) = 1 exactly for d >= D2 ((d - D1) / (D2 - D1) >= 1 is clipped to 1 and sin(pi / 2) rounds to 1),
@@ -472,7 +656,7 @@ class UVDMSEnv(gym.Env, EzPickle):
         return {
             "track": -w["track"] * info["tracking_error"],
             "orientation": -w["orientation"] * info["orientation_error"],
-            "effort": -w["effort"] * float(a @ a) / ACTION_DIM,
+            "effort": -w["effort"] * float(a @ a) / self.action_dim,
             "proximity": -w["proximity"] * near,
             "contact": -w["contact"] * info["cost_contact"],
         }

@@ -34,7 +34,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from uvdms_gym.distances import velocity_damper
-from uvdms_gym.envs.base import ACTION_DIM, UVDMSEnv
+from uvdms_gym.envs.base import UVDMSEnv
 from uvdms_gym.physics.params import D1, D2
 
 V1_WEIGHTS: dict[str, float] = {
@@ -95,7 +95,7 @@ class BoundedReward(UVDMSEnv):
         return {
             "track": w["track"] * math.exp(-info["tracking_error"] / self.track_scale),
             "orientation": w["orientation"] * orientation,
-            "effort": w["effort"] * (1.0 - float(a @ a) / ACTION_DIM),
+            "effort": w["effort"] * (1.0 - float(a @ a) / self.action_dim),
             "proximity": w["proximity"] * clear,
             "contact": -w["contact"] * info["cost_contact"],
             "precision": (

@@ -10,6 +10,7 @@ from uvdms_gym.envs.base import UVDMSEnv
 from uvdms_gym.envs.bounded_reward import BoundedReward
 from uvdms_gym.envs.references import CircleTask, make_circle_task
 from uvdms_gym.envs.tracking import errors_positions
+from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.render import FRONT_CAMERA_YAW_OFFSET_DEG, ReferenceScene
 
 TRACKING_TRANSIENT = 5.0
@@ -82,6 +83,7 @@ class CircleTrackEnv(UVDMSEnv):
     """
 
     with_object = False
+    episode_steps = 500
     tracking_transient = TRACKING_TRANSIENT
     camera_yaw_deg = FRONT_CAMERA_YAW_OFFSET_DEG  # the circles face forward
 
@@ -118,6 +120,9 @@ class CircleTrackEnv(UVDMSEnv):
 
     def _output(self) -> np.ndarray:
         return self._kin.ee_positions().reshape(6)
+
+    def _output_at(self, kin: KinematicModel) -> tuple[np.ndarray, None]:
+        return kin.ee_positions().reshape(6), None
 
     def _errors(self, y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
         return errors_positions(y, refs, r_nb)

@@ -115,6 +115,8 @@ class TransportObstaclesV1Env(TransportV1Env):
                 self.close()
                 raise
 
+    has_outer_obstacles = True
+
     def _make_sim(self) -> UVDMSSim:
         return UVDMSSim(self.params, physics_dt=self.physics_dt, gui=self.render_mode == "human", outer_collisions=True)
 
@@ -177,6 +179,9 @@ class TransportObstaclesV1Env(TransportV1Env):
         self._states0 = obstacle_states(obstacles, 0.0)
         self._scripted_rows = [k for k, ob in enumerate(obstacles) if ob.waypoints]
 
+    def _obstacle_rows(self, t: float) -> np.ndarray | None:
+        return self._states_at(t)
+
     def _states_at(self, t: float) -> np.ndarray:
         """:func:`~uvdms_gym.physics.obstacles.obstacle_states` at ``t`` (constant-velocity rows in one update)."""
         states = self._states0.copy()
@@ -200,9 +205,32 @@ class TransportObstaclesV1Env(TransportV1Env):
         info["obstacles"] = states
         info["obstacle_distances"] = gaps
         info["min_obstacle_distance"] = gap_min
-        full = np.concatenate([obs, self._obstacle_block(states, gaps, info)]).astype(np.float32)
+        r_nb = self._kin.frame_placement("vehicle")[1]  # the kinematic model holds the observed state
+        full = np.concatenate([obs, self._obstacle_block(states, gaps, info, r_nb)]).astype(np.float32)
         self._obs = full
         return full.copy(), info
+
+    def observe_estimate(
+        self,
+        eta: np.ndarray,
+        nu: np.ndarray,
+        q: np.ndarray,
+        qdot: np.ndarray,
+        obstacles: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """As :meth:`UVDMSEnv.observe_estimate`, with the obstacle slots and keys seen from the estimated state.
+
+        ``obstacles``: rows as ``info["obstacles"]`` (the sonar's track; ``None``: the true rows).
+        """
+        obs, keys = super().observe_estimate(eta, nu, q, qdot)
+        states = self._states_at(self.t) if obstacles is None else np.asarray(obstacles, dtype=float)
+        kin = self._measured_kin
+        gaps = compute_outer_distances(kin, states, True).per_obstacle()
+        keys["obstacles"] = states
+        keys["obstacle_distances"] = gaps
+        keys["min_obstacle_distance"] = float(gaps.min()) if gaps.size else math.inf
+        block = self._obstacle_block(states, gaps, keys, kin.frame_placement("vehicle")[1])
+        return np.concatenate([obs, block]).astype(np.float32), keys
 
     def _obstacle_contacts(self, gaps: np.ndarray, gap_min: float) -> int:
         """PyBullet's contact report for the (part, obstacle) pairs within a margin of contact (none: no query)."""
@@ -213,13 +241,14 @@ class TransportObstaclesV1Env(TransportV1Env):
             return 0
         return self._sim.count_obstacle_contacts([(self._parts[i], int(k)) for k, i in near])
 
-    def _obstacle_block(self, states: np.ndarray, gaps: np.ndarray, info: dict[str, Any]) -> np.ndarray:
-        """The observation slots (class docstring), nearest obstacle first; padding is zero."""
+    def _obstacle_block(
+        self, states: np.ndarray, gaps: np.ndarray, info: dict[str, Any], r_nb: np.ndarray
+    ) -> np.ndarray:
+        """The observation slots (class docstring) seen from a state of rotation ``r_nb``, nearest obstacle first."""
         block = np.zeros(OBSTACLE_SLOT * self.n_observed_obstacles)
         if len(states) and self.n_observed_obstacles:
             nearest_gap = gaps.min(axis=1)
             order = np.argsort(nearest_gap, kind="stable")[: self.n_observed_obstacles]
-            r_nb = self._kin.frame_placement("vehicle")[1]  # the kinematic model holds the observed state
             _fill_slots(states, nearest_gap, order, info["eta"], info["nu"], r_nb, block)
         return block
 

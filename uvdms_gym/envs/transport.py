@@ -10,7 +10,7 @@ from uvdms_gym.envs.base import UVDMSEnv
 from uvdms_gym.envs.bounded_reward import BoundedReward
 from uvdms_gym.envs.references import TransportTask, make_transport_task
 from uvdms_gym.envs.tracking import errors_pose
-from uvdms_gym.physics.frames import euler_to_rot
+from uvdms_gym.physics.frames import euler_to_rot, rot_to_euler
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.render import ReferenceScene
 
@@ -80,6 +80,7 @@ class TransportEnv(UVDMSEnv):
     """
 
     with_object = True
+    episode_steps = 600
     tracking_transient = TRACKING_TRANSIENT
 
     def __init__(
@@ -114,6 +115,16 @@ class TransportEnv(UVDMSEnv):
 
     def _errors(self, y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:
         return errors_pose(y[:3], self._obj_rot, refs, r_nb)
+
+    def _output_at(self, kin: KinematicModel) -> tuple[np.ndarray, np.ndarray]:
+        """The object's pose from the grasp frame of a kinematic state (the weld holds it there)."""
+        pos, rot = kin.object_pose()
+        return np.concatenate([pos, rot_to_euler(rot)]), rot
+
+    def _errors_at(
+        self, y: np.ndarray, rot: np.ndarray | None, refs: np.ndarray, r_nb: np.ndarray
+    ) -> tuple[np.ndarray, float, float]:
+        return errors_pose(y[:3], rot, refs, r_nb)
 
     def _success(self, pos_err: float, ori_err: float) -> bool:
         return self.t >= self.task.move_time and pos_err < SUCCESS_POSITION and ori_err < SUCCESS_ORIENTATION

@@ -46,7 +46,7 @@ from uvdms_gym.physics.state import (
     base_state,
     state_from_raw,
 )
-from uvdms_gym.physics.stepping import Stepping
+from uvdms_gym.physics.stepping import Stepping, SubstepProbe
 from uvdms_gym.physics.water import Water
 from uvdms_gym.utils.display import require_display
 from uvdms_gym.utils.io import quiet_c_stream
@@ -135,6 +135,7 @@ class UVDMSSim(Stepping):
         self._has_obstacles = False
         self._t = 0.0
         self._raw: tuple | None = None  # cached raw state read, see _read_state
+        self._probe: SubstepProbe | None = None  # see set_probe
         self._water = wa = Water(c, self._body, self._am_link, self._params, arms=self._arms)
         self.set_hydro_scale(hydro_scale or HydroScale())
         # compile (or load from numba's disk cache) the link-force kernel now rather than in the first step
@@ -292,6 +293,16 @@ class UVDMSSim(Stepping):
         self._water.shift_lag(dv_world, quat)
         if self._grasp.object_id is not None:
             self._grasp.shift_lag(dv_world, self._water.hydro)
+
+    def set_probe(self, probe: SubstepProbe | None) -> None:
+        """Call ``probe(origin, quat, nu)`` at the start of every physics substep (``None``: no call).
+
+        ``origin`` is the body origin in PyBullet's z-up world (single precision, as ``getLinkStates`` returns it),
+        ``quat`` the body's orientation ``(x, y, z, w)`` in that world and ``nu`` the body velocity
+        ``(u, v, w, p, q, r)`` the substep computes anyway: the state at the substep's start time, read at no
+        extra cost (the sensors of :mod:`uvdms_gym.realism` sample it). The probe must not change the simulation.
+        """
+        self._probe = probe
 
     # ------------------------------------------------------------------ reset / state
     def reset(

@@ -49,6 +49,9 @@ _base_velocity = pb.getBaseVelocity
 _chain = itertools.chain.from_iterable
 _fromiter = np.fromiter
 
+SubstepProbe = Callable[[tuple, tuple, tuple], None]
+"""``probe(origin, quat_xyzw, nu)`` at the start of a physics substep (:meth:`UVDMSSim.set_probe`)."""
+
 
 class Stepping:
     """Stepping of the simulator: :meth:`step`, :meth:`bare_step` and the physics step they run."""
@@ -70,6 +73,7 @@ class Stepping:
     _has_obstacles: bool
     _fb_tau: np.ndarray
     _fb_saturated: np.ndarray
+    _probe: SubstepProbe | None
 
     def _check_open(self) -> None:  # pragma: no cover - the simulator's
         raise NotImplementedError
@@ -205,6 +209,8 @@ class Stepping:
         r = r02 * wx + r12 * wy + r22 * wz
         if not abs(u) + abs(v) + abs(w) + abs(p) + abs(q) + abs(r) < 6.0 * NU_LIMIT:
             self._fail(f"body velocity out of bounds or non-finite: nu = {[u, v, w, p, q, r]}")
+        if self._probe is not None:
+            self._probe(origin, (qx, qy, qz, qw), (u, v, w, p, q, r))
         if feedback is not None:
             tau_v, tau_q = self._feedback(feedback, (u, v, w, p, q, r))
         wa = self._water

@@ -121,7 +121,7 @@ def test_bad_actions_and_kwargs_raise_named_errors(env_id):
     with pytest.raises(TypeError, match="bogus_kwarg"):
         gym.make(env_id, bogus_kwarg=1)
     with pytest.raises(ValueError, match="action_mode"):
-        gym.make(env_id, action_mode="thrusters")
+        gym.make(env_id, action_mode="jets")
 
 
 def test_infeasible_circle_raises_at_construction():
