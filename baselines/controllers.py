@@ -47,10 +47,13 @@ from typing import Any
 
 import numpy as np
 
+from baselines.inner_loop.delay import DelayPredictor
 from baselines.inner_loop.di import DIConfig, DynamicInversionController, UVDMSNominalModel
 from baselines.mpc.campc import MPCController, task_config
 from baselines.mpc.config import MPCConfig
 from uvdms_gym.evaluation import Controller, check_action_mode
+
+_REALISM_ROW: dict[str, Any] = {"action_mode": "velocity", "collision": True, "realism_only": True, "default": False}
 
 BASELINES: dict[str, dict[str, Any]] = {
     "mpc": {"action_mode": "velocity", "collision": False},
@@ -64,12 +67,27 @@ BASELINES: dict[str, dict[str, Any]] = {
         "env_id": "uvdms/TransportObstacles-v1",
     },
     "hold": {"action_mode": "velocity", "collision": False, "hold": True, "default": False},
+    "campc-raw": {**_REALISM_ROW, "state": "raw"},
+    "campc-privileged": {**_REALISM_ROW, "state": "truth"},
 }
 """The named baselines: required action mode, collision rows, RBF network, outer-obstacle rows (default: with
 the collision rows, when the environment has obstacles; ``campc-inner`` is CAMPC without them, the ablation), and
 ``env_id``, the one environment a baseline is meant for (``campc-inner`` is ``campc`` wherever there are no
 obstacles, so the leaderboard runs it on the obstacle task only; it works on any). ``hold`` is no MPC
-(:class:`HoldStill`); ``default: False`` keeps it out of the leaderboard's ``baselines`` token (name it)."""
+(:class:`HoldStill`); ``default: False`` keeps it out of the leaderboard's ``baselines`` token (name it).
+
+``state`` (default ``"filter"``) is where an MPC baseline reads the state at ``realism > 0``
+(:data:`STATE_SOURCES`); ``realism_only`` marks the baselines that exist for the realism track only:
+``campc-raw`` (CAMPC on the raw measurements without delay compensation, the ablation) and ``campc-privileged``
+(CAMPC on the true state with delay compensation: a privileged reference row, not a competitor)."""
+
+STATE_SOURCES: dict[str, str] = {
+    "filter": "the navigation filter's estimate (uvdms_gym.realism.navigation) from info's measurements, "
+    "predicted over the action delay",
+    "raw": "info's raw measured state as it is, no delay compensation (the ablation)",
+    "truth": "env.unwrapped.true_state(), predicted over the action delay (privileged)",
+}
+"""Where an MPC baseline reads the state at ``realism > 0``; at ``realism=0`` every source is ``info``'s exact state."""
 
 OUTER_ROWS = 8
 """[D] Outer-obstacle rows of the CAMPC baselines in an environment with obstacles: the nearest robot-obstacle
@@ -124,9 +142,23 @@ class _MPCBase:
     """Shared MPC part: reference window, kinematics, distances, QP (see module docstring)."""
 
     def __init__(
-        self, env: Any, collision: bool, mpc_overrides: dict[str, Any] | None = None, outer: bool = True
+        self,
+        env: Any,
+        collision: bool,
+        mpc_overrides: dict[str, Any] | None = None,
+        outer: bool = True,
+        state: str = "filter",
     ) -> None:
         u = env.unwrapped
+        if state not in STATE_SOURCES:
+            raise ValueError(f"state must be one of {sorted(STATE_SOURCES)}, got {state!r}")
+        self.realism = getattr(u, "realism", None)
+        self.state_source = state if self.realism is not None else "info"
+        self.delay = None
+        if self.realism is not None and state != "raw":
+            d = round(self.realism.action_delay / u.physics_dt)  # the environment's rounding (to_substeps) agrees
+            self.delay = DelayPredictor(d, u.physics_dt, u.n_substeps)
+        self.nav = self._navigation_filter(u) if self.state_source == "filter" else None
         self.task = task_of(env)
         self.params = u.params
         self.control_dt = float(u.control_dt)
@@ -148,14 +180,48 @@ class _MPCBase:
         self.last_record: dict[str, Any] = {}
         self.last_mpc = None
 
-    def _mpc_step(self, info: dict[str, Any]):
-        cfg = self.mpc.config
-        t = float(info["t"])
-        y_ref = self._env.reference(t + cfg.t_c * np.arange(1, cfg.n_p + 1))
+    @staticmethod
+    def _navigation_filter(u: Any) -> Any:
+        from uvdms_gym.realism.navigation import NavigationFilter
+
+        return NavigationFilter(u.realism, u.params, control_dt=u.control_dt, physics_dt=u.physics_dt)
+
+    def _reset_state(self) -> None:
+        """Start an episode: the filter starts at the first measurements, the delay queue empty."""
+        self._nav_started = False
+        if self.delay is not None:
+            self.delay.reset()
+
+    def state(self, info: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """``(eta, q, zeta, t)`` the MPC plans from: read from :data:`STATE_SOURCES`, predicted over the delay."""
+        src = self.state_source
+        if src == "truth":
+            info = {**info, **self._env.true_state()}
+        elif src == "filter":
+            nav = self.nav
+            if not getattr(self, "_nav_started", False):
+                nav.reset(float(info["t"]), info["measurements"])
+                self._nav_started = True
+            else:
+                nav.update(float(info["t"]), info["measurements"], info["tau_cmd"])
+            eta, nu, q, qdot = nav.state()
+            info = {**info, "eta": eta, "nu": nu, "q": q, "qdot": qdot}
         zeta = np.concatenate([info["nu"], info["qdot"]]).astype(float)
         eta, q = np.asarray(info["eta"], dtype=float), np.asarray(info["q"], dtype=float)
+        t = float(info["t"])
+        if self.delay is not None:
+            eta, q, zeta = self.delay.predict(eta, q, zeta)
+            t += self.delay.delay
+        return eta, q, zeta, t
+
+    def _mpc_step(self, info: dict[str, Any], state: tuple | None = None):
+        cfg = self.mpc.config
+        eta, q, zeta, t = state if state is not None else self.state(info)
+        y_ref = self._env.reference(t + cfg.t_c * np.arange(1, cfg.n_p + 1))
         rec = self.mpc.step(eta, q, y_ref, zeta, info.get("obstacles"))
         self.last_mpc = rec
+        if self.delay is not None:
+            self.delay.record(rec.zeta_cmd)
         return rec
 
     def _record(self, rec, wall_us: float, **extra: Any) -> None:
@@ -182,7 +248,12 @@ class MPCVelocityController(_MPCBase):
     action_mode = "velocity"
 
     def __init__(
-        self, env: Any, collision: bool = True, mpc_overrides: dict[str, Any] | None = None, outer: bool = True
+        self,
+        env: Any,
+        collision: bool = True,
+        mpc_overrides: dict[str, Any] | None = None,
+        outer: bool = True,
+        state: str = "filter",
     ) -> None:
         """Build the controller for ``env`` (its action mode must be ``"velocity"``).
 
@@ -192,12 +263,14 @@ class MPCVelocityController(_MPCBase):
             mpc_overrides: :class:`~baselines.mpc.config.MPCConfig` fields replacing the task's defaults.
             outer: with collision rows, add :data:`OUTER_ROWS` outer-obstacle rows when the environment has
                 obstacles (``False``: the inner rows only).
+            state: where the state comes from at ``realism > 0`` (:data:`STATE_SOURCES`).
         """
-        super().__init__(env, collision, mpc_overrides, outer)
+        super().__init__(env, collision, mpc_overrides, outer, state)
 
     def reset(self, seed: int | None = None) -> None:
         """Start an episode: the next QP is solved cold (the QP object is kept)."""
         self.mpc.reset()
+        self._reset_state()
         self.last_record = {}
 
     def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
@@ -230,6 +303,7 @@ class CascadeTorqueController(_MPCBase):
         mpc_overrides: dict[str, Any] | None = None,
         di_overrides: dict[str, Any] | None = None,
         outer: bool = True,
+        state: str = "filter",
     ) -> None:
         """Build the controller for ``env`` (its action mode must be ``"torque"``).
 
@@ -240,8 +314,9 @@ class CascadeTorqueController(_MPCBase):
             mpc_overrides: :class:`~baselines.mpc.config.MPCConfig` fields replacing the task's defaults.
             di_overrides: :class:`~baselines.inner_loop.di.DIConfig` fields replacing the defaults.
             outer: outer-obstacle rows when the environment has obstacles (see :class:`MPCVelocityController`).
+            state: where the state comes from at ``realism > 0`` (:data:`STATE_SOURCES`).
         """
-        super().__init__(env, collision, mpc_overrides, outer)
+        super().__init__(env, collision, mpc_overrides, outer, state)
         di_cfg = replace(DIConfig(), **{"dt": self.control_dt, "use_nn": use_nn, **(di_overrides or {})})
         model = UVDMSNominalModel(self.params, payload=self.task == "transport")
         self.di = DynamicInversionController(di_cfg, model, self.params, tau_max=self.tau_max, zeta_max=self.zeta_max)
@@ -252,6 +327,7 @@ class CascadeTorqueController(_MPCBase):
         """Start an episode: MPC cold, network weights and integrators zero (``tau_prev`` set at the first step)."""
         self.mpc.reset()
         self.di.reset()
+        self._reset_state()
         self._first = True
         self.last_record = {}
         self.last_di = None
@@ -259,14 +335,13 @@ class CascadeTorqueController(_MPCBase):
     def predict(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
         """Torque action for the current state."""
         t0 = time.perf_counter()
-        eta = np.asarray(info["eta"], dtype=float)
-        q = np.asarray(info["q"], dtype=float)
-        zeta = np.concatenate([info["nu"], info["qdot"]]).astype(float)
+        state = self.state(info)
+        eta, q, zeta = state[0], state[1], state[2]
         if self._first:
             # the network input's tau_prev starts at the static holding force of the nominal model
             self.di.tau_prev = self.di.model.evaluate(eta, q, np.zeros(18))[1]
             self._first = False
-        rec = self._mpc_step(info)
+        rec = self._mpc_step(info, state)
         a_eq = self.mpc.last_problem.j_eq if self.task == "transport" else None
         out = self.di.step(rec.zeta_cmd, eta, q, zeta, a_eq)
         self.last_di = out
@@ -323,9 +398,14 @@ def make_baseline(name: str, env: Any, **kwargs: Any) -> Controller:
     if spec.get("hold", False):
         return HoldStill(env)
     outer = spec.get("outer", True)
+    state = spec.get("state", "filter")
+    if spec.get("realism_only") and getattr(env.unwrapped, "realism", None) is None:
+        raise ValueError(f"baseline {name!r} is for realism > 0 (realism=1, 2 or 3); this environment has realism=0")
     if spec["action_mode"] == "velocity":
-        return MPCVelocityController(env, collision=spec["collision"], outer=outer, **kwargs)
-    return CascadeTorqueController(env, use_nn=spec["use_nn"], collision=spec["collision"], outer=outer, **kwargs)
+        return MPCVelocityController(env, collision=spec["collision"], outer=outer, state=state, **kwargs)
+    return CascadeTorqueController(
+        env, use_nn=spec["use_nn"], collision=spec["collision"], outer=outer, state=state, **kwargs
+    )
 
 
 def baseline_action_mode(name: str) -> str | None:

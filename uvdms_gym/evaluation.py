@@ -113,6 +113,18 @@ class Controller(Protocol):
         ...
 
 
+def judged_info(env: Any, info: Mapping[str, Any]) -> Mapping[str, Any]:
+    """``info`` with the true state where a realism level put measurements: metrics are judged on the truth.
+
+    At ``realism=0`` this is ``info`` itself; at ``realism > 0`` the state keys (``eta``, ``nu``, ``q``, ``qdot``,
+    ``y``, the distances, ...) come from ``env.unwrapped.true_state()``. Controllers are never handed this.
+    """
+    u = env.unwrapped
+    if getattr(u, "realism", None) is None:
+        return info
+    return {**info, **u.true_state()}
+
+
 def is_transport(env: Any) -> bool:
     """Whether the environment tracks an object pose (transport) rather than end-effector positions."""
     return bool(getattr(env.unwrapped, "with_object", False))
@@ -156,12 +168,17 @@ class EpisodeTracker:
     anything else that steps an environment itself (a trainer's evaluation episodes,
     ``agents.common.learning_curve.EpisodeMetrics``), so both report the same numbers for the same episode.
 
+    At ``realism > 0`` it records the true state (:func:`judged_info`), not the measured one in ``info``.
+
     Args:
         env: The environment (wrapped or not; its ``unwrapped`` has ``tracking_transient``).
         reset_info: The ``info`` of ``env.reset`` (the sample at ``t = 0``).
     """
 
     def __init__(self, env: Any, reset_info: Mapping[str, Any]) -> None:
+        self.env = env
+        reset_info = judged_info(env, reset_info)
+        self.first_info = reset_info
         self.transport = is_transport(env)
         self.transient = float(env.unwrapped.tracking_transient)
         self.ts: list[Any] = [reset_info["t"]]
@@ -173,8 +190,13 @@ class EpisodeTracker:
         self.physics_error: str | None = None
         self.last_info: Mapping[str, Any] = reset_info
 
-    def step(self, info: Mapping[str, Any], terminated: bool) -> None:
-        """Record the sample and counts of one ``env.step`` (its ``info`` and ``terminated`` flag)."""
+    def step(self, info: Mapping[str, Any], terminated: bool) -> Mapping[str, Any]:
+        """Record the sample and counts of one ``env.step`` (its ``info`` and ``terminated`` flag).
+
+        Returns:
+            The judged ``info`` (:func:`judged_info`): what the sample was recorded from.
+        """
+        info = judged_info(self.env, info)
         self.steps += 1
         self.contacts += int(info["contacts"] > 0)
         self.ts.append(info["t"])
@@ -184,6 +206,7 @@ class EpisodeTracker:
             self.physics_error = str(info["physics_error"])
         self.terminated = bool(terminated)
         self.last_info = info
+        return info
 
     def outcome(self) -> dict[str, Any]:
         """``rmse_pos``, ``rmse_ori``, ``success``, ``contacts``, ``steps``, ``terminated``, ``physics_error``.
@@ -239,16 +262,17 @@ def run_episode(env: Any, controller: Any, seed: int, *, save_trajectory: bool =
     transport = is_transport(env)
     obs, info = env.reset(seed=seed)
     controller.reset(seed)
-    n_dis = len(info["distances"])
-    d_min = np.array(info["distances"], dtype=float)
     tracker = EpisodeTracker(env, info)
+    judged = tracker.first_info  # the truth (at realism > 0 the controller sees only info's measurements)
+    n_dis = len(judged["distances"])
+    d_min = np.array(judged["distances"], dtype=float)
     traj: dict[str, list] = {k: [] for k in TRAJECTORY_KEYS}
 
     def record(info: dict, action: np.ndarray | None, tau: np.ndarray | None) -> None:
         if save_trajectory:
             _record_step(traj, env, controller, info, action, tau)
 
-    record(info, None, None)
+    record(judged, None, None)
     ret = cost = 0.0
     zone = 0
     slack_max: float | None = None
@@ -266,12 +290,12 @@ def run_episode(env: Any, controller: Any, seed: int, *, save_trajectory: bool =
             unsolved = (unsolved or 0) + int(rec.get("status", "solved") != "solved")
         has_nn = has_nn or getattr(controller, "last_di", None) is not None
         obs, reward, terminated, truncated, info = env.step(action)
-        tracker.step(info, terminated)
+        judged = tracker.step(info, terminated)
         ret += float(reward)
         cost += float(info["cost"])
         zone += int(info["cost_zone"] > 0)
-        np.minimum(d_min, info["distances"], out=d_min)
-        record(info, action, info.get("tau"))
+        np.minimum(d_min, judged["distances"], out=d_min)
+        record(judged, action, info.get("tau"))
         if terminated or truncated:
             break
     outcome = tracker.outcome()
