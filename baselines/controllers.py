@@ -79,7 +79,8 @@ obstacles, so the leaderboard runs it on the obstacle task only; it works on any
 ``state`` (default ``"filter"``) is where an MPC baseline reads the state at ``realism > 0``
 (:data:`STATE_SOURCES`); ``realism_only`` marks the baselines that exist for the realism track only:
 ``campc-raw`` (CAMPC on the raw measurements without delay compensation, the ablation) and ``campc-privileged``
-(CAMPC on the true state with delay compensation: a privileged reference row, not a competitor)."""
+(CAMPC on the true state with delay compensation: a privileged reference row, not a competitor). At ``realism=0``
+both are ``campc``."""
 
 STATE_SOURCES: dict[str, str] = {
     "filter": "the navigation filter's estimate (uvdms_gym.realism.navigation) from info's measurements, "
@@ -399,8 +400,6 @@ def make_baseline(name: str, env: Any, **kwargs: Any) -> Controller:
         return HoldStill(env)
     outer = spec.get("outer", True)
     state = spec.get("state", "filter")
-    if spec.get("realism_only") and getattr(env.unwrapped, "realism", None) is None:
-        raise ValueError(f"baseline {name!r} is for realism > 0 (realism=1, 2 or 3); this environment has realism=0")
     if spec["action_mode"] == "velocity":
         return MPCVelocityController(env, collision=spec["collision"], outer=outer, state=state, **kwargs)
     return CascadeTorqueController(
