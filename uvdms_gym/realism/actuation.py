@@ -326,6 +326,7 @@ def _warm_up() -> None:
     pinv, b, v, out = np.zeros((1, WRENCH_DIM)), np.zeros((WRENCH_DIM, 1)), np.zeros(WRENCH_DIM), np.zeros(1)
     _allocate(pinv, v, 1.0, 1.0, out)
     _step(b, out, out.copy(), 1.0, 1.0, 0.0, 1.0, v)
+    _limit_speed(out.copy(), out, np.ones(1))
 
 
 def limit_joint_speed(tau_q: np.ndarray, qdot: np.ndarray, limit: float | np.ndarray) -> np.ndarray:
@@ -347,7 +348,7 @@ def limit_joint_speed(tau_q: np.ndarray, qdot: np.ndarray, limit: float | np.nda
     Raises:
         ValueError: shapes differ, or ``limit`` is not finite and ``> 0``.
     """
-    tau = np.array(tau_q, dtype=float)
+    tau = np.array(tau_q, dtype=float)  # a copy: the caller's torques are never modified
     qd = np.asarray(qdot, dtype=float)
     lim = np.asarray(limit, dtype=float)
     if tau.ndim != 1 or qd.shape != tau.shape or lim.shape not in ((), tau.shape):
@@ -355,7 +356,22 @@ def limit_joint_speed(tau_q: np.ndarray, qdot: np.ndarray, limit: float | np.nda
             f"realism: limit_joint_speed needs tau_q and qdot (and a per-joint limit) of one shape, got "
             f"{tau.shape}, {qd.shape}, {lim.shape}"
         )
-    if not (np.isfinite(lim).all() and (lim > 0.0).all()):
-        raise ValueError(f"realism: joint_speed_limit must be finite and > 0, got {np.asarray(limit).tolist()}")
-    tau[(np.abs(qd) >= lim) & (tau * qd > 0.0)] = 0.0
+    if not _limit_speed(tau, qd, lim.reshape(-1)):
+        raise ValueError(f"realism: joint_speed_limit must be finite and > 0, got {lim.tolist()}")
     return tau
+
+
+@jit
+def _limit_speed(tau, qdot, limit):  # pragma: no cover - compiled
+    """:func:`limit_joint_speed` in place on ``tau``; ``limit`` holds one value or one per joint.
+
+    Returns False for a limit that is not finite and ``> 0``.
+    """
+    one = limit.shape[0] == 1
+    for i in range(tau.shape[0]):
+        lim = limit[0] if one else limit[i]
+        if not (lim > 0.0 and math.isfinite(lim)):
+            return False
+        if abs(qdot[i]) >= lim and tau[i] * qdot[i] > 0.0:
+            tau[i] = 0.0
+    return True
