@@ -68,7 +68,7 @@ thrusters' within the box, and with thrusters on the vehicle never has more auth
 A 0.1 dead zone is 25 N forward (19.5 N reverse) per thruster.
 
 Cost (``benchmarks/bench_actuation.py``, median per call, 2-core AMD EPYC shared with other jobs): ``allocate`` +
-``step`` 3.6 us at load average 1.9 (5.3 us at 2.3), ``limit_joint_speed`` on 12 joints 4.6 us.
+``step`` 3.5 us at load average 1.8 (5.3 us at 2.3), ``limit_joint_speed`` on 12 joints 3.0 us (4.6 us at 2.3).
 """
 
 from __future__ import annotations
