@@ -178,6 +178,7 @@ class RealismLayer:
         """Queue the action issued now; it first acts ``delay_steps`` substeps later."""
         self._pending.append((self.s + self.delay_steps, np.asarray(action, dtype=float)))
         self._sub = 0
+        self._probe_i = 0
         self._tau_sum[:] = 0.0
         self._thrust_saturated = False
 
@@ -216,7 +217,7 @@ class RealismLayer:
             cmd, scale = thr.allocate(tau[:6])
             if scale < 1.0:
                 self._thrust_saturated = True
-            self._tau_sum[:6] += thr.B @ cmd
+            self._tau_sum[:6] += scale * tau[:6]  # = B f_cmd: the allocation keeps the direction
             out[:6] = thr.step(cmd)
         else:
             self._tau_sum[:6] += tau[:6]
@@ -229,7 +230,7 @@ class RealismLayer:
         assert thr is not None  # thrusters mode always builds them
         cmd = thr.from_normalized(action[:N_THRUSTER_ACTIONS])
         out = np.empty(18)
-        self._tau_sum[:6] += thr.B @ cmd
+        self._tau_sum[:6] += thr.matrix @ cmd
         out[:6] = thr.step(cmd)
         out[6:] = self._joints(action[N_THRUSTER_ACTIONS:] * self.tau_max[6:], zeta)
         return out
@@ -266,10 +267,6 @@ class RealismLayer:
         if "encoders" in due:
             due = tuple(n for n in due if n != "encoders")  # joint angles are read at control-step ends only
         self.bank.sample(s, sensor_values(due, eta, nu_arr, **extra))
-
-    def start_probe(self) -> None:
-        """Reset the probe's substep counter (called before the simulator runs a control step)."""
-        self._probe_i = 0
 
     def measure(
         self, t: float, eta: np.ndarray, nu: np.ndarray, q: np.ndarray, obstacles: np.ndarray | None

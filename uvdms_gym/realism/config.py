@@ -181,9 +181,9 @@ def _level(level: int, delay: float, rotor: float, dead: float, scale: float, dr
 
 LEVELS: dict[int, RealismConfig] = {
     0: RealismConfig(level=0),
-    1: _level(1, delay=0.04, rotor=0.05, dead=0.075, scale=1.0, dropouts=(0.01, 1)),
-    2: _level(2, delay=0.08, rotor=0.1, dead=0.1, scale=2.0, dropouts=(0.05, 5)),
-    3: _level(3, delay=0.12, rotor=0.2, dead=0.125, scale=4.0, dropouts=(0.1, 10)),
+    1: _level(1, delay=0.04, rotor=0.02, dead=0.075, scale=1.0, dropouts=(0.01, 1)),
+    2: _level(2, delay=0.08, rotor=0.035, dead=0.1, scale=2.0, dropouts=(0.05, 5)),
+    3: _level(3, delay=0.12, rotor=0.05, dead=0.125, scale=4.0, dropouts=(0.1, 10)),
 }
 """The four levels (values and sources: ``docs/realism.md``). Level 0 is the oracle (nothing is modelled)."""
 
