@@ -194,7 +194,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0, help="first episode seed")
     args = ap.parse_args()
     truths = [simulate(args.seed + i, args.steps) for i in range(args.episodes)]
-    print(json.dumps([consistency(truths, level) for level in args.levels], indent=2))  # noqa: T201
+    print(json.dumps([consistency(truths, level) for level in args.levels], indent=2))
 
 
 if __name__ == "__main__":

@@ -81,13 +81,13 @@ VELOCITY_PRIOR_SIGMA = (0.05, 0.05, 0.05, 0.05, 0.05, 0.05)
 DISTURBANCE_PRIOR_SIGMA = (0.2, 0.2, 1.0, 0.2, 0.2, 0.2)
 """Standard deviation of the initial unknown acceleration ``d``, m/s^2 and rad/s^2: heave carries the buoyancy's
 30 % (about 190 N standard deviation on some 160 kg of heave inertia)."""
-ACCEL_NOISE_DENSITY = (0.01, 0.01, 0.01, 0.05, 0.05, 0.05)
+ACCEL_NOISE_DENSITY = (0.008, 0.008, 0.004, 0.03, 0.03, 0.03)
 """White acceleration noise on ``nu'``, m/s^2/sqrt(Hz) and rad/s^2/sqrt(Hz): the fast part of the model's error."""
-DISTURBANCE_WALK = (0.05, 0.05, 0.1, 0.2, 0.2, 0.2)
+DISTURBANCE_WALK = (0.04, 0.04, 0.02, 0.15, 0.15, 0.15)
 """Random-walk density of ``d``, m/s^2/sqrt(s) and rad/s^2/sqrt(s): its slow part."""
 POSITION_NOISE_DENSITY = 1.0e-4
 """White noise on the position's rate, m/sqrt(s) (the Euler integration's error)."""
-ANGLE_NOISE_DENSITY = 5.0e-4
+ANGLE_NOISE_DENSITY = 6.0e-4
 """White noise on the Euler angles' rates, rad/sqrt(s) (the Euler integration's error over a substep of changing
 body rates)."""
 JOINT_PRIOR_RATE_SIGMA = 0.05
@@ -100,7 +100,7 @@ MIN_VARIANCE = 1.0e-12
 
 # ----------------------------------------------------------------------------------------------- numba kernels
 @jit
-def _kinematics(eta: np.ndarray, nu: np.ndarray, a: np.ndarray) -> np.ndarray:  # noqa: C901
+def _kinematics(eta: np.ndarray, nu: np.ndarray, a: np.ndarray) -> np.ndarray:
     """``eta' = J(eta) nu`` and its Jacobian: fills ``a[0:6, 3:12]`` (d eta' / d (angles, nu)); returns ``eta'``."""
     c1, s1 = math.cos(eta[3]), math.sin(eta[3])
     c2, s2 = math.cos(eta[4]), math.sin(eta[4])
@@ -164,12 +164,22 @@ def _wrap(a: float) -> float:
 
 
 @jit
-def _predict(x, p, dt, accel, wvv, lin, quad, qdiag, a):
+def _predict(x, p, dt, accel, wvv, lin, quad, qdiag, a):  # noqa: C901  (loops over A's nonzeros)
     """One Euler step of the core states and ``P <- F P F' + Q dt`` with ``F = I + A dt`` (A nonzero in rows 0:12)."""
     n = x.shape[0]
     f = _derivative(x, accel, wvv, lin, quad, a)
-    g = a @ p[:N_CORE, :]  # (12, n): A P
-    h = g[:, :N_CORE] @ a.T  # (12, 12): A P A'
+    g = np.zeros((12, n))  # A P, over A's nonzeros (about 75 of 216)
+    for i in range(12):
+        for k in range(N_CORE):
+            aik = a[i, k]
+            if aik != 0.0:
+                for j in range(n):
+                    g[i, j] += aik * p[k, j]
+    h = np.zeros((12, 12))  # A P A'
+    for i in range(12):
+        for k in range(N_CORE):
+            for j in range(12):
+                h[i, j] += g[i, k] * a[j, k]
     for i in range(12):
         for j in range(n):
             p[i, j] += dt * g[i, j]
@@ -286,8 +296,11 @@ def _run(x, p, s_from, s_to, dt, accel, wvv, lin, quad, qdiag, meas, tab, slots,
 
 @jit
 def _dynamics(m_upper, nle, buoy, added, added_weight, eta, zeta, tau, friction, lin, quad):
-    """Nominal accelerations: the vehicle's ``a_fixed`` (tau minus everything but the damping), ``[M^-1]_vv`` and
-    the joints' accelerations (18-DOF model at the estimate, the damping at ``nu``)."""
+    """Nominal accelerations at the estimate (18-DOF model; the vehicle damping at ``nu``).
+
+    Returns:
+        The vehicle's acceleration without its damping, ``[M^-1]_vv`` and the joints' accelerations.
+    """
     n = m_upper.shape[0]
     m = np.empty((n, n))
     for i in range(n):
@@ -520,13 +533,12 @@ class NavigationFilter:
         """The fused samples as rows ``(sensor index, substep, v0..v3)``."""
         rows = []
         dt = self.physics_dt
+        pad = [0.0] * MAX_DIM
         for j, name in enumerate(FILTERED_SENSORS):
             for t, v in measurements.get(name) or ():
-                row = np.zeros(2 + MAX_DIM)
-                row[0], row[1] = j, round(t / dt)
-                row[2 : 2 + len(v)] = v
-                rows.append(row)
-        return np.array(rows) if rows else np.zeros((0, 2 + MAX_DIM))
+                values = v.tolist()
+                rows.append([j, round(t / dt), *values, *pad[len(values) :]])
+        return np.array(rows, dtype=float) if rows else np.zeros((0, 2 + MAX_DIM))
 
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The estimates ``eta, nu, q, qdot`` at the filter's time."""
