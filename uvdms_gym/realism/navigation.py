@@ -1,0 +1,593 @@
+"""The vehicle's navigation filter: an EKF of pose, body velocity and sensor biases, plus joint-state filters.
+
+State of the EKF (25 values, then the clones of delayed samples):
+
+======  ====  =============================================================================================
+slice   size  content
+======  ====  =============================================================================================
+0:6     6     ``eta``: NED position ``x, y, z`` and ZYX Euler angles ``phi, theta, psi``
+6:12    6     ``nu``: body velocity ``u, v, w, p, q, r``
+12:18   6     ``d``: an unknown body acceleration (random walk): the model's error (buoyancy and hydrodynamics
+              off by up to 30 %, the arms' drag, the thrusters' lag)
+18:21   3     the gyro's bias (random walk of the gyro's ``bias_walk``)
+21:24   3     the DVL's bias (constant)
+24      1     the depth sensor's bias (constant)
+======  ====  =============================================================================================
+
+Prediction, every physics substep: ``eta' = J(eta) nu`` and
+``nu' = [M_n^-1 (tau_cmd - b_n(q, zeta))]_v - [M_n^-1]_vv D(nu) nu + d`` with the nominal model
+(:mod:`uvdms_gym.physics.nominal`: Pinocchio rigid body with added mass, hydrostatics, Coriolis, joint friction)
+evaluated once per control step at the estimate and the commanded force, and the vehicle damping ``D(nu) nu`` at
+every substep. The arms enter through the full 18-DOF model (their weight, buoyancy and reaction).
+White process noise on ``nu'`` and a random walk on ``d`` stand for what the model does not know.
+
+Measurements are linear in the state (a state plus a bias): AHRS angles, gyro rates plus bias, DVL velocity plus
+bias, depth plus bias, the position fix (``x, y, z, psi``), with the angle innovations wrapped. Each is applied at
+its sample time. A sample released late (the DVL, the fix) is handled exactly by stochastic cloning: at each of the
+sensor's sample times the states it measures are copied into extra state slots (with their covariance), the slots
+are carried unchanged while the filter moves on, and the late sample updates its clone, the correlations carrying
+the correction to the present. A slot whose sample does not come by its release time (a dropout) is freed.
+
+Joints: one Kalman filter per joint of ``(q, qdot)``, driven by the nominal model's joint acceleration and corrected
+by the encoders each control step.
+
+The filter knows its sensors' specifications (the :class:`~uvdms_gym.realism.config.RealismConfig`): rates,
+latencies, noise and bias magnitudes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pinocchio as pin
+
+from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.nominal import NominalDynamics
+from uvdms_gym.physics.params import N_JOINTS, UVDMSParams
+from uvdms_gym.realism.config import RealismConfig, to_substeps
+from uvdms_gym.utils.jit import jit
+
+N_CORE = 18
+"""States with dynamics (``eta``, ``nu``, ``d``); the rest (biases, clones) are constant between updates."""
+N_BASE = 25
+"""States without the clones."""
+FILTERED_SENSORS: tuple[str, ...] = ("ahrs", "gyro", "dvl", "depth", "fix")
+"""The sensors the EKF fuses, in the order of its tables (the encoders feed the joint filters)."""
+MEASURED_STATES: dict[str, tuple[int, ...]] = {
+    "ahrs": (3, 4, 5),
+    "gyro": (9, 10, 11),
+    "dvl": (6, 7, 8),
+    "depth": (2,),
+    "fix": (0, 1, 2, 5),
+}
+"""State measured by each component of each sensor."""
+BIAS_STATES: dict[str, tuple[int, ...]] = {"gyro": (18, 19, 20), "dvl": (21, 22, 23), "depth": (24,)}
+"""Bias state added to each component (sensors not listed have no bias)."""
+ANGLE_MEASUREMENTS: dict[str, tuple[int, ...]] = {"ahrs": (0, 1, 2), "fix": (3,)}
+"""Components whose innovation is an angle (wrapped to ``[-pi, pi)``)."""
+MAX_DIM = 4
+"""Largest number of components of a fused sensor (the fix)."""
+
+POSITION_PRIOR_SIGMA = 10.0
+"""Standard deviation of the initial position before the first fix, m (the first fix sets it)."""
+ANGLE_PRIOR_SIGMA = 1.0
+"""Standard deviation of the initial attitude before the first AHRS sample, rad."""
+VELOCITY_PRIOR_SIGMA = (0.05, 0.05, 0.05, 0.05, 0.05, 0.05)
+"""Standard deviation of the initial body velocity, m/s and rad/s (the vehicle starts at rest, unknown drift)."""
+DISTURBANCE_PRIOR_SIGMA = (0.2, 0.2, 1.0, 0.2, 0.2, 0.2)
+"""Standard deviation of the initial unknown acceleration ``d``, m/s^2 and rad/s^2: heave carries the buoyancy's
+30 % (about 190 N standard deviation on some 160 kg of heave inertia)."""
+ACCEL_NOISE_DENSITY = (0.008, 0.008, 0.004, 0.03, 0.03, 0.03)
+"""White acceleration noise on ``nu'``, m/s^2/sqrt(Hz) and rad/s^2/sqrt(Hz): the fast part of the model's error."""
+DISTURBANCE_WALK = (0.04, 0.04, 0.02, 0.15, 0.15, 0.15)
+"""Random-walk density of ``d``, m/s^2/sqrt(s) and rad/s^2/sqrt(s): its slow part."""
+POSITION_NOISE_DENSITY = 1.0e-4
+"""White noise on the position's rate, m/sqrt(s) (the Euler integration's error)."""
+ANGLE_NOISE_DENSITY = 6.0e-4
+"""White noise on the Euler angles' rates, rad/sqrt(s) (the Euler integration's error over a substep of changing
+body rates)."""
+JOINT_PRIOR_RATE_SIGMA = 0.05
+"""Standard deviation of the initial joint rates, rad/s (the arms start at rest)."""
+JOINT_ACCEL_NOISE_DENSITY = 2.0
+"""White noise on each joint's acceleration, rad/s^2/sqrt(Hz) (the joints' model is rougher: gear friction)."""
+MIN_VARIANCE = 1.0e-12
+"""Floor of a measurement's variance (a noiseless sensor would make the update singular)."""
+
+
+# ----------------------------------------------------------------------------------------------- numba kernels
+@jit
+def _kinematics(eta: np.ndarray, nu: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """``eta' = J(eta) nu`` and its Jacobian: fills ``a[0:6, 3:12]`` (d eta' / d (angles, nu)); returns ``eta'``."""
+    c1, s1 = math.cos(eta[3]), math.sin(eta[3])
+    c2, s2 = math.cos(eta[4]), math.sin(eta[4])
+    c3, s3 = math.cos(eta[5]), math.sin(eta[5])
+    r = np.empty((3, 3))
+    r[0, 0], r[0, 1], r[0, 2] = c3 * c2, c3 * s2 * s1 - s3 * c1, c3 * s2 * c1 + s3 * s1
+    r[1, 0], r[1, 1], r[1, 2] = s3 * c2, s3 * s2 * s1 + c3 * c1, s3 * s2 * c1 - c3 * s1
+    r[2, 0], r[2, 1], r[2, 2] = -s2, c2 * s1, c2 * c1
+    u, v, w, p, q, rr = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
+    # d(R v)/d phi, theta, psi
+    a[0, 3] = (c3 * s2 * c1 + s3 * s1) * v + (-c3 * s2 * s1 + s3 * c1) * w
+    a[1, 3] = (s3 * s2 * c1 - c3 * s1) * v + (-s3 * s2 * s1 - c3 * c1) * w
+    a[2, 3] = c2 * c1 * v - c2 * s1 * w
+    a[0, 4] = -c3 * s2 * u + c3 * c2 * s1 * v + c3 * c2 * c1 * w
+    a[1, 4] = -s3 * s2 * u + s3 * c2 * s1 * v + s3 * c2 * c1 * w
+    a[2, 4] = -c2 * u - s2 * s1 * v - s2 * c1 * w
+    a[0, 5] = -s3 * c2 * u + (-s3 * s2 * s1 - c3 * c1) * v + (-s3 * s2 * c1 + c3 * s1) * w
+    a[1, 5] = c3 * c2 * u + (c3 * s2 * s1 - s3 * c1) * v + (c3 * s2 * c1 + s3 * s1) * w
+    a[2, 5] = 0.0
+    t2 = s2 / c2
+    out = np.empty(6)
+    for i in range(3):
+        out[i] = r[i, 0] * u + r[i, 1] * v + r[i, 2] * w
+        for j in range(3):
+            a[i, 6 + j] = r[i, j]
+    out[3] = p + s1 * t2 * q + c1 * t2 * rr
+    out[4] = c1 * q - s1 * rr
+    out[5] = (s1 * q + c1 * rr) / c2
+    a[3, 3], a[3, 4], a[3, 5] = c1 * t2 * q - s1 * t2 * rr, (s1 * q + c1 * rr) / (c2 * c2), 0.0
+    a[4, 3], a[4, 4], a[4, 5] = -s1 * q - c1 * rr, 0.0, 0.0
+    a[5, 3], a[5, 4], a[5, 5] = (c1 * q - s1 * rr) / c2, (s1 * q + c1 * rr) * s2 / (c2 * c2), 0.0
+    a[3, 9], a[3, 10], a[3, 11] = 1.0, s1 * t2, c1 * t2
+    a[4, 9], a[4, 10], a[4, 11] = 0.0, c1, -s1
+    a[5, 9], a[5, 10], a[5, 11] = 0.0, s1 / c2, c1 / c2
+    return out
+
+
+@jit
+def _derivative(x: np.ndarray, accel: np.ndarray, wvv: np.ndarray, lin: np.ndarray, quad: np.ndarray, a: np.ndarray):
+    """``x'`` of the core states (18) and its Jacobian ``a`` (12 x 18, rows ``eta, nu``; ``d'`` is noise only)."""
+    a[:, :] = 0.0
+    f = np.zeros(N_CORE)
+    f[:6] = _kinematics(x[:6], x[6:12], a)
+    nu = x[6:12]
+    damp = (lin + quad * np.abs(nu)) * nu
+    ddamp = lin + 2.0 * quad * np.abs(nu)
+    for i in range(6):
+        acc = accel[i] + x[12 + i]
+        for j in range(6):
+            acc -= wvv[i, j] * damp[j]
+            a[6 + i, 6 + j] = -wvv[i, j] * ddamp[j]
+        f[6 + i] = acc
+        a[6 + i, 12 + i] = 1.0
+    return f
+
+
+@jit
+def _wrap(a: float) -> float:
+    """An angle wrapped to ``[-pi, pi)``."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@jit
+def _predict(x, p, dt, accel, wvv, lin, quad, qdiag, a):  # noqa: C901  (loops over A's nonzeros)
+    """One Euler step of the core states and ``P <- F P F' + Q dt`` with ``F = I + A dt`` (A nonzero in rows 0:12)."""
+    n = x.shape[0]
+    f = _derivative(x, accel, wvv, lin, quad, a)
+    g = np.zeros((12, n))  # A P, over A's nonzeros (about 75 of 216)
+    for i in range(12):
+        for k in range(N_CORE):
+            aik = a[i, k]
+            if aik != 0.0:
+                for j in range(n):
+                    g[i, j] += aik * p[k, j]
+    h = np.zeros((12, 12))  # A P A'
+    for i in range(12):
+        for k in range(N_CORE):
+            for j in range(12):
+                h[i, j] += g[i, k] * a[j, k]
+    for i in range(12):
+        for j in range(n):
+            p[i, j] += dt * g[i, j]
+    for i in range(n):
+        for j in range(12):
+            p[i, j] += dt * g[j, i]
+    for i in range(12):
+        for j in range(12):
+            p[i, j] += dt * dt * h[i, j]
+    for i in range(qdiag.shape[0]):
+        p[i, i] += qdiag[i] * dt
+    for i in range(N_CORE):
+        x[i] += dt * f[i]
+    for i in range(3, 6):
+        x[i] = _wrap(x[i])
+
+
+@jit
+def _update_scalar(x, p, i, j, z, r, angle, angle_states):
+    """Kalman update with one scalar ``z = x[i] + x[j] + noise(r)`` (``j < 0``: no bias term)."""
+    n = x.shape[0]
+    ph = p[:, i].copy()
+    hx = x[i]
+    if j >= 0:
+        ph += p[:, j]
+        hx += x[j]
+    s = ph[i] + (ph[j] if j >= 0 else 0.0) + r
+    innov = _wrap(z - hx) if angle else z - hx
+    for a in range(n):
+        x[a] += ph[a] / s * innov
+        for b in range(n):
+            p[a, b] -= ph[a] * ph[b] / s
+    for k in range(angle_states.shape[0]):
+        x[angle_states[k]] = _wrap(x[angle_states[k]])
+
+
+@jit
+def _apply(x, p, row, idx, bias, var, angle, angle_states):
+    """Apply a measurement row ``(sensor, s, v0..v3)`` with the state indices ``idx`` of its components."""
+    sid = int(row[0])
+    for k in range(MAX_DIM):
+        if idx[k] < 0:
+            break
+        _update_scalar(x, p, idx[k], bias[sid, k], row[2 + k], var[sid, k], angle[sid, k], angle_states)
+
+
+@jit
+def _clone(x, p, dst, src):
+    """Copy states ``src`` into slots ``dst`` with their covariance (rows, then columns)."""
+    for k in range(src.shape[0]):
+        if src[k] < 0:
+            break
+        x[dst[k]] = x[src[k]]
+        p[dst[k], :] = p[src[k], :]
+    for k in range(src.shape[0]):
+        if src[k] < 0:
+            break
+        p[:, dst[k]] = p[:, src[k]]
+
+
+@jit
+def _free(x, p, dst):
+    """Free a clone slot: zero its state and correlations, unit variance (decoupled from everything)."""
+    for k in range(dst.shape[0]):
+        if dst[k] < 0:
+            break
+        x[dst[k]] = 0.0
+        p[dst[k], :] = 0.0
+        p[:, dst[k]] = 0.0
+        p[dst[k], dst[k]] = 1.0
+
+
+@jit
+def _run(x, p, s_from, s_to, dt, accel, wvv, lin, quad, qdiag, meas, tab, slots, a):  # noqa: C901
+    """Substeps ``s_from + 1 .. s_to``: predict, clone at delayed sensors' sample times, apply the samples.
+
+    ``tab`` holds the sensor tables ``(idx, bias, var, angle, period, latency, angle_states)``; ``slots`` the clone
+    slots ``(sensor, s_sample, state indices (MAX_DIM))`` as rows of an int array.
+    """
+    idx, bias, var, angle, period, latency, angle_states = tab
+    n_meas = meas.shape[0]
+    for s in range(s_from + 1, s_to + 1):
+        _predict(x, p, dt, accel, wvv, lin, quad, qdiag, a)
+        for sid in range(period.shape[0]):
+            if latency[sid] > 0 and s % period[sid] == 0:  # a delayed sensor samples now: clone into a free slot
+                for m in range(slots.shape[0]):
+                    if slots[m, 0] == sid and slots[m, 1] < 0:
+                        slots[m, 1] = s
+                        _clone(x, p, slots[m, 2:], idx[sid])
+                        break
+        for m in range(n_meas):
+            sid = int(meas[m, 0])
+            if latency[sid] == 0 and int(meas[m, 1]) == s:
+                _apply(x, p, meas[m], idx[sid], bias, var, angle, angle_states)
+    for m in range(n_meas):
+        sid = int(meas[m, 0])
+        if latency[sid] > 0:
+            for k in range(slots.shape[0]):
+                if slots[k, 0] == sid and slots[k, 1] == int(meas[m, 1]):
+                    _apply(x, p, meas[m], slots[k, 2:], bias, var, angle, angle_states)
+                    _free(x, p, slots[k, 2:])
+                    slots[k, 1] = -1
+                    break
+    for k in range(slots.shape[0]):
+        if slots[k, 1] >= 0 and slots[k, 1] + latency[slots[k, 0]] <= s_to:  # released by now: lost in a dropout
+            _free(x, p, slots[k, 2:])
+            slots[k, 1] = -1
+    for i in range(p.shape[0]):  # keep P symmetric to rounding
+        for j in range(i):
+            v = 0.5 * (p[i, j] + p[j, i])
+            p[i, j] = v
+            p[j, i] = v
+
+
+@jit
+def _dynamics(m_upper, nle, buoy, added, added_weight, eta, zeta, tau, friction, lin, quad):
+    """Nominal accelerations at the estimate (18-DOF model; the vehicle damping at ``nu``).
+
+    Returns:
+        The vehicle's acceleration without its damping, ``[M^-1]_vv`` and the joints' accelerations.
+    """
+    n = m_upper.shape[0]
+    m = np.empty((n, n))
+    for i in range(n):
+        for j in range(i, n):
+            m[i, j] = m_upper[i, j]
+            m[j, i] = m_upper[i, j]
+    for i in range(6):
+        m[i, i] += added[i]
+    rhs = tau - nle - buoy
+    c1, s1 = math.cos(eta[3]), math.sin(eta[3])
+    c2, s2 = math.cos(eta[4]), math.sin(eta[4])
+    rhs[0] -= added_weight * -s2  # the virtual added-mass body is weightless: R_NB^T W e_z, third row of R_NB
+    rhs[1] -= added_weight * c2 * s1
+    rhs[2] -= added_weight * c2 * c1
+    nu = zeta[:6]
+    u, v, w, p_, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
+    ax, ay, az = added[0] * u, added[1] * v, added[2] * w
+    bx, by, bz = added[3] * p_, added[4] * q, added[5] * r
+    rhs[0] -= q * az - r * ay
+    rhs[1] -= r * ax - p_ * az
+    rhs[2] -= p_ * ay - q * ax
+    rhs[3] -= (v * az - w * ay) + (q * bz - r * by)
+    rhs[4] -= (w * ax - u * az) + (r * bx - p_ * bz)
+    rhs[5] -= (u * ay - v * ax) + (p_ * by - q * bx)
+    for i in range(6, n):
+        rhs[i] -= friction * zeta[i]
+    minv = np.linalg.inv(m)
+    accel = minv[:6, :] @ rhs
+    damp = (lin + quad * np.abs(nu)) * nu
+    qdd = minv[6:, :] @ rhs - minv[6:, :6] @ damp
+    return accel, minv[:6, :6].copy(), qdd
+
+
+@jit
+def _joints(q, qd, p11, p12, p22, qdd, dt, qvar, z, r):
+    """One control step of the joint filters: predict with ``qdd`` and white acceleration noise, then the encoders."""
+    for i in range(q.shape[0]):
+        q[i] += dt * qd[i] + 0.5 * dt * dt * qdd[i]
+        qd[i] += dt * qdd[i]
+        a11 = p11[i] + 2.0 * dt * p12[i] + dt * dt * p22[i] + qvar * dt**3 / 3.0
+        a12 = p12[i] + dt * p22[i] + qvar * dt**2 / 2.0
+        a22 = p22[i] + qvar * dt
+        if z.shape[0] > 0:
+            s = a11 + r[i]
+            k1, k2 = a11 / s, a12 / s
+            innov = z[i] - q[i]
+            q[i] += k1 * innov
+            qd[i] += k2 * innov
+            a22 -= k2 * a12
+            a12 -= k1 * a12
+            a11 -= k1 * a11
+        p11[i], p12[i], p22[i] = a11, a12, a22
+
+
+# ----------------------------------------------------------------------------------------------- the filter
+def _vector(values: Any, n: int) -> np.ndarray:
+    return np.asarray(values, dtype=float) * np.ones(n)
+
+
+class NavigationFilter:
+    """EKF of ``(eta, nu)`` with biases and an unknown acceleration, joint filters (module docstring).
+
+    Args:
+        cfg: the realism level (the sensors' specifications the vehicle's software knows).
+        params: the nominal physical parameters.
+        control_dt: the control step, s (:meth:`update` is called once per control step).
+        physics_dt: the physics substep, s (the sensors' clock; samples are taken at its multiples).
+    """
+
+    def __init__(self, cfg: RealismConfig, params: UVDMSParams, *, control_dt: float, physics_dt: float) -> None:
+        if not (math.isfinite(physics_dt) and physics_dt > 0):
+            raise ValueError(f"physics_dt must be a finite number > 0, got {physics_dt!r}")
+        n_sub = round(control_dt / physics_dt)
+        if n_sub < 1 or abs(n_sub * physics_dt - control_dt) > 1e-9:
+            raise ValueError(f"control_dt ({control_dt}) must be a whole multiple of physics_dt ({physics_dt})")
+        self.cfg, self.params = cfg, params
+        self.control_dt, self.physics_dt, self.n_substeps = float(control_dt), float(physics_dt), n_sub
+        self._kin = KinematicModel(params)
+        self._nominal = NominalDynamics(self._kin)
+        self._model, self._data = self._kin.model, self._kin.model.createData()
+        self._bmodel = self._nominal._bmodel
+        self._bdata = self._bmodel.createData()
+        veh = params.vehicle
+        self._added = self._nominal._base_added.copy()
+        self._added_weight = float(self._kin._added_weight)
+        self._friction = float(params.arm.joint_friction)
+        self._lin, self._quad = np.array(veh.linear_damping), np.array(veh.quadratic_damping)
+        self._build_tables(cfg)
+        self._qdiag = np.r_[
+            np.full(3, POSITION_NOISE_DENSITY**2),
+            np.full(3, ANGLE_NOISE_DENSITY**2),
+            _vector(ACCEL_NOISE_DENSITY, 6) ** 2,
+            _vector(DISTURBANCE_WALK, 6) ** 2,
+            np.full(3, cfg.gyro.bias_walk**2),
+        ]
+        enc = cfg.encoders.sigma_vector(N_JOINTS)
+        self._enc_var = np.maximum(enc**2, MIN_VARIANCE)
+        self._a = np.zeros((12, N_CORE))
+        self._t = 0.0
+        self._s = 0
+        self.x = np.zeros(self._n)
+        self.P = np.eye(self._n)
+        self._q, self._qd = np.zeros(N_JOINTS), np.zeros(N_JOINTS)
+        self._pj = [np.zeros(N_JOINTS), np.zeros(N_JOINTS), np.zeros(N_JOINTS)]
+
+    def _build_tables(self, cfg: RealismConfig) -> None:
+        """Per fused sensor: measured states, bias states, variances, angle flags, period, latency; clone slots."""
+        k = len(FILTERED_SENSORS)
+        idx, bias = np.full((k, MAX_DIM), -1, np.int64), np.full((k, MAX_DIM), -1, np.int64)
+        var, angle = np.ones((k, MAX_DIM)), np.zeros((k, MAX_DIM), np.bool_)
+        period, latency = np.zeros(k, np.int64), np.zeros(k, np.int64)
+        slots: list[list[int]] = []
+        n = N_BASE
+        for j, name in enumerate(FILTERED_SENSORS):
+            spec, states = cfg.sensor(name), MEASURED_STATES[name]
+            dim = len(states)
+            idx[j, :dim] = states
+            bias[j, : len(BIAS_STATES.get(name, ()))] = BIAS_STATES.get(name, ())
+            var[j, :dim] = np.maximum(spec.sigma_vector(dim) ** 2, MIN_VARIANCE)
+            angle[j, list(ANGLE_MEASUREMENTS.get(name, ()))] = True
+            period[j] = to_substeps(spec.period, self.physics_dt, minimum=1)
+            latency[j] = to_substeps(spec.latency, self.physics_dt)
+            if latency[j] > 0:
+                for _ in range((latency[j] + self.n_substeps) // period[j] + 1):
+                    slots.append([j, -1, *range(n, n + dim), *([-1] * (MAX_DIM - dim))])
+                    n += dim
+        self._n = n
+        clone_angles = [row[2 + c] for row in slots for c in range(MAX_DIM) if angle[row[0], c]]
+        angle_states = np.array([3, 4, 5, *clone_angles], np.int64)
+        self._tab = (idx, bias, var, angle, period, latency, angle_states)
+        self._slots_template = np.array(slots, np.int64).reshape(-1, 2 + MAX_DIM)
+        self._slots = self._slots_template.copy()
+        self._prior = np.r_[
+            np.full(3, POSITION_PRIOR_SIGMA),
+            np.full(3, ANGLE_PRIOR_SIGMA),
+            _vector(VELOCITY_PRIOR_SIGMA, 6),
+            _vector(DISTURBANCE_PRIOR_SIGMA, 6),
+            np.full(3, cfg.gyro.bias_sigma),
+            np.full(3, cfg.dvl.bias_sigma),
+            np.full(1, cfg.depth.bias_sigma),
+            np.ones(n - N_BASE),
+        ]
+
+    # ----------------------------------------------------------------------------------------- public API
+    def reset(self, t: float, measurements: Mapping[str, list[tuple[float, np.ndarray]]]) -> None:
+        """Start from the prior and the initial samples (taken at ``t``, released at once)."""
+        self._t, self._s = float(t), round(t / self.physics_dt)
+        self.x = np.zeros(self._n)
+        self.P = np.diag(np.maximum(self._prior, math.sqrt(MIN_VARIANCE)) ** 2)
+        self._slots = self._slots_template.copy()
+        enc = measurements.get("encoders") or []
+        if not enc:
+            raise ValueError("reset needs the initial encoder sample in measurements['encoders']")
+        self._q = np.array(enc[-1][1], dtype=float)
+        self._qd = np.zeros(N_JOINTS)
+        self._pj = [self._enc_var.copy(), np.zeros(N_JOINTS), np.full(N_JOINTS, JOINT_PRIOR_RATE_SIGMA**2)]
+        tab = self._tab
+        for row in self._pack(measurements):
+            _apply(self.x, self.P, row, tab[0][int(row[0])], tab[1], tab[2], tab[3], tab[6])
+
+    def update(self, t: float, measurements: Mapping[str, list[tuple[float, np.ndarray]]], tau_cmd: np.ndarray) -> None:
+        """Advance to ``t`` with the commanded force of the step just ended and fuse the samples released in it.
+
+        Args:
+            t: the time at the end of the control step, s.
+            measurements: sensor name -> the samples released during the step, ``(t_sample, value)``.
+            tau_cmd: the 18 commanded generalized forces of the step, mean over its substeps.
+        """
+        tau = np.asarray(tau_cmd, dtype=float)
+        if tau.shape != (18,) or not np.isfinite(tau).all():
+            raise ValueError(f"tau_cmd must be 18 finite values, got {tau_cmd!r}")
+        s_to = round(t / self.physics_dt)
+        if s_to < self._s:
+            raise ValueError(f"t ({t}) is before the filter's time ({self._t})")
+        accel, wvv, qdd = self._accelerations(tau)
+        meas = self._pack(measurements)
+        _run(
+            self.x,
+            self.P,
+            self._s,
+            s_to,
+            self.physics_dt,
+            accel,
+            wvv,
+            self._lin,
+            self._quad,
+            self._qdiag,
+            meas,
+            self._tab,
+            self._slots,
+            self._a,
+        )
+        enc = measurements.get("encoders") or []
+        z = np.asarray(enc[-1][1], dtype=float) if enc else np.zeros(0)
+        _joints(
+            self._q,
+            self._qd,
+            *self._pj,
+            qdd,
+            (s_to - self._s) * self.physics_dt,
+            JOINT_ACCEL_NOISE_DENSITY**2,
+            z,
+            self._enc_var,
+        )
+        self._t, self._s = float(t), s_to
+
+    def _accelerations(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The nominal model at the estimate: the vehicle's acceleration terms and the joints' accelerations."""
+        eta, nu = self.x[:6], self.x[6:12]
+        config = KinematicModel.configuration(eta, self._q)
+        zeta = np.concatenate((nu, self._qd))
+        pin.crba(self._model, self._data, config)
+        nle = pin.nonLinearEffects(self._model, self._data, config, zeta)
+        buoy = pin.computeGeneralizedGravity(self._bmodel, self._bdata, config)
+        return _dynamics(
+            self._data.M,
+            nle,
+            buoy,
+            self._added,
+            self._added_weight,
+            eta,
+            zeta,
+            tau,
+            self._friction,
+            self._lin,
+            self._quad,
+        )
+
+    def _pack(self, measurements: Mapping[str, list[tuple[float, np.ndarray]]]) -> np.ndarray:
+        """The fused samples as rows ``(sensor index, substep, v0..v3)``."""
+        rows = []
+        dt = self.physics_dt
+        pad = [0.0] * MAX_DIM
+        for j, name in enumerate(FILTERED_SENSORS):
+            for t, v in measurements.get(name) or ():
+                values = v.tolist()
+                rows.append([j, round(t / dt), *values, *pad[len(values) :]])
+        return np.array(rows, dtype=float) if rows else np.zeros((0, 2 + MAX_DIM))
+
+    def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The estimates ``eta, nu, q, qdot`` at the filter's time."""
+        return self.x[:6].copy(), self.x[6:12].copy(), self._q.copy(), self._qd.copy()
+
+    def covariance(self) -> np.ndarray:
+        """The 12 x 12 covariance of the ``(eta, nu)`` estimate (angle errors are wrapped)."""
+        return self.P[:12, :12].copy()
+
+    @property
+    def t(self) -> float:
+        """The filter's time, s."""
+        return self._t
+
+
+class NavigationFilterWrapper(gym.Wrapper):
+    """Puts the navigation filter's estimate where the oracle state was (observation and ``info`` state keys).
+
+    The environment (at a realism level) reports ``info["measurements"]`` (the samples released during the step,
+    and at reset the initial samples) and ``info["tau_cmd"]`` (the step's mean commanded force); the wrapper runs
+    the filter on them and asks the environment to observe the estimate (``observe_estimate``).
+
+    Args:
+        env: a UVDMS environment built with a realism level.
+        cfg: that level (default: the environment's ``realism`` attribute).
+    """
+
+    def __init__(self, env: gym.Env, cfg: RealismConfig | None = None) -> None:
+        super().__init__(env)
+        base = env.unwrapped
+        cfg = cfg if cfg is not None else base.realism
+        if cfg is None:
+            raise ValueError("NavigationFilterWrapper needs a realism level > 0 (the environment's realism is None)")
+        self.filter = NavigationFilter(cfg, base.params, control_dt=base.control_dt, physics_dt=base.physics_dt)
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        """Reset the environment and start the filter from its initial samples."""
+        _, info = self.env.reset(**kwargs)
+        self.filter.reset(info.get("t", 0.0), info["measurements"])
+        return self._observe(info)
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        """Step the environment, update the filter, observe the estimate."""
+        _, reward, terminated, truncated, info = self.env.step(action)
+        self.filter.update(info["t"], info["measurements"], info["tau_cmd"])
+        obs, info = self._observe(info)
+        return obs, reward, terminated, truncated, info
+
+    def _observe(self, info: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
+        obs, state_keys = self.env.unwrapped.observe_estimate(*self.filter.state())
+        info.update(state_keys)
+        return obs, info
