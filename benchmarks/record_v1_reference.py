@@ -1,0 +1,94 @@
+"""Record the v1 reference trajectories of ``realism=0`` that ``tests/uvdms_gym/realism/test_realism_zero.py`` compares against.
+
+Run once on the code whose physics is the reference (it was run on release 0.5.0, commit 1191a35, before the
+``realism`` keyword existed):
+
+    python benchmarks/record_v1_reference.py tests/data/v1_reference_trajectories.npz
+
+Each case is a registered v1 id with fixed kwargs, seed and a fixed action sequence drawn from a seeded
+generator; the file stores, per step, the state (eta, nu, q, qdot), the observation, the reward and the 18
+distances; ``machine`` records where it ran (CPU model, numpy and pybullet versions): on the same machine the
+test asks for equality bit for bit.
+"""
+
+from __future__ import annotations
+
+import platform
+import sys
+from importlib.metadata import version
+
+import gymnasium as gym
+import numpy as np
+
+import uvdms_gym  # noqa: F401  (registers the ids)
+
+N_STEPS = 200
+_FREE_TORQUE = {"action_mode": "torque", "terminate_on_contact": False, "max_tracking_error": 100.0}
+"""Torque mode run through contacts and large errors, so that 200 steps of free dynamics are compared."""
+CASES: dict[str, tuple[str, dict, float]] = {
+    # name: (id, gym.make kwargs, action amplitude)
+    "circle_random_hydro_velocity": ("uvdms/CircleTrack-v1", {"case": "random", "hydro_randomization": 0.3}, 0.5),
+    "transport_random_current_velocity": (
+        "uvdms/Transport-v1",
+        {"goal": "random", "hydro_randomization": 0.3, "current": "random"},
+        0.5,
+    ),
+    "obstacles_random_current_velocity": ("uvdms/TransportObstacles-v1", {"current": "random"}, 0.5),
+    "circle_case2_torque": ("uvdms/CircleTrack-v1", {"case": 2, **_FREE_TORQUE}, 0.05),
+}
+
+
+def actions(name: str, n: int = N_STEPS) -> np.ndarray:
+    """The fixed action sequence of a case: a smoothed random walk scaled by the case's amplitude."""
+    rng = np.random.default_rng(sum(map(ord, name)))
+    raw = rng.uniform(-1.0, 1.0, (n, 18))
+    out = np.zeros_like(raw)
+    a = np.zeros(18)
+    for k in range(n):
+        a = 0.9 * a + 0.1 * raw[k]
+        out[k] = CASES[name][2] * a
+    return out
+
+
+def record(name: str, **extra: object) -> dict[str, np.ndarray]:
+    """Roll out one case (its kwargs updated with ``extra``) and return its arrays (keys prefixed with its name)."""
+    env_id, kwargs, _ = CASES[name]
+    env = gym.make(env_id, disable_env_checker=True, **kwargs, **extra)
+    keys = ("eta", "nu", "q", "qdot", "distances", "tau")
+    rows: dict[str, list] = {k: [] for k in (*keys, "obs", "reward")}
+    try:
+        env.reset(seed=7)
+        for a in actions(name):
+            obs, reward, terminated, truncated, info = env.step(a.astype(np.float32))
+            for k in keys:
+                rows[k].append(np.asarray(info[k], dtype=np.float64))
+            rows["obs"].append(obs)
+            rows["reward"].append(reward)
+            if terminated or truncated:
+                break
+    finally:
+        env.close()
+    return {f"{name}/{k}": np.asarray(v) for k, v in rows.items()}
+
+
+def machine() -> str:
+    """Where a recording ran: the CPU model and the numpy and pybullet versions (equal: the same bits)."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{cpu} | numpy {np.__version__} | pybullet {version('pybullet')}"
+
+
+def main(path: str) -> None:
+    """Record every case into one ``.npz`` file."""
+    arrays: dict[str, np.ndarray] = {"machine": np.array(machine())}
+    for name in CASES:
+        arrays.update(record(name))
+    np.savez_compressed(path, **arrays)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
