@@ -1,4 +1,4 @@
-"""Record the v1 reference trajectories of ``realism=0`` that ``tests/uvdms_gym/realism/test_realism_zero.py`` compares against.
+"""Record the v1 reference trajectories of ``realism=0`` (``tests/uvdms_gym/realism/test_realism_zero.py``).
 
 Run once on the code whose physics is the reference (it was run on release 0.5.0, commit 1191a35, before the
 ``realism`` keyword existed):

@@ -1,4 +1,4 @@
-"""The environments at ``realism > 0``: measurements in, truth kept aside, the action path, errors that name the knob."""
+"""The environments at ``realism > 0``: measurements in, truth aside, the action path, errors naming the knob."""
 
 from __future__ import annotations
 
