@@ -204,6 +204,51 @@ def _bench_obstacles(n_blocks: int, block_steps: int, warmup: int) -> dict:
     return result
 
 
+REALISM_BENCH_LEVEL = 3
+"""The realism level whose environment step ``uvdms bench env`` compares with level 0 (the issue's bound: 1.3x)."""
+
+
+def _bench_realism(env_id: str, n_blocks: int, block_steps: int, warmup: int) -> dict:
+    """``env_id`` at realism level 3 against level 0, in alternating blocks of the same actions from the same seed.
+
+    Both run velocity mode without termination on contact; the ratio is the median of the per-pair ratios, so each
+    pair runs under the same machine load. Only ``step()`` is timed (the navigation filter is the controller's
+    cost, not the environment's: ``benchmarks/bench_navigation.py``).
+    """
+    import gymnasium as gym
+
+    levels = (REALISM_BENCH_LEVEL, 0)
+    envs = {
+        level: gym.make(env_id, action_mode="velocity", terminate_on_contact=False, realism=level) for level in levels
+    }
+    actions = np.random.default_rng(0).uniform(-0.3, 0.3, (warmup + n_blocks * block_steps, 18)).astype(np.float32)
+    blocks: dict[int, list[float]] = {level: [] for level in levels}
+    for env in envs.values():
+        env.reset(seed=0)
+        for a in actions[:warmup]:
+            env.step(a)
+    for b in range(n_blocks):
+        for level, env in envs.items():
+            elapsed = 0.0
+            for a in actions[warmup + b * block_steps : warmup + (b + 1) * block_steps]:
+                t0 = time.perf_counter()
+                _, _, term, trunc, _ = env.step(a)
+                elapsed += time.perf_counter() - t0
+                if term or trunc:
+                    env.reset(seed=0)
+            blocks[level].append(elapsed / block_steps * 1e6)
+    for env in envs.values():
+        env.close()
+    ratios = np.array(blocks[REALISM_BENCH_LEVEL]) / np.array(blocks[0])
+    return {
+        "level": REALISM_BENCH_LEVEL,
+        "step_us": float(np.median(blocks[REALISM_BENCH_LEVEL])),
+        "level0_step_us": float(np.median(blocks[0])),
+        "ratio_to_level0": float(np.median(ratios)),
+        "ratio_blocks": ratios.tolist(),
+    }
+
+
 def _time_reset(env, seed: int) -> float:
     """Seconds of one ``reset(seed=seed)`` (which draws the random scenario)."""
     t0 = time.perf_counter()
@@ -225,7 +270,8 @@ def bench_env(quick: bool = False) -> dict:
     environment's own multibody at its reset state (for the transport task: with the gripped object and its
     two grasp constraints, solved by the direct LCP solver) and ``ratio_to_env_physics`` the step against
     that, i.e. the cost on top of the physics engine. ``uvdms/TransportObstacles-v1`` is measured against
-    ``uvdms/Transport-v1`` in alternating blocks (:func:`_bench_obstacles`).
+    ``uvdms/Transport-v1`` in alternating blocks (:func:`_bench_obstacles`), and each v1 environment at realism
+    level 3 against level 0 (``realism``, :func:`_bench_realism`; the bound is 1.3x).
     """
     import gymnasium as gym
 
@@ -279,6 +325,10 @@ def bench_env(quick: bool = False) -> dict:
                 "ratio_blocks": ratio_blocks,
             }
     result[OBSTACLE_ENV_ID] = _bench_obstacles(n_blocks, block_steps, warmup)
+    result["realism"] = {
+        env_id: _bench_realism(env_id, n_blocks, block_steps, warmup)
+        for env_id in ("uvdms/CircleTrack-v1", "uvdms/Transport-v1", OBSTACLE_ENV_ID)
+    }
     result["bare_step_us"] = float(np.median(bare_all))
     result["warmup_steps"] = warmup
     result["blocks"] = {"n_blocks": n_blocks, "block_steps": block_steps}
