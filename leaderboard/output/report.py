@@ -24,12 +24,19 @@ from leaderboard.stats.metrics import (  # (the table constants live in stats: t
 from leaderboard.stats.ranking import RankedRow
 from leaderboard.suite.entries import Entry
 from leaderboard.suite.entry_info import entry_details
-from leaderboard.suite.tasks import CHECK_SPLIT, TRACKS, env_version
+from leaderboard.suite.tasks import CHECK_SPLIT, REALISM_DRAWS, TRACKS, env_version
 from uvdms_gym.seeds import PROTOCOL, protocol_record
 from uvdms_gym.utils.io import write_json_atomic
 
 if TYPE_CHECKING:
     from leaderboard.stats.result import LeaderboardResult
+
+
+PRIVILEGED_MARK = "(privileged)"
+PRIVILEGED_TEXT = (
+    "reads the true state (`env.unwrapped.true_state()`) on the realism track: a reference row that shows what "
+    "sensing alone costs, not a competitor (its actuation, delay and thrusters are real)."
+)
 
 
 def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_METRICS) -> str:
@@ -46,7 +53,8 @@ def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_ME
         lines.append("|" + "|".join(["---"] * 3 + ["--:"] * (len(metrics) + 1)) + "|")
         marked = False
         for row in rows:
-            cells = [row.task.label, row.rank_label, row.entry.label]
+            label = row.entry.label + (f" {PRIVILEGED_MARK}" if row.entry.privileged else "")
+            cells = [row.task.label, row.rank_label, label]
             for m in metrics:
                 cell = row.stats[m].format(METRICS[m]["fmt"], METRICS[m].get("scale", 1.0))
                 if m in TIMING_METRICS and row.timing["overloaded"]:
@@ -56,6 +64,9 @@ def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_ME
             cells.append(episodes_label(row))
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
+        if any(row.entry.privileged for row in rows):
+            lines.append(f"{PRIVILEGED_MARK} {PRIVILEGED_TEXT}")
+            lines.append("")
         if marked:
             lines.append(
                 f"{OVERLOAD_MARK} timed with a 1-minute load average above the machine's core count in some of the "
@@ -191,7 +202,10 @@ def _markdown_document(result: LeaderboardResult, command: str | None, plot_file
         "The paper's tasks have a fixed start and no randomisation: every seed gives the same episode, so they run "
         "one episode per entry and training seed (no interval for a single agent or baseline); the randomised "
         "tasks carry the spread. Agents run only on "
-        "the tasks of the environment they were trained on.",
+        "the tasks of the environment they were trained on. The realism track (tasks `*-r1`, `-r2`, `-r3`) runs the "
+        "randomised tasks with sensing and actuation realism (`docs/realism.md`): every controller acts on "
+        "measurements, late and noisy, through the thrusters and the action delay, and is judged on the truth; "
+        f"it runs {REALISM_DRAWS} draws per task and no generalisation check.",
         "",
         timing_text(result),
         "",
@@ -289,6 +303,7 @@ def _entry_document(entry: Entry, rows: Sequence[RankedRow], split: str) -> dict
         "checksum": entry.checksum,
         "weights_only": entry.weights_only,
         "package_version": uvdms_gym.__version__,
+        **({"privileged": PRIVILEGED_TEXT} if entry.privileged else {}),
         **entry_details(entry),
         "tasks": {row.task.name: _task_document(row, split) for row in rows},
     }

@@ -255,7 +255,8 @@ def _plan(
     tasks' on the second test set.
     """
     seeds = split_seeds(split, episodes)
-    check_tasks = [t for t in tasks if not t.deterministic] if generalization and split == DEFAULT_SPLIT else []
+    checked = generalization and split == DEFAULT_SPLIT
+    check_tasks = [t for t in tasks if not t.deterministic and t.check] if checked else []
     check_seeds = split_seeds(CHECK_SPLIT, episodes) if check_tasks else []
     check_seed_disjointness(seeds + check_seeds, entries)
     jobs = plan_jobs(entries, tasks, split, episodes, cache)

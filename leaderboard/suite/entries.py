@@ -41,6 +41,8 @@ from leaderboard.suite.agent_files import (
 from leaderboard.suite.registry import (
     BASELINE_ENV,
     DEFAULT_BASELINES,
+    PRIVILEGED,
+    REALISM_ONLY,
     TRACK_OF,
     not_an_agent_folder,
     resolve_controller,
@@ -83,6 +85,8 @@ class Entry:
         residual_base: The base controller of a residual agent (``None``: not a residual agent).
         members: A multi-seed entry's per-seed agent entries (empty otherwise); the runner evaluates these.
         training_seed: A member's training seed (the ``k`` of its ``seed_<k>`` folder; ``None`` otherwise).
+        realism_only: A baseline of the realism track only (runs on tasks with ``realism > 0``).
+        privileged: A reference row that reads the true state at ``realism > 0`` (marked, not a competitor).
     """
 
     name: str
@@ -97,6 +101,8 @@ class Entry:
     residual_base: str | None = None
     members: tuple[Entry, ...] = ()
     training_seed: int | None = None
+    realism_only: bool = False
+    privileged: bool = False
 
     @property
     def label(self) -> str:
@@ -135,6 +141,8 @@ class Entry:
         Any version of the task's environment counts (:func:`leaderboard.suite.tasks.env_family`): an agent trained
         on ``uvdms/CircleTrack-v1`` runs the circle tasks, on ``-v1`` (:meth:`task_spec`).
         """
+        if self.realism_only and task.realism == 0:
+            return False
         return self.env_id is None or env_family(self.env_id) == env_family(task.env_id)
 
     def task_spec(self, task: Task) -> dict[str, Any]:
@@ -216,7 +224,15 @@ def _token_entry(spec: str, raw_token: str, token: str, filtered: bool, trust: b
     """``(dedup key, entry)`` of one spec of a token; ``None`` for a torque member of a filtered keyword."""
     if spec in BASELINES:
         key = spec
-        entry = Entry(name=spec, kind="baseline", spec=spec, track=BASELINES[spec], env_id=BASELINE_ENV[spec])
+        entry = Entry(
+            name=spec,
+            kind="baseline",
+            spec=spec,
+            track=BASELINES[spec],
+            env_id=BASELINE_ENV[spec],
+            realism_only=spec in REALISM_ONLY,
+            privileged=spec in PRIVILEGED,
+        )
     else:
         path = Path(resolve_controller(spec))  # a shipped name from any directory, a former name
         if not path.exists():

@@ -45,6 +45,10 @@ DEFAULT_BASELINES: tuple[str, ...] = tuple(
     name for name, spec in BASELINES.items() if spec.get("env_id") is None and spec.get("default", True)
 )
 """The baselines the leaderboard's ``baselines`` token stands for: those of every task but ``hold`` (named)."""
+REALISM_ONLY: frozenset[str] = frozenset(name for name, spec in BASELINES.items() if spec.get("realism_only"))
+"""Baselines of the realism track only (``campc-raw``, ``campc-privileged``: at ``realism=0`` they are ``campc``)."""
+PRIVILEGED: frozenset[str] = frozenset(name for name, spec in BASELINES.items() if spec.get("state") == "truth")
+"""Baselines that read the true state at ``realism > 0``: reference rows, marked as such, not competitors."""
 WEIGHTS_ONLY_RECORD = "agent.json"
 """The record that makes a folder a weights-only export (``agents.export``)."""
 AGENT_FILES: tuple[str, ...] = (WEIGHTS_ONLY_RECORD, "model.zip", "final_model.zip", "best_model.zip")
@@ -91,7 +95,9 @@ def load_agent(path: str | Path, trust: bool = False) -> Any:
         raise ValueError(f"{path}: a model file is not a valid zip archive, corrupt or truncated ({exc})") from None
 
 
-RESIDUAL_BASES: tuple[str, ...] = tuple(name for name in DEFAULT_BASELINES if TRACK_OF[name] == "velocity")
+RESIDUAL_BASES: tuple[str, ...] = tuple(
+    name for name in DEFAULT_BASELINES if TRACK_OF[name] == "velocity" and name not in REALISM_ONLY
+)
 """The baselines a residual agent can be trained on: those whose action is a velocity command."""
 
 

@@ -8,7 +8,7 @@ a deterministic task (the paper's: a fixed start, no randomisation) has one draw
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from gymnasium.envs.registration import parse_env_id
@@ -42,6 +42,9 @@ class Task:
         max_episode_steps: Step limit override (``None``: the registered limit).
         deterministic: A fixed start and no randomisation: every seed gives the same episode, so the task has one
             draw, which every training seed of an entry evaluates (:meth:`draws`).
+        realism: The sensing and actuation realism level of the task (0: the oracle; its ``env_kwargs`` hold it).
+        check: A randomised task that also runs the generalisation check on the second test set.
+        max_draws: At most this many draws, whatever the run's ``episodes`` (``None``: no cap).
     """
 
     name: str
@@ -52,10 +55,14 @@ class Task:
     trajectory: bool = False
     max_episode_steps: int | None = None
     deterministic: bool = False
+    realism: int = 0
+    check: bool = True
+    max_draws: int | None = None
 
     def draws(self, split: str, episodes: int) -> list[int]:
         """The task's draws on ``split``: one for a deterministic task, else ``episodes`` (``split_seeds``)."""
-        return split_seeds(split, 1 if self.deterministic else episodes)
+        n = 1 if self.deterministic else episodes if self.max_draws is None else min(episodes, self.max_draws)
+        return split_seeds(split, n)
 
     def spec(self, track: str, env_id: str | None = None) -> dict[str, Any]:
         """The environment specification of this task on ``track`` (part of the cache key).
@@ -112,8 +119,42 @@ TASKS: tuple[Task, ...] = (
         paper=False,
     ),
 )
+REALISM_DRAWS = 50
+"""Draws per task of the realism track (fewer than :data:`DEFAULT_EPISODES`: nine tasks; intervals about ±0.14 at
+rates near 0.5)."""
+REALISM_LEVELS: tuple[int, ...] = (1, 2, 3)
+"""The realism track's levels (:mod:`uvdms_gym.realism`)."""
+REALISM_BASES: tuple[str, ...] = ("circle-random", "transport-random", "transport-obstacles")
+"""The randomised tasks the realism track runs at every level."""
+
+
+def _realism_tasks(tasks: Sequence[Task]) -> tuple[Task, ...]:
+    """The realism track: each of :data:`REALISM_BASES` at each level (named ``<task>-r<level>``).
+
+    The same environments and draws as the oracle tasks, with ``realism=<level>`` added to their keywords; at most
+    :data:`REALISM_DRAWS` draws and no generalisation check (at 100 draws with the check, the track would cost
+    six times the rest of the leaderboard).
+    """
+    out = []
+    for level in REALISM_LEVELS:
+        for task in (t for t in tasks if t.name in REALISM_BASES):
+            out.append(
+                replace(
+                    task,
+                    name=f"{task.name}-r{level}",
+                    label=f"{task.label}, realism {level}",
+                    env_kwargs={**dict(task.env_kwargs), "realism": level},
+                    realism=level,
+                    check=False,
+                    max_draws=REALISM_DRAWS,
+                )
+            )
+    return tuple(out)
+
+
+TASKS = TASKS + _realism_tasks(TASKS)
 """The task suite: the paper's three tasks, then the held-out randomised variants and the obstacle task (the paper's
-stated future work: moving outer obstacles in a current)."""
+stated future work: moving outer obstacles in a current), then the realism track (:data:`REALISM_LEVELS`)."""
 
 
 def select_tasks(names: Sequence[str] | None = None, *, quick: bool = False) -> tuple[Task, ...]:
