@@ -48,6 +48,7 @@ import pinocchio as pin
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.nominal import NominalDynamics
 from uvdms_gym.physics.params import N_JOINTS, UVDMSParams
+from uvdms_gym.realism.actuation import DEFAULT_LAYOUT, Thrusters
 from uvdms_gym.realism.config import RealismConfig, to_substeps
 from uvdms_gym.utils.jit import jit
 
@@ -158,6 +159,35 @@ def _derivative(x: np.ndarray, accel: np.ndarray, wvv: np.ndarray, lin: np.ndarr
 
 
 @jit
+def _thruster_wrench(tau_v, pinv, b, thrust, fmax, rmax, dead_zone, alpha, box, n_sub):
+    """The body wrench of each of ``n_sub`` substeps (rows) from the step's mean commanded wrench ``tau_v``.
+
+    The thrust commands ``B^+ tau_v`` (``tau_v`` is the allocation's output, already inside the limits), the dead
+    zone on them, the rotor lag ``f += alpha (target - f)`` per substep on ``thrust`` (in place), and the
+    simulator's box ``|w| <= box`` on ``B f``.
+    """
+    n = thrust.shape[0]
+    target = np.empty(n)
+    for i in range(n):
+        c = 0.0
+        for j in range(6):
+            c += pinv[i, j] * tau_v[j]
+        c = min(max(c, -rmax), fmax)
+        u = c / fmax if c >= 0.0 else -c / rmax
+        target[i] = 0.0 if u < dead_zone else c
+    out = np.empty((n_sub, 6))
+    for s in range(n_sub):
+        for i in range(n):
+            thrust[i] += alpha * (target[i] - thrust[i])
+        for j in range(6):
+            acc = 0.0
+            for i in range(n):
+                acc += b[j, i] * thrust[i]
+            out[s, j] = min(max(acc, -box[j]), box[j])
+    return out
+
+
+@jit
 def _wrap(a: float) -> float:
     """An angle wrapped to ``[-pi, pi)``."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi
@@ -253,15 +283,23 @@ def _free(x, p, dst):
 
 
 @jit
-def _run(x, p, s_from, s_to, dt, accel, wvv, lin, quad, qdiag, meas, tab, slots, a):  # noqa: C901
+def _run(x, p, s_from, s_to, dt, accel0, wrench, wvv, lin, quad, qdiag, meas, tab, slots, a):  # noqa: C901
     """Substeps ``s_from + 1 .. s_to``: predict, clone at delayed sensors' sample times, apply the samples.
 
-    ``tab`` holds the sensor tables ``(idx, bias, var, angle, period, latency, angle_states)``; ``slots`` the clone
+    The vehicle's acceleration at substep ``i`` is ``accel0 + [M^-1]_vv wrench[i]`` (``accel0``: without the
+    vehicle's wrench). ``tab`` holds the sensor tables ``(idx, bias, var, angle, period, latency, angle_states)``; ``slots`` the clone
     slots ``(sensor, s_sample, state indices (MAX_DIM))`` as rows of an int array.
     """
     idx, bias, var, angle, period, latency, angle_states = tab
     n_meas = meas.shape[0]
+    accel = np.empty(6)
     for s in range(s_from + 1, s_to + 1):
+        w = wrench[s - s_from - 1]
+        for i in range(6):
+            acc = accel0[i]
+            for j in range(6):
+                acc += wvv[i, j] * w[j]
+            accel[i] = acc
         _predict(x, p, dt, accel, wvv, lin, quad, qdiag, a)
         for sid in range(period.shape[0]):
             if latency[sid] > 0 and s % period[sid] == 0:  # a delayed sensor samples now: clone into a free slot
@@ -398,6 +436,18 @@ class NavigationFilter:
         ]
         enc = cfg.encoders.sigma_vector(N_JOINTS)
         self._enc_var = np.maximum(enc**2, MIN_VARIANCE)
+        self._box = np.asarray(params.tau_max[:6], dtype=float)
+        self._thr = (
+            Thrusters(
+                cfg.layout or DEFAULT_LAYOUT,
+                rotor_time_constant=cfg.rotor_time_constant,
+                dead_zone=cfg.dead_zone,
+                physics_dt=physics_dt,
+            )
+            if cfg.thrusters
+            else None
+        )
+        self._thrust = np.zeros(8 if self._thr is None else self._thr.n)
         self._a = np.zeros((12, N_CORE))
         self._t = 0.0
         self._s = 0
@@ -451,6 +501,7 @@ class NavigationFilter:
         self.x = np.zeros(self._n)
         self.P = np.diag(np.maximum(self._prior, math.sqrt(MIN_VARIANCE)) ** 2)
         self._slots = self._slots_template.copy()
+        self._thrust[:] = 0.0
         enc = measurements.get("encoders") or []
         if not enc:
             raise ValueError("reset needs the initial encoder sample in measurements['encoders']")
@@ -475,7 +526,12 @@ class NavigationFilter:
         s_to = round(t / self.physics_dt)
         if s_to < self._s:
             raise ValueError(f"t ({t}) is before the filter's time ({self._t})")
-        accel, wvv, qdd = self._accelerations(tau)
+        wrench = self._wrench(tau[:6], s_to - self._s)
+        tau_eff = tau.copy()
+        if wrench.shape[0]:
+            tau_eff[:6] = wrench.mean(axis=0)
+        accel, wvv, qdd = self._accelerations(tau_eff)
+        accel0 = accel - wvv @ tau_eff[:6]
         meas = self._pack(measurements)
         _run(
             self.x,
@@ -483,7 +539,8 @@ class NavigationFilter:
             self._s,
             s_to,
             self.physics_dt,
-            accel,
+            accel0,
+            wrench,
             wvv,
             self._lin,
             self._quad,
@@ -506,6 +563,24 @@ class NavigationFilter:
             self._enc_var,
         )
         self._t, self._s = float(t), s_to
+
+    def _wrench(self, tau_v: np.ndarray, n_sub: int) -> np.ndarray:
+        """The vehicle's wrench at each of the next ``n_sub`` substeps (rows) from the commanded ``tau_v``."""
+        thr = self._thr
+        if thr is None:
+            return np.tile(np.clip(tau_v, -self._box, self._box), (n_sub, 1))
+        return _thruster_wrench(
+            tau_v,
+            thr.pinv,
+            thr.matrix,
+            self._thrust,
+            thr.max_forward,
+            thr.max_reverse,
+            thr.dead_zone,
+            thr.alpha,
+            self._box,
+            n_sub,
+        )
 
     def _accelerations(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The nominal model at the estimate: the vehicle's acceleration terms and the joints' accelerations."""
