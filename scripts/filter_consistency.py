@@ -174,7 +174,7 @@ def main() -> None:
     args = ap.parse_args()
     seeds = [args.seed + i for i in range(args.episodes)]
     out = [{**consistency(level, seeds, args.steps, args.policy), "policy": args.policy} for level in args.levels]
-    print(json.dumps(out, indent=2))  # noqa: T201  (the script's report)
+    print(json.dumps(out, indent=2))
 
 
 if __name__ == "__main__":

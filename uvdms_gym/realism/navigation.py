@@ -1,25 +1,32 @@
 """The vehicle's navigation filter: an EKF of pose, body velocity and sensor biases, plus joint-state filters.
 
-State of the EKF (25 values, then the clones of delayed samples):
+State of the EKF (27 values, then the clones of delayed samples):
 
 ======  ====  =============================================================================================
 slice   size  content
 ======  ====  =============================================================================================
 0:6     6     ``eta``: NED position ``x, y, z`` and ZYX Euler angles ``phi, theta, psi``
 6:12    6     ``nu``: body velocity ``u, v, w, p, q, r``
-12:18   6     ``d``: an unknown body acceleration (random walk): the model's error (buoyancy and hydrodynamics
-              off by up to 30 %, the arms' drag, the thrusters' lag)
-18:21   3     the gyro's bias (random walk of the gyro's ``bias_walk``)
-21:24   3     the DVL's bias (constant)
-24      1     the depth sensor's bias (constant)
+12:18   6     ``d``: an unknown body acceleration (random walk): the rest of the model's error (added mass off
+              by up to 30 %, the arms' drag, the thrusters' dead zone within a step)
+18      1     ``beta``: the buoyancy's relative error (every buoyancy force is ``(1 + beta)`` times the nominal)
+19      1     ``delta``: the vehicle damping's relative error (``D(nu)`` is ``(1 + delta)`` times the nominal)
+20:23   3     the gyro's bias (random walk of the gyro's ``bias_walk``)
+23:26   3     the DVL's bias (constant)
+26      1     the depth sensor's bias (constant)
 ======  ====  =============================================================================================
 
 Prediction, every physics substep: ``eta' = J(eta) nu`` and
-``nu' = [M_n^-1 (tau_cmd - b_n(q, zeta))]_v - [M_n^-1]_vv D(nu) nu + d`` with the nominal model
+``nu' = [M_n^-1 (tau - b_n(q, zeta))]_v + beta g_b - (1 + delta) [M_n^-1]_vv D(nu) nu + d`` with the nominal model
 (:mod:`uvdms_gym.physics.nominal`: Pinocchio rigid body with added mass, hydrostatics, Coriolis, joint friction)
-evaluated once per control step at the estimate and the commanded force, and the vehicle damping ``D(nu) nu`` at
-every substep. The arms enter through the full 18-DOF model (their weight, buoyancy and reaction).
-White process noise on ``nu'`` and a random walk on ``d`` stand for what the model does not know.
+evaluated once per control step at the estimate, ``g_b = -[M_n^-1 g_buoyancy]_v`` (one unit of buoyancy error),
+and the vehicle damping ``D(nu) nu`` at every substep. The arms enter through the full 18-DOF model (their weight,
+buoyancy and reaction). The vehicle's wrench ``tau_v`` is the thrusters' at each substep: the step's mean commanded
+wrench ``tau_cmd`` is allocated to thrust commands (``B^+``), the dead zone zeroes the small ones, the first-order
+rotor lag (the filter keeps each rotor's thrust) makes the thrust of every substep, and the simulator's wrench box
+bounds ``B f`` (:mod:`uvdms_gym.realism.actuation`); without thrusters ``tau_cmd`` is applied within the box.
+White process noise on ``nu'`` and random walks on ``d``, ``beta``, ``delta`` stand for what the model does not
+know.
 
 Measurements are linear in the state (a state plus a bias): AHRS angles, gyro rates plus bias, DVL velocity plus
 bias, depth plus bias, the position fix (``x, y, z, psi``), with the angle innovations wrapped. Each is applied at
@@ -52,9 +59,9 @@ from uvdms_gym.realism.actuation import DEFAULT_LAYOUT, Thrusters
 from uvdms_gym.realism.config import RealismConfig, to_substeps
 from uvdms_gym.utils.jit import jit
 
-N_CORE = 18
+N_CORE = 20
 """States with dynamics (``eta``, ``nu``, ``d``); the rest (biases, clones) are constant between updates."""
-N_BASE = 25
+N_BASE = 27
 """States without the clones."""
 FILTERED_SENSORS: tuple[str, ...] = ("ahrs", "gyro", "dvl", "depth", "fix")
 """The sensors the EKF fuses, in the order of its tables (the encoders feed the joint filters)."""
@@ -66,7 +73,7 @@ MEASURED_STATES: dict[str, tuple[int, ...]] = {
     "fix": (0, 1, 2, 5),
 }
 """State measured by each component of each sensor."""
-BIAS_STATES: dict[str, tuple[int, ...]] = {"gyro": (18, 19, 20), "dvl": (21, 22, 23), "depth": (24,)}
+BIAS_STATES: dict[str, tuple[int, ...]] = {"gyro": (20, 21, 22), "dvl": (23, 24, 25), "depth": (26,)}
 """Bias state added to each component (sensors not listed have no bias)."""
 ANGLE_MEASUREMENTS: dict[str, tuple[int, ...]] = {"ahrs": (0, 1, 2), "fix": (3,)}
 """Components whose innovation is an angle (wrapped to ``[-pi, pi)``)."""
@@ -79,13 +86,25 @@ ANGLE_PRIOR_SIGMA = 1.0
 """Standard deviation of the initial attitude before the first AHRS sample, rad."""
 VELOCITY_PRIOR_SIGMA = (0.05, 0.05, 0.05, 0.05, 0.05, 0.05)
 """Standard deviation of the initial body velocity, m/s and rad/s (the vehicle starts at rest, unknown drift)."""
-DISTURBANCE_PRIOR_SIGMA = (0.2, 0.2, 1.0, 0.2, 0.2, 0.2)
+DISTURBANCE_PRIOR_SIGMA = (0.2, 0.2, 0.3, 0.2, 0.2, 0.2)
 """Standard deviation of the initial unknown acceleration ``d``, m/s^2 and rad/s^2: heave carries the buoyancy's
 30 % (about 190 N standard deviation on some 160 kg of heave inertia)."""
-ACCEL_NOISE_DENSITY = (0.008, 0.008, 0.004, 0.03, 0.03, 0.03)
-"""White acceleration noise on ``nu'``, m/s^2/sqrt(Hz) and rad/s^2/sqrt(Hz): the fast part of the model's error."""
-DISTURBANCE_WALK = (0.04, 0.04, 0.02, 0.15, 0.15, 0.15)
-"""Random-walk density of ``d``, m/s^2/sqrt(s) and rad/s^2/sqrt(s): its slow part."""
+ACCEL_NOISE_DENSITY = (0.002, 0.003, 0.002, 0.01, 0.03, 0.03)
+"""White acceleration noise on ``nu'``, m/s^2/sqrt(Hz) and rad/s^2/sqrt(Hz): the fast part of the model's error.
+Tuned on the consistency harness (``scripts/filter_consistency.py``, validation seeds) once the thrusters,
+buoyancy and damping errors were modelled: what is left is small."""
+DISTURBANCE_WALK = (0.008, 0.01, 0.006, 0.05, 0.15, 0.15)
+"""Random-walk density of ``d``, m/s^2/sqrt(s) and rad/s^2/sqrt(s): its slow part (tuned as the above)."""
+BUOYANCY_PRIOR_SIGMA = 0.2
+"""Standard deviation of the buoyancy's relative error ``beta`` (``hydro_randomization=0.3`` draws it uniformly
+in ``[-0.3, 0.3]``: 0.17 standard deviation)."""
+DAMPING_PRIOR_SIGMA = 0.2
+"""Standard deviation of the damping's relative error ``delta`` (as ``beta``)."""
+BUOYANCY_WALK = 1.0e-3
+"""Random-walk density of ``beta``, 1/sqrt(s) (a constant per episode; a little noise keeps the linearisation
+honest)."""
+DAMPING_WALK = 1.0e-3
+"""Random-walk density of ``delta``, 1/sqrt(s)."""
 POSITION_NOISE_DENSITY = 1.0e-4
 """White noise on the position's rate, m/sqrt(s) (the Euler integration's error)."""
 ANGLE_NOISE_DENSITY = 6.0e-4
@@ -140,21 +159,28 @@ def _kinematics(eta: np.ndarray, nu: np.ndarray, a: np.ndarray) -> np.ndarray:
 
 
 @jit
-def _derivative(x: np.ndarray, accel: np.ndarray, wvv: np.ndarray, lin: np.ndarray, quad: np.ndarray, a: np.ndarray):
-    """``x'`` of the core states (18) and its Jacobian ``a`` (12 x 18, rows ``eta, nu``; ``d'`` is noise only)."""
+def _derivative(x, accel, gb, wvv, lin, quad, a):
+    """``x'`` of the core states (:data:`N_CORE`) and its Jacobian ``a`` (12 x N_CORE, rows ``eta, nu``).
+
+    ``nu' = accel + d + beta gb - (1 + delta) [M^-1]_vv D(nu) nu`` (``gb``: the acceleration of one unit of
+    buoyancy error); ``d``, ``beta``, ``delta`` are random walks (their rate is noise only).
+    """
     a[:, :] = 0.0
     f = np.zeros(N_CORE)
     f[:6] = _kinematics(x[:6], x[6:12], a)
     nu = x[6:12]
     damp = (lin + quad * np.abs(nu)) * nu
     ddamp = lin + 2.0 * quad * np.abs(nu)
+    beta, kd = x[18], 1.0 + x[19]
     for i in range(6):
-        acc = accel[i] + x[12 + i]
+        dterm = 0.0
         for j in range(6):
-            acc -= wvv[i, j] * damp[j]
-            a[6 + i, 6 + j] = -wvv[i, j] * ddamp[j]
-        f[6 + i] = acc
+            dterm += wvv[i, j] * damp[j]
+            a[6 + i, 6 + j] = -kd * wvv[i, j] * ddamp[j]
+        f[6 + i] = accel[i] + x[12 + i] + beta * gb[i] - kd * dterm
         a[6 + i, 12 + i] = 1.0
+        a[6 + i, 18] = gb[i]
+        a[6 + i, 19] = -dterm
     return f
 
 
@@ -194,10 +220,10 @@ def _wrap(a: float) -> float:
 
 
 @jit
-def _predict(x, p, dt, accel, wvv, lin, quad, qdiag, a):  # noqa: C901  (loops over A's nonzeros)
+def _predict(x, p, dt, accel, gb, wvv, lin, quad, qdiag, a):  # noqa: C901  (loops over A's nonzeros)
     """One Euler step of the core states and ``P <- F P F' + Q dt`` with ``F = I + A dt`` (A nonzero in rows 0:12)."""
     n = x.shape[0]
-    f = _derivative(x, accel, wvv, lin, quad, a)
+    f = _derivative(x, accel, gb, wvv, lin, quad, a)
     g = np.zeros((12, n))  # A P, over A's nonzeros (about 75 of 216)
     for i in range(12):
         for k in range(N_CORE):
@@ -283,12 +309,12 @@ def _free(x, p, dst):
 
 
 @jit
-def _run(x, p, s_from, s_to, dt, accel0, wrench, wvv, lin, quad, qdiag, meas, tab, slots, a):  # noqa: C901
+def _run(x, p, s_from, s_to, dt, accel0, gb, wrench, wvv, lin, quad, qdiag, meas, tab, slots, a):  # noqa: C901
     """Substeps ``s_from + 1 .. s_to``: predict, clone at delayed sensors' sample times, apply the samples.
 
     The vehicle's acceleration at substep ``i`` is ``accel0 + [M^-1]_vv wrench[i]`` (``accel0``: without the
-    vehicle's wrench). ``tab`` holds the sensor tables ``(idx, bias, var, angle, period, latency, angle_states)``; ``slots`` the clone
-    slots ``(sensor, s_sample, state indices (MAX_DIM))`` as rows of an int array.
+    vehicle's wrench). ``tab`` holds the sensor tables ``(idx, bias, var, angle, period, latency, angle_states)``;
+    ``slots`` the clone slots ``(sensor, s_sample, state indices (MAX_DIM))`` as rows of an int array.
     """
     idx, bias, var, angle, period, latency, angle_states = tab
     n_meas = meas.shape[0]
@@ -300,7 +326,7 @@ def _run(x, p, s_from, s_to, dt, accel0, wrench, wvv, lin, quad, qdiag, meas, ta
             for j in range(6):
                 acc += wvv[i, j] * w[j]
             accel[i] = acc
-        _predict(x, p, dt, accel, wvv, lin, quad, qdiag, a)
+        _predict(x, p, dt, accel, gb, wvv, lin, quad, qdiag, a)
         for sid in range(period.shape[0]):
             if latency[sid] > 0 and s % period[sid] == 0:  # a delayed sensor samples now: clone into a free slot
                 for m in range(slots.shape[0]):
@@ -367,9 +393,10 @@ def _dynamics(m_upper, nle, buoy, added, added_weight, eta, zeta, tau, friction,
         rhs[i] -= friction * zeta[i]
     minv = np.linalg.inv(m)
     accel = minv[:6, :] @ rhs
+    gb = -(minv[:6, :] @ buoy)
     damp = (lin + quad * np.abs(nu)) * nu
     qdd = minv[6:, :] @ rhs - minv[6:, :6] @ damp
-    return accel, minv[:6, :6].copy(), qdd
+    return accel, gb, minv[:6, :6].copy(), qdd
 
 
 @jit
@@ -432,6 +459,8 @@ class NavigationFilter:
             np.full(3, ANGLE_NOISE_DENSITY**2),
             _vector(ACCEL_NOISE_DENSITY, 6) ** 2,
             _vector(DISTURBANCE_WALK, 6) ** 2,
+            np.full(1, BUOYANCY_WALK**2),
+            np.full(1, DAMPING_WALK**2),
             np.full(3, cfg.gyro.bias_walk**2),
         ]
         enc = cfg.encoders.sigma_vector(N_JOINTS)
@@ -488,6 +517,8 @@ class NavigationFilter:
             np.full(3, ANGLE_PRIOR_SIGMA),
             _vector(VELOCITY_PRIOR_SIGMA, 6),
             _vector(DISTURBANCE_PRIOR_SIGMA, 6),
+            np.full(1, BUOYANCY_PRIOR_SIGMA),
+            np.full(1, DAMPING_PRIOR_SIGMA),
             np.full(3, cfg.gyro.bias_sigma),
             np.full(3, cfg.dvl.bias_sigma),
             np.full(1, cfg.depth.bias_sigma),
@@ -530,7 +561,7 @@ class NavigationFilter:
         tau_eff = tau.copy()
         if wrench.shape[0]:
             tau_eff[:6] = wrench.mean(axis=0)
-        accel, wvv, qdd = self._accelerations(tau_eff)
+        accel, gb, wvv, qdd = self._accelerations(tau_eff)
         accel0 = accel - wvv @ tau_eff[:6]
         meas = self._pack(measurements)
         _run(
@@ -540,6 +571,7 @@ class NavigationFilter:
             s_to,
             self.physics_dt,
             accel0,
+            gb,
             wrench,
             wvv,
             self._lin,
