@@ -661,7 +661,7 @@ class NavigationFilter:
         return self._t
 
 
-class NavigationFilterWrapper(gym.Wrapper):
+class NavigationFilterWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Puts the navigation filter's estimate where the oracle state was (observation and ``info`` state keys).
 
     The environment (at a realism level) reports ``info["measurements"]`` (the samples released during the step,
@@ -674,7 +674,8 @@ class NavigationFilterWrapper(gym.Wrapper):
     """
 
     def __init__(self, env: gym.Env, cfg: RealismConfig | None = None) -> None:
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, cfg=cfg)  # the spec can rebuild it (check_env)
+        gym.Wrapper.__init__(self, env)
         base = env.unwrapped
         cfg = cfg if cfg is not None else base.realism
         if cfg is None:
