@@ -116,6 +116,7 @@ JOINT_ACCEL_NOISE_DENSITY = 2.0
 """White noise on each joint's acceleration, rad/s^2/sqrt(Hz) (the joints' model is rougher: gear friction)."""
 MIN_VARIANCE = 1.0e-12
 """Floor of a measurement's variance (a noiseless sensor would make the update singular)."""
+_PADS = tuple([0.0] * k for k in range(MAX_DIM + 1))
 
 
 # ----------------------------------------------------------------------------------------------- numba kernels
@@ -391,12 +392,105 @@ def _dynamics(m_upper, nle, buoy, added, added_weight, eta, zeta, tau, friction,
     rhs[5] -= (u * ay - v * ax) + (p_ * by - q * bx)
     for i in range(6, n):
         rhs[i] -= friction * zeta[i]
-    minv = np.linalg.inv(m)
-    accel = minv[:6, :] @ rhs
-    gb = -(minv[:6, :] @ buoy)
+    # M X = [rhs, buoy, e_0 .. e_5] by Cholesky (M is symmetric positive definite): X[:, 2:] = [M^-1]_(:, v)
+    rhs_all = np.zeros((n, 8))
+    for i in range(n):
+        rhs_all[i, 0] = rhs[i]
+        rhs_all[i, 1] = buoy[i]
+    for i in range(6):
+        rhs_all[i, 2 + i] = 1.0
+    sol = _cholesky_solve(m, rhs_all)
+    accel = sol[:6, 0].copy()
+    gb = -sol[:6, 1]
     damp = (lin + quad * np.abs(nu)) * nu
-    qdd = minv[6:, :] @ rhs - minv[6:, :6] @ damp
-    return accel, gb, minv[:6, :6].copy(), qdd
+    qdd = sol[6:, 0] - sol[6:, 2:] @ damp
+    return accel, gb, sol[:6, 2:].copy(), qdd
+
+
+@jit
+def _cholesky_solve(m, b):
+    """``M^-1 B`` for a symmetric positive definite ``M`` (overwritten by its Cholesky factor ``L``)."""
+    n = m.shape[0]
+    for j in range(n):
+        d = m[j, j]
+        for k in range(j):
+            d -= m[j, k] * m[j, k]
+        d = math.sqrt(d)
+        m[j, j] = d
+        for i in range(j + 1, n):
+            v = m[i, j]
+            for k in range(j):
+                v -= m[i, k] * m[j, k]
+            m[i, j] = v / d
+    x = b.copy()
+    for c in range(x.shape[1]):
+        for i in range(n):  # L y = b
+            v = x[i, c]
+            for k in range(i):
+                v -= m[i, k] * x[k, c]
+            x[i, c] = v / m[i, i]
+        for i in range(n - 1, -1, -1):  # L' x = y
+            v = x[i, c]
+            for k in range(i + 1, n):
+                v -= m[k, i] * x[k, c]
+            x[i, c] = v / m[i, i]
+    return x
+
+
+@jit
+def _prepare(x, q, qd, tau, pinv, b, thrust, fmax, rmax, dead_zone, alpha, box, n_sub, config, zeta, tau_eff):
+    """Before the nominal model: its configuration and velocity at the estimate, the substeps' vehicle wrench.
+
+    Fills ``config`` (Pinocchio's ``[x y z, quaternion xyzw, q]``), ``zeta`` (``[nu, qdot]``) and ``tau_eff``
+    (``tau`` with the substeps' mean vehicle wrench); returns the wrench of each substep (:func:`_thruster_wrench`).
+    """
+    for i in range(3):
+        config[i] = x[i]
+    hr, hp, hy = 0.5 * x[3], 0.5 * x[4], 0.5 * x[5]
+    cr, sr = math.cos(hr), math.sin(hr)
+    cp, sp = math.cos(hp), math.sin(hp)
+    cy, sy = math.cos(hy), math.sin(hy)
+    qw = cr * cp * cy + sr * sp * sy
+    sign = 1.0 if qw >= 0.0 else -1.0
+    config[3] = sign * (sr * cp * cy - cr * sp * sy)
+    config[4] = sign * (cr * sp * cy + sr * cp * sy)
+    config[5] = sign * (cr * cp * sy - sr * sp * cy)
+    config[6] = sign * qw
+    for i in range(q.shape[0]):
+        config[7 + i] = q[i]
+        zeta[6 + i] = qd[i]
+    for i in range(6):
+        zeta[i] = x[6 + i]
+    wrench = _thruster_wrench(tau[:6], pinv, b, thrust, fmax, rmax, dead_zone, alpha, box, n_sub)
+    for i in range(tau.shape[0]):
+        tau_eff[i] = tau[i]
+    if n_sub > 0:
+        for j in range(6):
+            acc = 0.0
+            for k in range(n_sub):
+                acc += wrench[k, j]
+            tau_eff[j] = acc / n_sub
+    return wrench
+
+
+@jit
+def _advance(x, p, s_from, s_to, dt, model, zeta, tau_eff, wrench, qdiag, meas, tab, slots, a, joints, z):
+    """One control step: the nominal model's accelerations, the EKF's substeps (:func:`_run`), the joint filters.
+
+    ``model`` is ``(M upper, nle, buoyancy, added, added_weight, friction, lin, quad)``; ``joints`` is
+    ``(q, qdot, p11, p12, p22, qvar, encoder variances)``.
+    """
+    m_upper, nle, buoy, added, added_weight, friction, lin, quad = model
+    accel, gb, wvv, qdd = _dynamics(m_upper, nle, buoy, added, added_weight, x[:6], zeta, tau_eff, friction, lin, quad)
+    accel0 = np.empty(6)
+    for i in range(6):
+        acc = accel[i]
+        for j in range(6):
+            acc -= wvv[i, j] * tau_eff[j]
+        accel0[i] = acc
+    _run(x, p, s_from, s_to, dt, accel0, gb, wrench, wvv, lin, quad, qdiag, meas, tab, slots, a)
+    q, qd, p11, p12, p22, qvar, r = joints
+    _joints(q, qd, p11, p12, p22, qdd, (s_to - s_from) * dt, qvar, z, r)
 
 
 @jit
@@ -476,7 +570,25 @@ class NavigationFilter:
             if cfg.thrusters
             else None
         )
-        self._thrust = np.zeros(8 if self._thr is None else self._thr.n)
+        if self._thr is None:  # no thrusters: the identity "allocation" without limits, lag or dead zone
+            eye = np.eye(6)
+            self._thr_args = (eye, eye, np.zeros(6), math.inf, math.inf, 0.0, 1.0)
+        else:
+            t_ = self._thr
+            self._thr_args = (
+                t_.pinv,
+                t_.matrix,
+                np.zeros(t_.n),
+                t_.max_forward,
+                t_.max_reverse,
+                t_.dead_zone,
+                t_.alpha,
+            )
+        self._thrust = self._thr_args[2]
+        self._config, self._zeta, self._tau_eff = np.zeros(7 + N_JOINTS), np.zeros(18), np.zeros(18)
+        self._model_consts = (self._added, self._added_weight, self._friction, self._lin, self._quad)
+        self._qvar = JOINT_ACCEL_NOISE_DENSITY**2
+        self._no_encoders = np.zeros(0)
         self._a = np.zeros((12, N_CORE))
         self._t = 0.0
         self._s = 0
@@ -557,95 +669,61 @@ class NavigationFilter:
         s_to = round(t / self.physics_dt)
         if s_to < self._s:
             raise ValueError(f"t ({t}) is before the filter's time ({self._t})")
-        wrench = self._wrench(tau[:6], s_to - self._s)
-        tau_eff = tau.copy()
-        if wrench.shape[0]:
-            tau_eff[:6] = wrench.mean(axis=0)
-        accel, gb, wvv, qdd = self._accelerations(tau_eff)
-        accel0 = accel - wvv @ tau_eff[:6]
+        wrench = _prepare(
+            self.x,
+            self._q,
+            self._qd,
+            tau,
+            *self._thr_args,
+            self._box,
+            s_to - self._s,
+            self._config,
+            self._zeta,
+            self._tau_eff,
+        )
+        config, zeta = self._config, self._zeta
+        pin.crba(self._model, self._data, config)
+        nle = pin.nonLinearEffects(self._model, self._data, config, zeta)
+        buoy = pin.computeGeneralizedGravity(self._bmodel, self._bdata, config)
+        model = (self._data.M, nle, buoy, *self._model_consts)
+        enc = measurements.get("encoders")
+        z = enc[-1][1] if enc else self._no_encoders
         meas = self._pack(measurements)
-        _run(
+        _advance(
             self.x,
             self.P,
             self._s,
             s_to,
             self.physics_dt,
-            accel0,
-            gb,
+            model,
+            zeta,
+            self._tau_eff,
             wrench,
-            wvv,
-            self._lin,
-            self._quad,
             self._qdiag,
             meas,
             self._tab,
             self._slots,
             self._a,
-        )
-        enc = measurements.get("encoders") or []
-        z = np.asarray(enc[-1][1], dtype=float) if enc else np.zeros(0)
-        _joints(
-            self._q,
-            self._qd,
-            *self._pj,
-            qdd,
-            (s_to - self._s) * self.physics_dt,
-            JOINT_ACCEL_NOISE_DENSITY**2,
+            (self._q, self._qd, *self._pj, self._qvar, self._enc_var),
             z,
-            self._enc_var,
         )
         self._t, self._s = float(t), s_to
 
-    def _wrench(self, tau_v: np.ndarray, n_sub: int) -> np.ndarray:
-        """The vehicle's wrench at each of the next ``n_sub`` substeps (rows) from the commanded ``tau_v``."""
-        thr = self._thr
-        if thr is None:
-            return np.tile(np.clip(tau_v, -self._box, self._box), (n_sub, 1))
-        return _thruster_wrench(
-            tau_v,
-            thr.pinv,
-            thr.matrix,
-            self._thrust,
-            thr.max_forward,
-            thr.max_reverse,
-            thr.dead_zone,
-            thr.alpha,
-            self._box,
-            n_sub,
-        )
-
-    def _accelerations(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The nominal model at the estimate: the vehicle's acceleration terms and the joints' accelerations."""
-        eta, nu = self.x[:6], self.x[6:12]
-        config = KinematicModel.configuration(eta, self._q)
-        zeta = np.concatenate((nu, self._qd))
-        pin.crba(self._model, self._data, config)
-        nle = pin.nonLinearEffects(self._model, self._data, config, zeta)
-        buoy = pin.computeGeneralizedGravity(self._bmodel, self._bdata, config)
-        return _dynamics(
-            self._data.M,
-            nle,
-            buoy,
-            self._added,
-            self._added_weight,
-            eta,
-            zeta,
-            tau,
-            self._friction,
-            self._lin,
-            self._quad,
-        )
-
     def _pack(self, measurements: Mapping[str, list[tuple[float, np.ndarray]]]) -> np.ndarray:
         """The fused samples as rows ``(sensor index, substep, v0..v3)``."""
-        rows = []
-        dt = self.physics_dt
-        pad = [0.0] * MAX_DIM
+        flat: list[float] = []
+        extend, inv_dt, n = flat.extend, 1.0 / self.physics_dt, 0
         for j, name in enumerate(FILTERED_SENSORS):
-            for t, v in measurements.get(name) or ():
-                values = v.tolist()
-                rows.append([j, round(t / dt), *values, *pad[len(values) :]])
-        return np.array(rows, dtype=float) if rows else np.zeros((0, 2 + MAX_DIM))
+            samples = measurements.get(name)
+            if samples:
+                pad = _PADS[MAX_DIM - len(samples[0][1])]
+                for t, v in samples:
+                    flat.append(j)
+                    flat.append(round(t * inv_dt))
+                    extend(v.tolist())
+                    extend(pad)
+                n += len(samples)
+        return np.array(flat, dtype=float).reshape(n, 2 + MAX_DIM)
 
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The estimates ``eta, nu, q, qdot`` at the filter's time."""

@@ -84,7 +84,7 @@ def test_late_fix_equals_the_same_fix_on_time():
     # the linearisation points differ for 0.3 s (bilinear buoyancy and damping terms): a small fraction of sd
     assert np.all(np.abs(xa - xb) < 0.25 * sd), (xa - xb) / sd
     # the covariance depends on the linearisation point through those terms too (with beta and delta held inert the
-    # two agree to 2 % in state and covariance): within 8 %
+    # two variances agree to 2 %): within 8 %
     np.testing.assert_allclose(np.diag(pa), np.diag(pb), rtol=0.08)
 
 
