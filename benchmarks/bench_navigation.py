@@ -24,9 +24,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository's scripts package
 
-from scripts.filter_consistency import FIRST_SEED, make_env, random_commands  # noqa: E402
-from uvdms_gym.realism.navigation import NavigationFilter  # noqa: E402
-from uvdms_gym.utils.provenance import cpu_model  # noqa: E402
+from scripts.filter_consistency import FIRST_SEED, make_env, random_commands
+from uvdms_gym.realism.navigation import NavigationFilter
+from uvdms_gym.utils.provenance import cpu_model
 
 WARM_UP = 20
 """Updates left out of the statistics in each pass (numba compilation or cache loading)."""
