@@ -1,10 +1,14 @@
-"""Cost of one navigation-filter update (one control step), median and mean µs, with the machine and its load (JSON).
+"""Cost of one navigation-filter update (one control step): median µs, its ratio to one environment step, the machine.
 
-    python benchmarks/bench_navigation.py [--level 3] [--steps 500]
+    python benchmarks/bench_navigation.py [--level 1 2 3] [--steps 500] [--repeats 5]
 
-The measurements come from one recorded random-circle episode (``scripts/filter_consistency.py``), sampled by a
-:class:`~uvdms_gym.realism.sensors.SensorBank`; only :meth:`NavigationFilter.update` is timed (the first 20 updates,
-which compile or load numba's kernels, are left out). Run it on an otherwise idle machine.
+One random-circle episode (``scripts/filter_consistency.py``: ``uvdms/CircleTrack-v1``, ``case="random"``,
+``hydro_randomization=0.3``, smooth random velocity commands) is run at the level; its ``env.step`` calls are timed
+and what the filter gets each step (``info["t"]``, ``info["measurements"]``, ``info["tau_cmd"]``) is recorded. Then
+:meth:`NavigationFilter.update` is timed over the recorded steps, ``--repeats`` times from a fresh reset (the first
+:data:`WARM_UP` updates of each pass, which may compile or load numba's kernels, are left out). The machine is
+often shared: the report has the CPU model, the core count and the load average, and the ratio of the update's
+median to the environment step's median measured in the same run, which the load affects alike.
 """
 
 from __future__ import annotations
@@ -12,44 +16,55 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from scripts.filter_consistency import SENSORS, _sensor_values, simulate
-from uvdms_gym.physics.params import UVDMSParams
-from uvdms_gym.realism.config import LEVELS
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository's scripts package
+
+from scripts.filter_consistency import FIRST_SEED, make_env, random_commands
 from uvdms_gym.realism.navigation import NavigationFilter
-from uvdms_gym.realism.sensors import SensorBank
 from uvdms_gym.utils.provenance import cpu_model
 
 WARM_UP = 20
-"""Updates left out of the statistics (numba compilation or cache loading)."""
+"""Updates left out of the statistics in each pass (numba compilation or cache loading)."""
 
 
-def bench(level: int, n_steps: int) -> dict[str, object]:
-    truth = simulate(0, n_steps)
-    cfg, n_sub, dt = LEVELS[level], truth.n_substeps, truth.physics_dt
-    bank = SensorBank(cfg, physics_dt=dt, control_substeps=n_sub, names=SENSORS)
-    nav = NavigationFilter(cfg, UVDMSParams(), control_dt=truth.control_dt, physics_dt=dt)
-    bank.reset(0, 0, _sensor_values(truth, 0))
-    nav.reset(0.0, bank.initial())
-    times = []
+def bench(level: int, n_steps: int, repeats: int) -> dict[str, object]:
+    """Time ``env.step`` and ``NavigationFilter.update`` on one episode at ``level`` (module docstring)."""
+    env = make_env(level)
+    base = env.unwrapped
+    _, info0 = env.reset(seed=FIRST_SEED)
+    commands = random_commands(FIRST_SEED, n_steps, base.control_dt).astype(np.float32)
+    stream, step_s = [], []
     for k in range(n_steps):
-        for s in range(k * n_sub + 1, (k + 1) * n_sub + 1):
-            values = _sensor_values(truth, s)
-            bank.sample(s, {n: values[n] for n in bank.due(s)})
-        meas = bank.release((k + 1) * n_sub)
         t0 = time.perf_counter()
-        nav.update((k + 1) * n_sub * dt, meas, truth.tau[k])
-        times.append(time.perf_counter() - t0)
-    us = np.array(times[WARM_UP:]) * 1e6
+        _, _, _, _, info = env.step(commands[k])
+        step_s.append(time.perf_counter() - t0)
+        stream.append((info["t"], info["measurements"], info["tau_cmd"]))
+    env.close()
+    nav = NavigationFilter(base.realism, base.params, control_dt=base.control_dt, physics_dt=base.physics_dt)
+    update_s = []
+    for _ in range(repeats):
+        nav.reset(info0["t"], info0["measurements"])
+        times = []
+        for t, meas, tau in stream:
+            t0 = time.perf_counter()
+            nav.update(t, meas, tau)
+            times.append(time.perf_counter() - t0)
+        update_s.extend(times[WARM_UP:])
+    us = np.array(update_s) * 1e6
+    step_us = np.array(step_s[WARM_UP:]) * 1e6
     return {
         "level": level,
         "updates": int(us.size),
-        "median_us": round(float(np.median(us)), 1),
-        "mean_us": round(float(us.mean()), 1),
-        "p95_us": round(float(np.percentile(us, 95)), 1),
+        "update_median_us": round(float(np.median(us)), 1),
+        "update_mean_us": round(float(us.mean()), 1),
+        "update_p95_us": round(float(np.percentile(us, 95)), 1),
+        "env_step_median_us": round(float(np.median(step_us)), 1),
+        "update_to_env_step": round(float(np.median(us) / np.median(step_us)), 4),
         "cpu": cpu_model(),
         "cpus": os.cpu_count(),
         "load_1min": round(os.getloadavg()[0], 2),
@@ -60,5 +75,6 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--level", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--steps", type=int, default=500)
+    ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
-    print(json.dumps([bench(level, args.steps) for level in args.level], indent=2))
+    print(json.dumps([bench(level, args.steps, args.repeats) for level in args.level], indent=2))

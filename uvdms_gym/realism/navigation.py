@@ -1,25 +1,32 @@
 """The vehicle's navigation filter: an EKF of pose, body velocity and sensor biases, plus joint-state filters.
 
-State of the EKF (25 values, then the clones of delayed samples):
+State of the EKF (27 values, then the clones of delayed samples):
 
 ======  ====  =============================================================================================
 slice   size  content
 ======  ====  =============================================================================================
 0:6     6     ``eta``: NED position ``x, y, z`` and ZYX Euler angles ``phi, theta, psi``
 6:12    6     ``nu``: body velocity ``u, v, w, p, q, r``
-12:18   6     ``d``: an unknown body acceleration (random walk): the model's error (buoyancy and hydrodynamics
-              off by up to 30 %, the arms' drag, the thrusters' lag)
-18:21   3     the gyro's bias (random walk of the gyro's ``bias_walk``)
-21:24   3     the DVL's bias (constant)
-24      1     the depth sensor's bias (constant)
+12:18   6     ``d``: an unknown body acceleration (random walk): the rest of the model's error (added mass off
+              by up to 30 %, the arms' drag, the thrusters' dead zone within a step)
+18      1     ``beta``: the buoyancy's relative error (every buoyancy force is ``(1 + beta)`` times the nominal)
+19      1     ``delta``: the vehicle damping's relative error (``D(nu)`` is ``(1 + delta)`` times the nominal)
+20:23   3     the gyro's bias (random walk of the gyro's ``bias_walk``)
+23:26   3     the DVL's bias (constant)
+26      1     the depth sensor's bias (constant)
 ======  ====  =============================================================================================
 
 Prediction, every physics substep: ``eta' = J(eta) nu`` and
-``nu' = [M_n^-1 (tau_cmd - b_n(q, zeta))]_v - [M_n^-1]_vv D(nu) nu + d`` with the nominal model
+``nu' = [M_n^-1 (tau - b_n(q, zeta))]_v + beta g_b - (1 + delta) [M_n^-1]_vv D(nu) nu + d`` with the nominal model
 (:mod:`uvdms_gym.physics.nominal`: Pinocchio rigid body with added mass, hydrostatics, Coriolis, joint friction)
-evaluated once per control step at the estimate and the commanded force, and the vehicle damping ``D(nu) nu`` at
-every substep. The arms enter through the full 18-DOF model (their weight, buoyancy and reaction).
-White process noise on ``nu'`` and a random walk on ``d`` stand for what the model does not know.
+evaluated once per control step at the estimate, ``g_b = -[M_n^-1 g_buoyancy]_v`` (one unit of buoyancy error),
+and the vehicle damping ``D(nu) nu`` at every substep. The arms enter through the full 18-DOF model (their weight,
+buoyancy and reaction). The vehicle's wrench ``tau_v`` is the thrusters' at each substep: the step's mean commanded
+wrench ``tau_cmd`` is allocated to thrust commands (``B^+``), the dead zone zeroes the small ones, the first-order
+rotor lag (the filter keeps each rotor's thrust) makes the thrust of every substep, and the simulator's wrench box
+bounds ``B f`` (:mod:`uvdms_gym.realism.actuation`); without thrusters ``tau_cmd`` is applied within the box.
+White process noise on ``nu'`` and random walks on ``d``, ``beta``, ``delta`` stand for what the model does not
+know.
 
 Measurements are linear in the state (a state plus a bias): AHRS angles, gyro rates plus bias, DVL velocity plus
 bias, depth plus bias, the position fix (``x, y, z, psi``), with the angle innovations wrapped. Each is applied at
@@ -48,12 +55,13 @@ import pinocchio as pin
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.nominal import NominalDynamics
 from uvdms_gym.physics.params import N_JOINTS, UVDMSParams
+from uvdms_gym.realism.actuation import DEFAULT_LAYOUT, Thrusters
 from uvdms_gym.realism.config import RealismConfig, to_substeps
 from uvdms_gym.utils.jit import jit
 
-N_CORE = 18
+N_CORE = 20
 """States with dynamics (``eta``, ``nu``, ``d``); the rest (biases, clones) are constant between updates."""
-N_BASE = 25
+N_BASE = 27
 """States without the clones."""
 FILTERED_SENSORS: tuple[str, ...] = ("ahrs", "gyro", "dvl", "depth", "fix")
 """The sensors the EKF fuses, in the order of its tables (the encoders feed the joint filters)."""
@@ -65,7 +73,7 @@ MEASURED_STATES: dict[str, tuple[int, ...]] = {
     "fix": (0, 1, 2, 5),
 }
 """State measured by each component of each sensor."""
-BIAS_STATES: dict[str, tuple[int, ...]] = {"gyro": (18, 19, 20), "dvl": (21, 22, 23), "depth": (24,)}
+BIAS_STATES: dict[str, tuple[int, ...]] = {"gyro": (20, 21, 22), "dvl": (23, 24, 25), "depth": (26,)}
 """Bias state added to each component (sensors not listed have no bias)."""
 ANGLE_MEASUREMENTS: dict[str, tuple[int, ...]] = {"ahrs": (0, 1, 2), "fix": (3,)}
 """Components whose innovation is an angle (wrapped to ``[-pi, pi)``)."""
@@ -78,13 +86,25 @@ ANGLE_PRIOR_SIGMA = 1.0
 """Standard deviation of the initial attitude before the first AHRS sample, rad."""
 VELOCITY_PRIOR_SIGMA = (0.05, 0.05, 0.05, 0.05, 0.05, 0.05)
 """Standard deviation of the initial body velocity, m/s and rad/s (the vehicle starts at rest, unknown drift)."""
-DISTURBANCE_PRIOR_SIGMA = (0.2, 0.2, 1.0, 0.2, 0.2, 0.2)
+DISTURBANCE_PRIOR_SIGMA = (0.2, 0.2, 0.3, 0.2, 0.2, 0.2)
 """Standard deviation of the initial unknown acceleration ``d``, m/s^2 and rad/s^2: heave carries the buoyancy's
 30 % (about 190 N standard deviation on some 160 kg of heave inertia)."""
-ACCEL_NOISE_DENSITY = (0.008, 0.008, 0.004, 0.03, 0.03, 0.03)
-"""White acceleration noise on ``nu'``, m/s^2/sqrt(Hz) and rad/s^2/sqrt(Hz): the fast part of the model's error."""
-DISTURBANCE_WALK = (0.04, 0.04, 0.02, 0.15, 0.15, 0.15)
-"""Random-walk density of ``d``, m/s^2/sqrt(s) and rad/s^2/sqrt(s): its slow part."""
+ACCEL_NOISE_DENSITY = (0.002, 0.003, 0.002, 0.01, 0.03, 0.03)
+"""White acceleration noise on ``nu'``, m/s^2/sqrt(Hz) and rad/s^2/sqrt(Hz): the fast part of the model's error.
+Tuned on the consistency harness (``scripts/filter_consistency.py``, validation seeds) once the thrusters,
+buoyancy and damping errors were modelled: what is left is small."""
+DISTURBANCE_WALK = (0.008, 0.01, 0.006, 0.05, 0.15, 0.15)
+"""Random-walk density of ``d``, m/s^2/sqrt(s) and rad/s^2/sqrt(s): its slow part (tuned as the above)."""
+BUOYANCY_PRIOR_SIGMA = 0.2
+"""Standard deviation of the buoyancy's relative error ``beta`` (``hydro_randomization=0.3`` draws it uniformly
+in ``[-0.3, 0.3]``: 0.17 standard deviation)."""
+DAMPING_PRIOR_SIGMA = 0.2
+"""Standard deviation of the damping's relative error ``delta`` (as ``beta``)."""
+BUOYANCY_WALK = 1.0e-3
+"""Random-walk density of ``beta``, 1/sqrt(s) (a constant per episode; a little noise keeps the linearisation
+honest)."""
+DAMPING_WALK = 1.0e-3
+"""Random-walk density of ``delta``, 1/sqrt(s)."""
 POSITION_NOISE_DENSITY = 1.0e-4
 """White noise on the position's rate, m/sqrt(s) (the Euler integration's error)."""
 ANGLE_NOISE_DENSITY = 6.0e-4
@@ -96,6 +116,7 @@ JOINT_ACCEL_NOISE_DENSITY = 2.0
 """White noise on each joint's acceleration, rad/s^2/sqrt(Hz) (the joints' model is rougher: gear friction)."""
 MIN_VARIANCE = 1.0e-12
 """Floor of a measurement's variance (a noiseless sensor would make the update singular)."""
+_PADS = tuple([0.0] * k for k in range(MAX_DIM + 1))
 
 
 # ----------------------------------------------------------------------------------------------- numba kernels
@@ -139,22 +160,58 @@ def _kinematics(eta: np.ndarray, nu: np.ndarray, a: np.ndarray) -> np.ndarray:
 
 
 @jit
-def _derivative(x: np.ndarray, accel: np.ndarray, wvv: np.ndarray, lin: np.ndarray, quad: np.ndarray, a: np.ndarray):
-    """``x'`` of the core states (18) and its Jacobian ``a`` (12 x 18, rows ``eta, nu``; ``d'`` is noise only)."""
+def _derivative(x, accel, gb, wvv, lin, quad, a):
+    """``x'`` of the core states (:data:`N_CORE`) and its Jacobian ``a`` (12 x N_CORE, rows ``eta, nu``).
+
+    ``nu' = accel + d + beta gb - (1 + delta) [M^-1]_vv D(nu) nu`` (``gb``: the acceleration of one unit of
+    buoyancy error); ``d``, ``beta``, ``delta`` are random walks (their rate is noise only).
+    """
     a[:, :] = 0.0
     f = np.zeros(N_CORE)
     f[:6] = _kinematics(x[:6], x[6:12], a)
     nu = x[6:12]
     damp = (lin + quad * np.abs(nu)) * nu
     ddamp = lin + 2.0 * quad * np.abs(nu)
+    beta, kd = x[18], 1.0 + x[19]
     for i in range(6):
-        acc = accel[i] + x[12 + i]
+        dterm = 0.0
         for j in range(6):
-            acc -= wvv[i, j] * damp[j]
-            a[6 + i, 6 + j] = -wvv[i, j] * ddamp[j]
-        f[6 + i] = acc
+            dterm += wvv[i, j] * damp[j]
+            a[6 + i, 6 + j] = -kd * wvv[i, j] * ddamp[j]
+        f[6 + i] = accel[i] + x[12 + i] + beta * gb[i] - kd * dterm
         a[6 + i, 12 + i] = 1.0
+        a[6 + i, 18] = gb[i]
+        a[6 + i, 19] = -dterm
     return f
+
+
+@jit
+def _thruster_wrench(tau_v, pinv, b, thrust, fmax, rmax, dead_zone, alpha, box, n_sub):
+    """The body wrench of each of ``n_sub`` substeps (rows) from the step's mean commanded wrench ``tau_v``.
+
+    The thrust commands ``B^+ tau_v`` (``tau_v`` is the allocation's output, already inside the limits), the dead
+    zone on them, the rotor lag ``f += alpha (target - f)`` per substep on ``thrust`` (in place), and the
+    simulator's box ``|w| <= box`` on ``B f``.
+    """
+    n = thrust.shape[0]
+    target = np.empty(n)
+    for i in range(n):
+        c = 0.0
+        for j in range(6):
+            c += pinv[i, j] * tau_v[j]
+        c = min(max(c, -rmax), fmax)
+        u = c / fmax if c >= 0.0 else -c / rmax
+        target[i] = 0.0 if u < dead_zone else c
+    out = np.empty((n_sub, 6))
+    for s in range(n_sub):
+        for i in range(n):
+            thrust[i] += alpha * (target[i] - thrust[i])
+        for j in range(6):
+            acc = 0.0
+            for i in range(n):
+                acc += b[j, i] * thrust[i]
+            out[s, j] = min(max(acc, -box[j]), box[j])
+    return out
 
 
 @jit
@@ -164,10 +221,10 @@ def _wrap(a: float) -> float:
 
 
 @jit
-def _predict(x, p, dt, accel, wvv, lin, quad, qdiag, a):  # noqa: C901  (loops over A's nonzeros)
+def _predict(x, p, dt, accel, gb, wvv, lin, quad, qdiag, a):  # noqa: C901  (loops over A's nonzeros)
     """One Euler step of the core states and ``P <- F P F' + Q dt`` with ``F = I + A dt`` (A nonzero in rows 0:12)."""
     n = x.shape[0]
-    f = _derivative(x, accel, wvv, lin, quad, a)
+    f = _derivative(x, accel, gb, wvv, lin, quad, a)
     g = np.zeros((12, n))  # A P, over A's nonzeros (about 75 of 216)
     for i in range(12):
         for k in range(N_CORE):
@@ -253,16 +310,24 @@ def _free(x, p, dst):
 
 
 @jit
-def _run(x, p, s_from, s_to, dt, accel, wvv, lin, quad, qdiag, meas, tab, slots, a):  # noqa: C901
+def _run(x, p, s_from, s_to, dt, accel0, gb, wrench, wvv, lin, quad, qdiag, meas, tab, slots, a):  # noqa: C901
     """Substeps ``s_from + 1 .. s_to``: predict, clone at delayed sensors' sample times, apply the samples.
 
-    ``tab`` holds the sensor tables ``(idx, bias, var, angle, period, latency, angle_states)``; ``slots`` the clone
-    slots ``(sensor, s_sample, state indices (MAX_DIM))`` as rows of an int array.
+    The vehicle's acceleration at substep ``i`` is ``accel0 + [M^-1]_vv wrench[i]`` (``accel0``: without the
+    vehicle's wrench). ``tab`` holds the sensor tables ``(idx, bias, var, angle, period, latency, angle_states)``;
+    ``slots`` the clone slots ``(sensor, s_sample, state indices (MAX_DIM))`` as rows of an int array.
     """
     idx, bias, var, angle, period, latency, angle_states = tab
     n_meas = meas.shape[0]
+    accel = np.empty(6)
     for s in range(s_from + 1, s_to + 1):
-        _predict(x, p, dt, accel, wvv, lin, quad, qdiag, a)
+        w = wrench[s - s_from - 1]
+        for i in range(6):
+            acc = accel0[i]
+            for j in range(6):
+                acc += wvv[i, j] * w[j]
+            accel[i] = acc
+        _predict(x, p, dt, accel, gb, wvv, lin, quad, qdiag, a)
         for sid in range(period.shape[0]):
             if latency[sid] > 0 and s % period[sid] == 0:  # a delayed sensor samples now: clone into a free slot
                 for m in range(slots.shape[0]):
@@ -327,11 +392,105 @@ def _dynamics(m_upper, nle, buoy, added, added_weight, eta, zeta, tau, friction,
     rhs[5] -= (u * ay - v * ax) + (p_ * by - q * bx)
     for i in range(6, n):
         rhs[i] -= friction * zeta[i]
-    minv = np.linalg.inv(m)
-    accel = minv[:6, :] @ rhs
+    # M X = [rhs, buoy, e_0 .. e_5] by Cholesky (M is symmetric positive definite): X[:, 2:] = [M^-1]_(:, v)
+    rhs_all = np.zeros((n, 8))
+    for i in range(n):
+        rhs_all[i, 0] = rhs[i]
+        rhs_all[i, 1] = buoy[i]
+    for i in range(6):
+        rhs_all[i, 2 + i] = 1.0
+    sol = _cholesky_solve(m, rhs_all)
+    accel = sol[:6, 0].copy()
+    gb = -sol[:6, 1]
     damp = (lin + quad * np.abs(nu)) * nu
-    qdd = minv[6:, :] @ rhs - minv[6:, :6] @ damp
-    return accel, minv[:6, :6].copy(), qdd
+    qdd = sol[6:, 0] - sol[6:, 2:] @ damp
+    return accel, gb, sol[:6, 2:].copy(), qdd
+
+
+@jit
+def _cholesky_solve(m, b):
+    """``M^-1 B`` for a symmetric positive definite ``M`` (overwritten by its Cholesky factor ``L``)."""
+    n = m.shape[0]
+    for j in range(n):
+        d = m[j, j]
+        for k in range(j):
+            d -= m[j, k] * m[j, k]
+        d = math.sqrt(d)
+        m[j, j] = d
+        for i in range(j + 1, n):
+            v = m[i, j]
+            for k in range(j):
+                v -= m[i, k] * m[j, k]
+            m[i, j] = v / d
+    x = b.copy()
+    for c in range(x.shape[1]):
+        for i in range(n):  # L y = b
+            v = x[i, c]
+            for k in range(i):
+                v -= m[i, k] * x[k, c]
+            x[i, c] = v / m[i, i]
+        for i in range(n - 1, -1, -1):  # L' x = y
+            v = x[i, c]
+            for k in range(i + 1, n):
+                v -= m[k, i] * x[k, c]
+            x[i, c] = v / m[i, i]
+    return x
+
+
+@jit
+def _prepare(x, q, qd, tau, pinv, b, thrust, fmax, rmax, dead_zone, alpha, box, n_sub, config, zeta, tau_eff):
+    """Before the nominal model: its configuration and velocity at the estimate, the substeps' vehicle wrench.
+
+    Fills ``config`` (Pinocchio's ``[x y z, quaternion xyzw, q]``), ``zeta`` (``[nu, qdot]``) and ``tau_eff``
+    (``tau`` with the substeps' mean vehicle wrench); returns the wrench of each substep (:func:`_thruster_wrench`).
+    """
+    for i in range(3):
+        config[i] = x[i]
+    hr, hp, hy = 0.5 * x[3], 0.5 * x[4], 0.5 * x[5]
+    cr, sr = math.cos(hr), math.sin(hr)
+    cp, sp = math.cos(hp), math.sin(hp)
+    cy, sy = math.cos(hy), math.sin(hy)
+    qw = cr * cp * cy + sr * sp * sy
+    sign = 1.0 if qw >= 0.0 else -1.0
+    config[3] = sign * (sr * cp * cy - cr * sp * sy)
+    config[4] = sign * (cr * sp * cy + sr * cp * sy)
+    config[5] = sign * (cr * cp * sy - sr * sp * cy)
+    config[6] = sign * qw
+    for i in range(q.shape[0]):
+        config[7 + i] = q[i]
+        zeta[6 + i] = qd[i]
+    for i in range(6):
+        zeta[i] = x[6 + i]
+    wrench = _thruster_wrench(tau[:6], pinv, b, thrust, fmax, rmax, dead_zone, alpha, box, n_sub)
+    for i in range(tau.shape[0]):
+        tau_eff[i] = tau[i]
+    if n_sub > 0:
+        for j in range(6):
+            acc = 0.0
+            for k in range(n_sub):
+                acc += wrench[k, j]
+            tau_eff[j] = acc / n_sub
+    return wrench
+
+
+@jit
+def _advance(x, p, s_from, s_to, dt, model, zeta, tau_eff, wrench, qdiag, meas, tab, slots, a, joints, z):
+    """One control step: the nominal model's accelerations, the EKF's substeps (:func:`_run`), the joint filters.
+
+    ``model`` is ``(M upper, nle, buoyancy, added, added_weight, friction, lin, quad)``; ``joints`` is
+    ``(q, qdot, p11, p12, p22, qvar, encoder variances)``.
+    """
+    m_upper, nle, buoy, added, added_weight, friction, lin, quad = model
+    accel, gb, wvv, qdd = _dynamics(m_upper, nle, buoy, added, added_weight, x[:6], zeta, tau_eff, friction, lin, quad)
+    accel0 = np.empty(6)
+    for i in range(6):
+        acc = accel[i]
+        for j in range(6):
+            acc -= wvv[i, j] * tau_eff[j]
+        accel0[i] = acc
+    _run(x, p, s_from, s_to, dt, accel0, gb, wrench, wvv, lin, quad, qdiag, meas, tab, slots, a)
+    q, qd, p11, p12, p22, qvar, r = joints
+    _joints(q, qd, p11, p12, p22, qdd, (s_to - s_from) * dt, qvar, z, r)
 
 
 @jit
@@ -394,10 +553,42 @@ class NavigationFilter:
             np.full(3, ANGLE_NOISE_DENSITY**2),
             _vector(ACCEL_NOISE_DENSITY, 6) ** 2,
             _vector(DISTURBANCE_WALK, 6) ** 2,
+            np.full(1, BUOYANCY_WALK**2),
+            np.full(1, DAMPING_WALK**2),
             np.full(3, cfg.gyro.bias_walk**2),
         ]
         enc = cfg.encoders.sigma_vector(N_JOINTS)
         self._enc_var = np.maximum(enc**2, MIN_VARIANCE)
+        self._box = np.asarray(params.tau_max[:6], dtype=float)
+        self._thr = (
+            Thrusters(
+                cfg.layout or DEFAULT_LAYOUT,
+                rotor_time_constant=cfg.rotor_time_constant,
+                dead_zone=cfg.dead_zone,
+                physics_dt=physics_dt,
+            )
+            if cfg.thrusters
+            else None
+        )
+        if self._thr is None:  # no thrusters: the identity "allocation" without limits, lag or dead zone
+            eye = np.eye(6)
+            self._thr_args = (eye, eye, np.zeros(6), math.inf, math.inf, 0.0, 1.0)
+        else:
+            t_ = self._thr
+            self._thr_args = (
+                t_.pinv,
+                t_.matrix,
+                np.zeros(t_.n),
+                t_.max_forward,
+                t_.max_reverse,
+                t_.dead_zone,
+                t_.alpha,
+            )
+        self._thrust = self._thr_args[2]
+        self._config, self._zeta, self._tau_eff = np.zeros(7 + N_JOINTS), np.zeros(18), np.zeros(18)
+        self._model_consts = (self._added, self._added_weight, self._friction, self._lin, self._quad)
+        self._qvar = JOINT_ACCEL_NOISE_DENSITY**2
+        self._no_encoders = np.zeros(0)
         self._a = np.zeros((12, N_CORE))
         self._t = 0.0
         self._s = 0
@@ -438,6 +629,8 @@ class NavigationFilter:
             np.full(3, ANGLE_PRIOR_SIGMA),
             _vector(VELOCITY_PRIOR_SIGMA, 6),
             _vector(DISTURBANCE_PRIOR_SIGMA, 6),
+            np.full(1, BUOYANCY_PRIOR_SIGMA),
+            np.full(1, DAMPING_PRIOR_SIGMA),
             np.full(3, cfg.gyro.bias_sigma),
             np.full(3, cfg.dvl.bias_sigma),
             np.full(1, cfg.depth.bias_sigma),
@@ -451,6 +644,7 @@ class NavigationFilter:
         self.x = np.zeros(self._n)
         self.P = np.diag(np.maximum(self._prior, math.sqrt(MIN_VARIANCE)) ** 2)
         self._slots = self._slots_template.copy()
+        self._thrust[:] = 0.0
         enc = measurements.get("encoders") or []
         if not enc:
             raise ValueError("reset needs the initial encoder sample in measurements['encoders']")
@@ -475,70 +669,61 @@ class NavigationFilter:
         s_to = round(t / self.physics_dt)
         if s_to < self._s:
             raise ValueError(f"t ({t}) is before the filter's time ({self._t})")
-        accel, wvv, qdd = self._accelerations(tau)
+        wrench = _prepare(
+            self.x,
+            self._q,
+            self._qd,
+            tau,
+            *self._thr_args,
+            self._box,
+            s_to - self._s,
+            self._config,
+            self._zeta,
+            self._tau_eff,
+        )
+        config, zeta = self._config, self._zeta
+        pin.crba(self._model, self._data, config)
+        nle = pin.nonLinearEffects(self._model, self._data, config, zeta)
+        buoy = pin.computeGeneralizedGravity(self._bmodel, self._bdata, config)
+        model = (self._data.M, nle, buoy, *self._model_consts)
+        enc = measurements.get("encoders")
+        z = enc[-1][1] if enc else self._no_encoders
         meas = self._pack(measurements)
-        _run(
+        _advance(
             self.x,
             self.P,
             self._s,
             s_to,
             self.physics_dt,
-            accel,
-            wvv,
-            self._lin,
-            self._quad,
+            model,
+            zeta,
+            self._tau_eff,
+            wrench,
             self._qdiag,
             meas,
             self._tab,
             self._slots,
             self._a,
-        )
-        enc = measurements.get("encoders") or []
-        z = np.asarray(enc[-1][1], dtype=float) if enc else np.zeros(0)
-        _joints(
-            self._q,
-            self._qd,
-            *self._pj,
-            qdd,
-            (s_to - self._s) * self.physics_dt,
-            JOINT_ACCEL_NOISE_DENSITY**2,
+            (self._q, self._qd, *self._pj, self._qvar, self._enc_var),
             z,
-            self._enc_var,
         )
         self._t, self._s = float(t), s_to
 
-    def _accelerations(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The nominal model at the estimate: the vehicle's acceleration terms and the joints' accelerations."""
-        eta, nu = self.x[:6], self.x[6:12]
-        config = KinematicModel.configuration(eta, self._q)
-        zeta = np.concatenate((nu, self._qd))
-        pin.crba(self._model, self._data, config)
-        nle = pin.nonLinearEffects(self._model, self._data, config, zeta)
-        buoy = pin.computeGeneralizedGravity(self._bmodel, self._bdata, config)
-        return _dynamics(
-            self._data.M,
-            nle,
-            buoy,
-            self._added,
-            self._added_weight,
-            eta,
-            zeta,
-            tau,
-            self._friction,
-            self._lin,
-            self._quad,
-        )
-
     def _pack(self, measurements: Mapping[str, list[tuple[float, np.ndarray]]]) -> np.ndarray:
         """The fused samples as rows ``(sensor index, substep, v0..v3)``."""
-        rows = []
-        dt = self.physics_dt
-        pad = [0.0] * MAX_DIM
+        flat: list[float] = []
+        extend, inv_dt, n = flat.extend, 1.0 / self.physics_dt, 0
         for j, name in enumerate(FILTERED_SENSORS):
-            for t, v in measurements.get(name) or ():
-                values = v.tolist()
-                rows.append([j, round(t / dt), *values, *pad[len(values) :]])
-        return np.array(rows, dtype=float) if rows else np.zeros((0, 2 + MAX_DIM))
+            samples = measurements.get(name)
+            if samples:
+                pad = _PADS[MAX_DIM - len(samples[0][1])]
+                for t, v in samples:
+                    flat.append(j)
+                    flat.append(round(t * inv_dt))
+                    extend(v.tolist())
+                    extend(pad)
+                n += len(samples)
+        return np.array(flat, dtype=float).reshape(n, 2 + MAX_DIM)
 
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The estimates ``eta, nu, q, qdot`` at the filter's time."""
@@ -554,7 +739,7 @@ class NavigationFilter:
         return self._t
 
 
-class NavigationFilterWrapper(gym.Wrapper):
+class NavigationFilterWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Puts the navigation filter's estimate where the oracle state was (observation and ``info`` state keys).
 
     The environment (at a realism level) reports ``info["measurements"]`` (the samples released during the step,
@@ -567,7 +752,8 @@ class NavigationFilterWrapper(gym.Wrapper):
     """
 
     def __init__(self, env: gym.Env, cfg: RealismConfig | None = None) -> None:
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, cfg=cfg)  # the spec can rebuild it (check_env)
+        gym.Wrapper.__init__(self, env)
         base = env.unwrapped
         cfg = cfg if cfg is not None else base.realism
         if cfg is None:
