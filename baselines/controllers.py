@@ -53,7 +53,7 @@ from baselines.mpc.campc import MPCController, task_config
 from baselines.mpc.config import MPCConfig
 from uvdms_gym.evaluation import Controller, check_action_mode
 
-_REALISM_ROW: dict[str, Any] = {"action_mode": "velocity", "collision": True, "realism_only": True}
+_REALISM_ROW: dict[str, Any] = {"action_mode": "velocity", "collision": True, "realism_only": True, "default": False}
 
 BASELINES: dict[str, dict[str, Any]] = {
     "mpc": {"action_mode": "velocity", "collision": False},

@@ -36,7 +36,8 @@ REPO = Path(__file__).resolve().parents[1]
 OUT = REPO / "docs" / "environments"
 
 RANGES: dict[str, str] = {
-    "action_mode": '`"velocity"` or `"torque"`',
+    "action_mode": '`"velocity"`, `"torque"` or `"thrusters"` (8 thruster commands, 12 joint torques)',
+    "realism": "`0` (the oracle), `1`, `2`, `3`, or a mapping `{level: L, <knob>: value}` ([realism](../realism.md))",
     "control_dt": "> 0 s, a whole multiple of `physics_dt`",
     "physics_dt": "> 0 s",
     "hydro_randomization": "[0, 1)",

@@ -56,8 +56,10 @@ BASELINES: dict[str, str] = TRACK_OF
 """Named baselines and their tracks (:data:`leaderboard.suite.registry.TRACK_OF`)."""
 FILTER_SUFFIX = "+filter"
 """Entry-token suffix: the entry's actions go through the safety filter (:mod:`baselines.safety.filter`)."""
-DEFAULT_ENTRIES: tuple[str, ...] = ("baselines", "agents")
-"""``baselines`` stands for the four named baselines, ``agents`` for every agent folder in ``agents_dir``."""
+DEFAULT_ENTRIES: tuple[str, ...] = ("baselines", "realism", "agents")
+"""``baselines`` stands for the four named baselines, ``realism`` for the realism track's own baselines
+(``campc-raw``, ``campc-privileged``: they run only on its tasks), ``agents`` for every agent folder in
+``agents_dir``."""
 SEED_FOLDER_PREFIX = "seed_"
 """Sub-folders of a multi-seed entry: ``seed_<k>``, ``k`` the training seed (``--seed``) of the run inside."""
 _SEED_FOLDER = re.compile(rf"^{SEED_FOLDER_PREFIX}(\d+)$")
@@ -215,6 +217,8 @@ def _token_specs(token: str, agents_dir: str | Path) -> list[str]:
     """The controller specs a token stands for: the baselines, the agent folders, or the token itself."""
     if token == "baselines":  # the four of every task; campc-inner (one task) and hold are named explicitly
         return list(DEFAULT_BASELINES)
+    if token == "realism":
+        return sorted(REALISM_ONLY)
     if token == "agents":
         return [str(p) for p in find_agent_folders(agents_dir)]
     return [token]

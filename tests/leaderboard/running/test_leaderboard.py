@@ -259,7 +259,14 @@ def test_agent_track_and_tasks_follow_its_config(tmp_path):
     assert torque.runs_on(TINY_TASKS[0])
     assert not torque.runs_on(lb.Task("transport", "T", "uvdms/Transport-v0"))
     circle_tasks = [t.name for t in lb.TASKS if torque.runs_on(t)]
-    assert circle_tasks == ["case1", "case2", "circle-random"]
+    assert circle_tasks == [
+        "case1",
+        "case2",
+        "circle-random",
+        "circle-random-r1",
+        "circle-random-r2",
+        "circle-random-r3",
+    ]
 
 
 def test_quick_selects_the_paper_tasks():
@@ -267,7 +274,10 @@ def test_quick_selects_the_paper_tasks():
     randomised = [t for t in lb.TASKS if not t.paper and t.env_id != "uvdms/TransportObstacles-v1"]
     assert {t.env_kwargs.get("hydro_randomization") for t in randomised} == {0.3}
     obstacles = [t for t in lb.TASKS if t.env_id == "uvdms/TransportObstacles-v1"]
-    assert [dict(t.env_kwargs) for t in obstacles] == [{"obstacles": "random", "current": "random"}]
+    assert [dict(t.env_kwargs) for t in obstacles] == [
+        {"obstacles": "random", "current": "random", **({"realism": level} if level else {})} for level in (0, 1, 2, 3)
+    ]
+    assert [t.realism for t in lb.TASKS if not t.check] == [1, 1, 1, 2, 2, 2, 3, 3, 3]
     with pytest.raises(ValueError, match="unknown task"):
         lb.select_tasks(["nope"])
 
