@@ -11,8 +11,10 @@
   (:class:`~uvdms_gym.realism.actuation.Thrusters`) make the wrench that acts, and each arm drive cuts its torque
   beyond its rated speed (:func:`~uvdms_gym.realism.actuation.limit_joint_speed`).
 * **Sensors.** The simulator's probe (:meth:`~uvdms_gym.physics.sim.UVDMSSim.set_probe`) hands the vehicle's state
-  at every substep to the sensors due then; the state at the end of a control step is sampled from the
-  environment's own read. :meth:`RealismLayer.measure` releases what arrived by the end of the step and forms the
+  at every substep; the layer keeps it, and at the end of the control step (:meth:`RealismLayer.measure`) each
+  sensor samples the step's due substeps in one batch, the end of the step from the environment's own read
+  (the same samples as one at a time: samples are only released at control-step ends).
+  :meth:`RealismLayer.measure` releases what arrived by the end of the step and forms the
   *raw measured state*: position from the fix (``x``, ``y``) and the depth sensor (``z``), attitude from the AHRS,
   body velocity from the DVL and the gyro, joint angles from the encoders and joint rates as the difference of the
   last two encoder samples, obstacle centres and velocities from the sonar track; each the newest sample, held
@@ -30,18 +32,30 @@ from typing import Any
 
 import numpy as np
 
-from uvdms_gym.realism.actuation import DEFAULT_LAYOUT, Thrusters, limit_joint_speed
+from uvdms_gym.realism.actuation import DEFAULT_LAYOUT, Thrusters, actuate, limit_joint_speed
 from uvdms_gym.realism.config import SENSOR_NAMES, RealismConfig, to_substeps
-from uvdms_gym.realism.sensors import SensorBank
+from uvdms_gym.realism.sensors import Sensor, SensorBank
 
 N_THRUSTER_ACTIONS = 8
 """Thruster commands at the front of a ``action_mode="thrusters"`` action (``uvdms_gym.envs.base.N_THRUSTERS``)."""
 
 Measurements = dict[str, list[tuple[float, np.ndarray]]]
 
+VEHICLE_COLUMNS: dict[str, slice | list[int]] = {
+    "ahrs": slice(3, 6),
+    "gyro": slice(9, 12),
+    "dvl": slice(6, 9),
+    "depth": slice(2, 3),
+    "fix": [0, 1, 2, 5],
+}
+"""What each vehicle sensor measures of a row ``[eta (6); nu (6)]`` (:func:`sensor_values`' selections)."""
+NO_OBSTACLES = np.zeros((0, 11))
+"""The obstacle rows of a task without outer obstacles (read only)."""
+NO_OBSTACLES.flags.writeable = False
 
-def vehicle_truth(origin: tuple, quat: tuple, nu: tuple) -> tuple[np.ndarray, np.ndarray]:
-    """NED pose ``eta`` and body velocity ``nu`` from the simulator probe's z-up world origin and quaternion.
+
+def vehicle_row(origin: tuple, quat: tuple, nu: tuple) -> list[float]:
+    """``[eta; nu]`` (12 floats): NED pose and body velocity from the probe's z-up world origin and quaternion.
 
     The conversion of :func:`uvdms_gym.physics.state.state_from_raw` for a body-origin read (no centre-of-gravity
     offset), in plain floats.
@@ -55,8 +69,13 @@ def vehicle_truth(origin: tuple, quat: tuple, nu: tuple) -> tuple[np.ndarray, np
     phi = math.atan2(-r21, -r22)
     psi = math.atan2(-r10, r00)
     theta = -math.asin(min(max(-r20, -1.0), 1.0))
-    eta = np.array([origin[0], -origin[1], -origin[2], phi, theta, psi])
-    return eta, np.array(nu, dtype=float)
+    return [origin[0], -origin[1], -origin[2], phi, theta, psi, *nu]
+
+
+def vehicle_truth(origin: tuple, quat: tuple, nu: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """NED pose ``eta`` and body velocity ``nu`` from the simulator probe's z-up world origin and quaternion."""
+    row = np.array(vehicle_row(origin, quat, nu), dtype=float)
+    return row[:6], row[6:]
 
 
 def sensor_values(names: tuple[str, ...], eta: np.ndarray, nu: np.ndarray, **extra: Any) -> dict[str, np.ndarray]:
@@ -137,7 +156,15 @@ class RealismLayer:
         self._encoder_prev: tuple[float, np.ndarray] | None = None
         self._qdot = np.zeros(12)
         self._probe_i = 0
+        self._probed: list[tuple[int, tuple, tuple, tuple]] = []
+        """The step's probes after its first substep: ``(s, origin, quat, nu)``."""
         self._obstacles_now: Callable[[float], np.ndarray] | None = None
+        sensors = self.bank.sensors
+        self._vehicle_sensors: list[tuple[Sensor, slice | list[int]]] = [
+            (sensors[n], cols) for n, cols in VEHICLE_COLUMNS.items() if n in sensors
+        ]
+        limit = cfg.joint_speed_limit
+        self._limit = np.zeros(0) if limit is None else np.atleast_1d(np.asarray(limit, dtype=float))
 
     @property
     def action_dim(self) -> int:
@@ -161,13 +188,14 @@ class RealismLayer:
         """
         self.s = 0
         self._pending = []
+        self._probed = []
         self._held = np.zeros(self.action_dim)
         if self.thrusters is not None:
             self.thrusters.reset()
         self._obstacles_now = obstacles_at
         if not self.sensing:
             return {}
-        extra = {"q": q, "obstacles": obstacles_at(0.0) if obstacles_at is not None else np.zeros((0, 11))}
+        extra = {"q": q, "obstacles": obstacles_at(0.0) if obstacles_at is not None else NO_OBSTACLES}
         initial = sensor_values(self.names, eta, nu, **extra)
         self.bank.reset(seed, episode, initial)
         self._encoder_prev = None
@@ -179,6 +207,7 @@ class RealismLayer:
         self._pending.append((self.s + self.delay_steps, np.asarray(action, dtype=float)))
         self._sub = 0
         self._probe_i = 0
+        self._probed = []
         self._tau_sum[:] = 0.0
         self._thrust_saturated = False
 
@@ -213,15 +242,12 @@ class RealismLayer:
         """Thrusters (allocation, rotors, dead zone) for the body wrench; the drives' speed limit for the joints."""
         thr = self.thrusters
         out = np.empty(18)
-        if thr is not None:
-            cmd, scale = thr.allocate(tau[:6])
-            if scale < 1.0:
+        if thr is not None:  # one compiled call: allocation, rotors, drive limits and the commanded sum
+            if actuate(thr, tau, zeta[6:], self._limit, self._tau_sum, out) < 1.0:
                 self._thrust_saturated = True
-            self._tau_sum[:6] += scale * tau[:6]  # = B f_cmd: the allocation keeps the direction
-            out[:6] = thr.step(cmd)
-        else:
-            self._tau_sum[:6] += tau[:6]
-            out[:6] = tau[:6]
+            return out
+        self._tau_sum[:6] += tau[:6]
+        out[:6] = tau[:6]
         out[6:] = self._joints(tau[6:], zeta)
         return out
 
@@ -252,31 +278,49 @@ class RealismLayer:
 
     # ------------------------------------------------------------------ sensors
     def probe(self, origin: tuple, quat: tuple, nu: tuple) -> None:
-        """The simulator's substep probe: sample the sensors due at this substep (not its first: see measure)."""
-        s = self.s + self._probe_i
-        self._probe_i += 1
-        if self._probe_i == 1:  # the step's first substep starts at the state measure() sampled
-            return
-        due = self.bank.due(s)
-        if not due:
-            return
-        eta, nu_arr = vehicle_truth(origin, quat, nu)
-        extra: dict[str, Any] = {}
-        if "sonar" in due and self._obstacles_now is not None:
-            extra["obstacles"] = self._obstacles_now(s * self.physics_dt)
-        if "encoders" in due:
-            due = tuple(n for n in due if n != "encoders")  # joint angles are read at control-step ends only
-        self.bank.sample(s, sensor_values(due, eta, nu_arr, **extra))
+        """The simulator's substep probe: keep the state for :meth:`measure` (not the first substep's: see there)."""
+        i = self._probe_i
+        self._probe_i = i + 1
+        if i:  # the step's first substep starts at the state measure() sampled
+            self._probed.append((self.s + i, origin, quat, nu))
 
     def measure(
         self, t: float, eta: np.ndarray, nu: np.ndarray, q: np.ndarray, obstacles: np.ndarray | None
     ) -> Measurements:
-        """Sample the sensors due at the end of the step from the true state; release what has arrived by now."""
-        due = self.bank.due(self.s)
-        if due:
-            rows = obstacles if obstacles is not None else np.zeros((0, 11))
-            self.bank.sample(self.s, sensor_values(due, eta, nu, q=q, obstacles=rows))
-        return self.bank.release(self.s)
+        """Sample the step's due substeps (the probes, then the end from the true state); release what has arrived.
+
+        Each sensor takes its samples of the step in one batch (:meth:`~uvdms_gym.realism.sensors.Sensor.sample_many`),
+        the same samples as one at a time. Joint angles are read at control-step ends only.
+        """
+        probed = self._probed
+        self._probed = []
+        end = self.s
+        steps = [p[0] for p in probed]
+        steps.append(end)
+        rows = [vehicle_row(o, quat, v) for _, o, quat, v in probed]
+        rows.append([*eta.tolist(), *nu.tolist()])
+        table = np.array(rows)  # (k + 1, 12): [eta; nu] at each substep of the step after its first, and its end
+        for sensor, cols in self._vehicle_sensors:
+            period = sensor.period_steps
+            if period == 1:
+                sensor.sample_many(steps, table[:, cols])
+                continue
+            due = [j for j, s in enumerate(steps) if s % period == 0]
+            if due:
+                sensor.sample_many([steps[j] for j in due], table[due][:, cols])
+        sensors = self.bank.sensors
+        encoders = sensors.get("encoders")
+        if encoders is not None and end % encoders.period_steps == 0:
+            encoders.sample_many((end,), np.asarray(q, dtype=float)[np.newaxis])
+        sonar = sensors.get("sonar")
+        if sonar is not None:
+            due = [s for s in steps if s % sonar.period_steps == 0]
+            if due:
+                ends = obstacles if obstacles is not None else NO_OBSTACLES
+                source = self._obstacles_now
+                values = [ends if s == end or source is None else source(s * self.physics_dt) for s in due]
+                sonar.sample_many(due, np.array([np.asarray(v, dtype=float)[:, :6] for v in values]))
+        return self.bank.release(end)
 
     def measured_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The raw measured ``eta, nu, q, qdot`` (module docstring): the newest sample of each sensor."""

@@ -19,25 +19,32 @@ A sample taken at ``s`` is released to the controller at ``s + latency_steps`` (
 latencies become substeps with :func:`~uvdms_gym.realism.config.to_substeps` (a period of at least one substep);
 ``period=None`` (the encoders) is one sample per control step.
 
-Randomness: every sensor draws from its own generator (:func:`~uvdms_gym.realism.config.noise_streams`), in a fixed
-order per due sample whether or not the sample is dropped (bias increments, then noise, then the dropout draw), so
-the same seed gives the same noise and one sensor's settings never shift another's samples.
+Randomness: every sensor draws from its own generator (:func:`~uvdms_gym.realism.config.noise_streams`): at reset
+the turn-on bias, then the noise of the sample at ``s = 0``; after that in blocks of :data:`DRAW_BLOCK` due samples,
+each block its standard normals ``(DRAW_BLOCK, 2, *shape)`` (per sample a bias increment and a noise per component)
+then its ``DRAW_BLOCK`` uniforms (the dropout draws). The ``j``-th due sample takes row ``j`` of these blocks whether
+or not it is dropped, and whether or not the sensor has a bias walk or dropouts, so the same seed gives the same
+noise, one sensor's settings never shift another's samples (nor its own walk or dropout settings its noise), and
+samples taken one at a time (:meth:`Sensor.sample`) equal samples taken in batches (:meth:`Sensor.sample_many`).
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from uvdms_gym.realism.config import SENSOR_DIMS, SENSOR_NAMES, RealismConfig, SensorSpec, noise_streams, to_substeps
+from uvdms_gym.utils.jit import jit
 
 ANGLE_COMPONENTS: dict[str, tuple[int, ...]] = {"ahrs": (0, 1, 2), "fix": (3,)}
 """Components of each sensor that are angles, wrapped to ``(-pi, pi]`` (other sensors: none)."""
 TWO_PI = 2.0 * math.pi
 """A full turn, rad."""
+DRAW_BLOCK = 256
+"""Due samples whose random draws a sensor takes from its generator at once (module docstring: Randomness)."""
 MAX_DUE_TABLE = 100_000
 """Longest common period (substeps) for which :class:`SensorBank` tabulates the due sensors of every substep."""
 
@@ -77,16 +84,21 @@ class Sensor:
         self.latency_steps = to_substeps(spec.latency, physics_dt)
         self.dim = SENSOR_DIMS[name]
         self._sigma = spec.sigma_vector(self.dim)
-        self._angles = list(ANGLE_COMPONENTS.get(name, ()))
+        angles = ANGLE_COMPONENTS.get(name, ())  # consecutive components
+        self._angle_lo, self._angle_hi = (angles[0], angles[-1] + 1) if angles else (0, 0)
+        self._sigma_flat = self._sigma
         self._walk_scale = spec.bias_walk * math.sqrt(self.period_steps * physics_dt)
         self._drop_p, self._drop_n = float(spec.dropout_prob), int(spec.dropout_len)
         self._queue: deque[tuple[int, float, np.ndarray]] = deque()
         self._rng: np.random.Generator | None = None
         self._shape: tuple[int, ...] = (self.dim,)
-        self._draw_shape: tuple[int, ...] = (1, self.dim)
+        self._normals = np.zeros((0, 2, self.dim))
+        self._uniforms = np.zeros(0)
+        self._row = 0
         self._bias = np.zeros(self.dim)
         self._dropping = 0
         self.latest: Sample = (0.0, np.zeros(self.dim))
+        _warm_up()
 
     def reset(self, rng: np.random.Generator, initial: np.ndarray) -> None:
         """Start an episode: draw the turn-on bias, take the sample at ``s = 0`` and release it at once.
@@ -100,11 +112,14 @@ class Sensor:
         if not ok:
             raise ValueError(f"initial {self.name} value must have shape ({self.dim},), got {x.shape}")
         self._rng, self._shape = rng, x.shape
-        self._draw_shape = (2 if self._walk_scale > 0.0 else 1, *x.shape)
-        self._bias = self.spec.bias_sigma * rng.standard_normal(x.shape)
+        self._sigma_flat = np.tile(self._sigma, x.size // self.dim)  # per component of the flattened value
+        self._normals, self._uniforms, self._row = np.zeros((0, 2, x.size)), np.zeros(0), 0
+        self._bias = (self.spec.bias_sigma * rng.standard_normal(x.shape)).reshape(-1)
         self._queue.clear()
         self._dropping = 0
-        self.latest = (0.0, self._measure(x, rng.standard_normal(x.shape)))
+        draws = np.zeros((1, 2, x.size))
+        draws[0, 1] = rng.standard_normal(x.shape).reshape(-1)
+        self.latest = (0.0, self._measure(x[np.newaxis], draws, 0.0)[0])
 
     def due(self, s: int) -> bool:
         """Whether the sensor samples at substep ``s``."""
@@ -112,42 +127,82 @@ class Sensor:
 
     def sample(self, s: int, truth: np.ndarray) -> None:
         """Take the sample of due substep ``s > 0`` of the true value ``truth``; queue it unless dropped."""
-        rng = self._rng
-        if rng is None:
-            raise ValueError(f"sensor {self.name}: reset() before sample()")
-        if s % self.period_steps != 0 or s <= 0:
-            raise ValueError(f"sensor {self.name}: substep {s} is not a sample (period {self.period_steps} substeps)")
-        draws = rng.standard_normal(self._draw_shape)  # bias increments (with a walk) then the noise
-        if self._walk_scale > 0.0:
-            self._bias += self._walk_scale * draws[0]
-        noise = draws[-1]
-        if self._drop_p > 0.0:
-            u = rng.random()
-            if self._dropping > 0:
-                self._dropping -= 1
-                return
-            if u < self._drop_p:
-                self._dropping = self._drop_n - 1
-                return
-        value = self._measure(np.asarray(truth, dtype=float), noise)
-        self._queue.append((s + self.latency_steps, s * self.physics_dt, value))
-
-    def _measure(self, x: np.ndarray, standard_noise: np.ndarray) -> np.ndarray:
-        """``x + b + sigma * noise`` with the angle components wrapped to ``(-pi, pi]``."""
+        x = np.asarray(truth, dtype=float)
         if x.shape != self._shape:
             raise ValueError(f"{self.name} value must have shape {self._shape}, got {x.shape}")
-        m = self._sigma * standard_noise
-        m += x
-        m += self._bias
-        if self._angles:
-            if m.ndim == 1:  # on floats: a few numpy calls on a 1-element selection cost several microseconds
-                for i in self._angles:
-                    v = float(m[i])
-                    if not -math.pi < v <= math.pi:
-                        m[i] = math.pi - (math.pi - v) % TWO_PI
+        self.sample_many((s,), x[np.newaxis])
+
+    def sample_many(self, steps: Sequence[int], truths: np.ndarray) -> None:
+        """Take the samples of due substeps ``steps`` (increasing, ``> 0``) at once; queue those not dropped.
+
+        The same samples as :meth:`sample` at each substep in turn (module docstring: Randomness).
+
+        Args:
+            steps: the due substeps.
+            truths: the true values at them, ``(len(steps), *shape)`` (``shape``: the value's at reset).
+        """
+        if self._rng is None:
+            raise ValueError(f"sensor {self.name}: reset() before sample()")
+        period = self.period_steps
+        for s in steps:
+            if s % period != 0 or s <= 0:
+                raise ValueError(f"sensor {self.name}: substep {s} is not a sample (period {period} substeps)")
+        x = np.ascontiguousarray(truths, dtype=float)
+        k = len(steps)
+        if x.shape != (k, *self._shape):
+            raise ValueError(f"{self.name} value must have shape {self._shape}, got {x.shape[1:]}")
+        if k == 0:
+            return
+        normals, uniforms = self._draws(k)
+        values = self._measure(x, normals, self._walk_scale)
+        latency, dt, queue = self.latency_steps, self.physics_dt, self._queue
+        for j in self._delivered(uniforms) if self._drop_p > 0.0 else range(k):
+            s = steps[j]
+            queue.append((s + latency, s * dt, values[j]))
+
+    def _delivered(self, uniforms: np.ndarray) -> list[int]:
+        """The samples (indices) of a batch that no dropout loses, advancing the dropout state."""
+        p, dropping, kept = self._drop_p, self._dropping, []
+        for j, u in enumerate(uniforms.tolist()):
+            if dropping > 0:
+                dropping -= 1
+            elif u < p:
+                dropping = self._drop_n - 1
             else:
-                m[:, self._angles] = wrap_pi(m[:, self._angles])
-        return m
+                kept.append(j)
+        self._dropping = dropping
+        return kept
+
+    def _draws(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The standard normals ``(k, 2, size)`` and uniforms ``(k,)`` of the next ``k`` due samples."""
+        i, normals, uniforms = self._row, self._normals, self._uniforms
+        if i + k > uniforms.shape[0]:
+            rng = self._rng
+            assert rng is not None
+            parts_n, parts_u = [normals[i:]], [uniforms[i:]]
+            for _ in range(-(-(i + k - uniforms.shape[0]) // DRAW_BLOCK)):
+                parts_n.append(rng.standard_normal((DRAW_BLOCK, 2, *self._shape)).reshape(DRAW_BLOCK, 2, -1))
+                parts_u.append(rng.random(DRAW_BLOCK))
+            normals, uniforms, i = np.concatenate(parts_n), np.concatenate(parts_u), 0
+            self._normals, self._uniforms = normals, uniforms
+        self._row = i + k
+        return normals[i : i + k], uniforms[i : i + k]
+
+    def _measure(self, x: np.ndarray, draws: np.ndarray, walk_scale: float) -> np.ndarray:
+        """The measured values ``(k, *shape)`` of the true values ``x`` (C-contiguous), advancing the bias."""
+        out = np.empty(x.shape)
+        k = x.shape[0]
+        _measure_rows(
+            x.reshape(k, -1),
+            draws,
+            self._sigma_flat,
+            self._bias,
+            walk_scale,
+            self._angle_lo,
+            self._angle_hi,
+            out.reshape(k, -1),
+        )
+        return out
 
     def release(self, s_now: int) -> list[Sample]:
         """The queued samples with ``s + latency_steps <= s_now``, oldest first; they leave the queue."""
@@ -159,6 +214,32 @@ class Sensor:
         if out:
             self.latest = out[-1]
         return out
+
+
+@jit
+def _measure_rows(x, draws, sigma, bias, walk_scale, angle_lo, angle_hi, out):  # pragma: no cover - compiled
+    """Rows ``out[j] = sigma * n_j + x[j] + b_j`` of consecutive samples, in place on the bias ``b``.
+
+    ``draws[j]``: the bias increments and the noises ``n_j`` of sample ``j`` (standard normals); with a walk the
+    bias first gains ``walk_scale`` times the increments (``b_j = b_(j-1) + walk_scale w_j``). Components
+    ``angle_lo:angle_hi`` outside ``(-pi, pi]`` are wrapped (in-range values keep their bits). The operation
+    order of the numpy expressions ``m = sigma * n; m += x; m += b``.
+    """
+    for j in range(x.shape[0]):
+        for c in range(x.shape[1]):
+            if walk_scale > 0.0:
+                bias[c] = bias[c] + walk_scale * draws[j, 0, c]
+            v = sigma[c] * draws[j, 1, c] + x[j, c]
+            v = v + bias[c]
+            if angle_lo <= c < angle_hi and not -math.pi < v <= math.pi:
+                v = math.pi - (math.pi - v) % TWO_PI
+            out[j, c] = v
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) the kernel when a sensor is built, not in an environment's step."""
+    one = np.zeros((1, 1))
+    _measure_rows(one, np.zeros((1, 2, 1)), np.zeros(1), np.zeros(1), 0.0, 0, 1, one.copy())
 
 
 class SensorBank:
