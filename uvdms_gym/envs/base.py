@@ -582,11 +582,16 @@ class UVDMSEnv(gym.Env, EzPickle):
         """
         if self.task is None:
             raise RuntimeError("call reset() before observe_estimate()")
-        kin = self._measured_kin or KinematicModel(self.params)
-        self._measured_kin = kin
+        kin = self._measured_kin
+        if kin is None or type(kin) is KinematicModel:  # once: the compiled placements, where the model allows
+            from uvdms_gym.envs.realism_layer import MeasuredKinematics
+
+            model = kin or KinematicModel(self.params)
+            kin = MeasuredKinematics(model) if MeasuredKinematics.supports(model) else model
+            self._measured_kin = kin
         eta, nu, q, qdot = (np.array(v, dtype=float) for v in (eta, nu, q, qdot))
-        kin.set_state(eta, q, np.concatenate([nu, qdot]))
-        d = compute_distances(kin, "exact").d.copy()
+        kin.set_state(eta, q)
+        d = compute_distances(kin, "exact").d  # a new array
         y, rot = self._output_at(kin)
         refs = self.task.reference(self.t + self._preview_times)
         blocks, _, _ = self._errors_at(y, rot, refs, kin.frame_placement("vehicle")[1])
