@@ -32,8 +32,11 @@ from typing import Any
 
 import numpy as np
 
+from uvdms_gym.distances import kernels as distance_kernels
+from uvdms_gym.distances.exact import N_ROWS
+from uvdms_gym.envs.base import CLEARANCE_CLIP, OBS_CLIP
 from uvdms_gym.physics.kinematics import KinematicModel
-from uvdms_gym.physics.params import ARM_SIDES, N_JOINTS
+from uvdms_gym.physics.params import ARM_SIDES, D1, D2, N_JOINTS
 from uvdms_gym.realism.actuation import DEFAULT_LAYOUT, Thrusters, actuate, limit_joint_speed
 from uvdms_gym.realism.config import SENSOR_NAMES, RealismConfig, to_substeps
 from uvdms_gym.realism.sensors import Sensor, SensorBank
@@ -231,14 +234,25 @@ class RealismLayer:
             torque: ``(action, zeta, changed) -> tau`` (18): the environment's velocity loop or torque scaling of
                 the action in effect (not called in thrusters mode).
         """
+        thr, limit, tau_sum = self.thrusters, self._limit, self._tau_sum
 
         def law(zeta: np.ndarray) -> np.ndarray:
             s = self.s + self._sub
             self._sub += 1
-            action, changed = self.action_at(s)
+            pending = self._pending
+            if pending and pending[0][0] <= s:
+                action, changed = self.action_at(s)
+            else:  # (action_at without a call: the action in effect holds)
+                action, changed = self._held, False
             if self.action_mode == "thrusters":
                 return self._thrusters_law(action, zeta)
-            return self._actuate(torque(action, zeta, changed), zeta)
+            tau = torque(action, zeta, changed)
+            if thr is None:
+                return self._actuate(tau, zeta)
+            out = np.empty(18)  # (_actuate inlined: one compiled call, per substep)
+            if actuate(thr, tau, zeta[6:], limit, tau_sum, out) < 1.0:
+                self._thrust_saturated = True
+            return out
 
         return law
 
@@ -393,6 +407,7 @@ class MeasuredKinematics:
         self._seg_local = np.ascontiguousarray(kin._seg_local_h[:, :, :3])  # (2 n_links, 2, 3), link frames
         self._frames = np.zeros((len(names), PLACEMENT_ROWS, 3))
         self._seg = np.zeros((2, n_links, 2, 3))
+        self._plates = distance_kernels.plate_table(kin.params.plates)
         _placements(
             np.zeros(6),
             np.zeros(N_JOINTS),
@@ -450,6 +465,14 @@ class MeasuredKinematics:
     def link_segments(self) -> np.ndarray:
         """Capsule axes of all links in NED, ``(2, n_links, 2, 3)`` (read only), as ``KinematicModel``'s."""
         return self._seg
+
+    def clearances(self) -> np.ndarray:
+        """The 18 distances of :func:`~uvdms_gym.distances.compute_distances` (``"exact"``: the same kernel), new."""
+        vehicle = self._frames[self._row["vehicle"]]
+        d, p, e = np.empty(N_ROWS), np.empty((N_ROWS, 3)), np.empty((N_ROWS, 3))
+        idx = np.empty(N_ROWS, dtype=np.int64)
+        distance_kernels.exact_rows(self._seg, vehicle[:3], vehicle[3], self._plates, d, p, e, idx)
+        return d
 
     def ee_positions(self) -> np.ndarray:
         """Tool-tip positions (2, 3): row 0 left, row 1 right, NED."""
@@ -529,3 +552,65 @@ def _compose(a, b, out):  # pragma: no cover - compiled
         for c in range(3):
             out[r, c] = a[r, 0] * b[0, c] + a[r, 1] * b[1, c] + a[r, 2] * b[2, c]
         out[3, r] = (a[r, 0] * b[3, 0] + a[r, 1] * b[3, 1] + a[r, 2] * b[3, 2]) + a[3, r]
+
+
+def assemble_observation(
+    blocks: np.ndarray,
+    eta: np.ndarray,
+    nu: np.ndarray,
+    q: np.ndarray,
+    qdot: np.ndarray,
+    d: np.ndarray,
+    nu_scale: np.ndarray,
+    qdot_scale: np.ndarray,
+) -> np.ndarray:
+    """:meth:`UVDMSEnv._assemble <uvdms_gym.envs.base.UVDMSEnv._assemble>` in one compiled call (float32).
+
+    The same values in the same operation order (``sin`` and ``cos`` from the C library, as numpy's where it
+    does not vectorize them; ``tests/uvdms_gym/realism/test_realism_env.py`` compares the two).
+    """
+    out = np.empty(blocks.size + 2 + nu.size + 2 * q.size + qdot.size + d.size, dtype=np.float32)
+    _assemble(blocks, eta, nu, q, qdot, d, nu_scale, qdot_scale, D2 - D1, out)
+    return out
+
+
+@jit
+def _assemble(blocks, eta, nu, q, qdot, d, nu_scale, qdot_scale, band, out):  # pragma: no cover - compiled
+    """:func:`assemble_observation` into ``out``: each value, then clipped to ``[-OBS_CLIP, OBS_CLIP]``."""
+    k = 0
+    for i in range(blocks.shape[0]):
+        out[k] = _clip(blocks[i])
+        k += 1
+    for i in range(3, 5):
+        out[k] = _clip(eta[i])
+        k += 1
+    for i in range(nu.shape[0]):
+        out[k] = _clip(nu[i] / nu_scale[i])
+        k += 1
+    for i in range(q.shape[0]):
+        out[k] = _clip(math.sin(q[i]))
+        k += 1
+    for i in range(q.shape[0]):
+        out[k] = _clip(math.cos(q[i]))
+        k += 1
+    for i in range(qdot.shape[0]):
+        out[k] = _clip(qdot[i] / qdot_scale[i])
+        k += 1
+    for i in range(d.shape[0]):
+        v = d[i]
+        if v < 0.0:  # np.maximum then np.minimum: NaN passes through
+            v = 0.0
+        if v > CLEARANCE_CLIP:
+            v = CLEARANCE_CLIP
+        out[k] = _clip((v - D1) / band)
+        k += 1
+
+
+@jit
+def _clip(v):  # pragma: no cover - compiled
+    """``v`` clipped to ``[-OBS_CLIP, OBS_CLIP]`` (NaN passes through, as through ``np.maximum`` and ``np.minimum``)."""
+    if v < -OBS_CLIP:
+        v = -OBS_CLIP
+    if v > OBS_CLIP:
+        v = OBS_CLIP
+    return v
