@@ -268,9 +268,10 @@ class UVDMSEnv(gym.Env, EzPickle):
             sensing=self.realism is not None,
         )
         loop, zeta_max, tau_max, dt = self._loop, self.zeta_max, self.tau_max, self.physics_dt
+        velocity = self.action_mode == "velocity"
 
         def torque(action: np.ndarray, zeta: np.ndarray, begin: bool) -> np.ndarray:
-            if self.action_mode == "velocity":
+            if velocity:
                 if begin:
                     loop.begin(action * zeta_max)  # the kinematic model holds the step's starting state
                 return loop.torque(zeta, dt)

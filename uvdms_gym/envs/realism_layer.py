@@ -318,35 +318,33 @@ class RealismLayer:
         rows = [vehicle_row(o, quat, v) for _, o, quat, v in probed]
         rows.append([*eta.tolist(), *nu.tolist()])
         table = np.array(rows)  # (k + 1, 12): [eta; nu] at each substep of the step after its first, and its end
+        first = steps[0]
         for sensor, cols in self._vehicle_sensors:
             period = sensor.period_steps
             if period == 1:
-                sensor.sample_many(steps, table[:, cols])
-                continue
-            due = [j for j, s in enumerate(steps) if s % period == 0]
-            if due:
-                sensor.sample_many([steps[j] for j in due], table[due][:, cols])
+                sensor.sample_many(steps, np.ascontiguousarray(table[:, cols]), check=False)
+            elif -(-first // period) * period <= end:  # some substep of the step is due
+                due = [j for j, s in enumerate(steps) if s % period == 0]
+                sensor.sample_many([steps[j] for j in due], table[due][:, cols], check=False)
         sensors = self.bank.sensors
         encoders = sensors.get("encoders")
         if encoders is not None and end % encoders.period_steps == 0:
-            encoders.sample_many((end,), np.asarray(q, dtype=float)[np.newaxis])
+            encoders.sample_many((end,), np.array(q, dtype=float)[np.newaxis], check=False)
         sonar = sensors.get("sonar")
-        if sonar is not None:
+        if sonar is not None and -(-first // sonar.period_steps) * sonar.period_steps <= end:
             due = [s for s in steps if s % sonar.period_steps == 0]
-            if due:
-                ends = obstacles if obstacles is not None else NO_OBSTACLES
-                source = self._obstacles_now
-                values = [ends if s == end or source is None else source(s * self.physics_dt) for s in due]
-                sonar.sample_many(due, np.array([np.asarray(v, dtype=float)[:, :6] for v in values]))
+            ends = obstacles if obstacles is not None else NO_OBSTACLES
+            source = self._obstacles_now
+            values = [ends if s == end or source is None else source(s * self.physics_dt) for s in due]
+            sonar.sample_many(due, np.array([np.asarray(v, dtype=float)[:, :6] for v in values]), check=False)
         return self.bank.release(end)
 
     def measured_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The raw measured ``eta, nu, q, qdot`` (module docstring): the newest sample of each sensor."""
-        bank = self.bank
-        fix, depth, ahrs = bank.latest("fix")[1], bank.latest("depth")[1], bank.latest("ahrs")[1]
-        eta = np.array([fix[0], fix[1], depth[0], ahrs[0], ahrs[1], ahrs[2]])
-        nu = np.concatenate([bank.latest("dvl")[1], bank.latest("gyro")[1]])
-        t_q, q = bank.latest("encoders")
+        sensors = self.bank.sensors
+        eta = np.concatenate((sensors["fix"].latest[1][:2], sensors["depth"].latest[1], sensors["ahrs"].latest[1]))
+        nu = np.concatenate((sensors["dvl"].latest[1], sensors["gyro"].latest[1]))
+        t_q, q = sensors["encoders"].latest
         prev = self._encoder_prev
         if prev is None or t_q <= prev[0]:
             qdot = np.zeros_like(q) if prev is None else self._qdot

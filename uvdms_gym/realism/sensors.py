@@ -119,7 +119,7 @@ class Sensor:
         self._dropping = 0
         draws = np.zeros((1, 2, x.size))
         draws[0, 1] = rng.standard_normal(x.shape).reshape(-1)
-        self.latest = (0.0, self._measure(x[np.newaxis], draws, 0.0)[0])
+        self.latest = (0.0, self._measure(x[np.newaxis], draws, 0, 0.0)[0])
 
     def due(self, s: int) -> bool:
         """Whether the sensor samples at substep ``s``."""
@@ -132,7 +132,7 @@ class Sensor:
             raise ValueError(f"{self.name} value must have shape {self._shape}, got {x.shape}")
         self.sample_many((s,), x[np.newaxis])
 
-    def sample_many(self, steps: Sequence[int], truths: np.ndarray) -> None:
+    def sample_many(self, steps: Sequence[int], truths: np.ndarray, *, check: bool = True) -> None:
         """Take the samples of due substeps ``steps`` (increasing, ``> 0``) at once; queue those not dropped.
 
         The same samples as :meth:`sample` at each substep in turn (module docstring: Randomness).
@@ -140,30 +140,34 @@ class Sensor:
         Args:
             steps: the due substeps.
             truths: the true values at them, ``(len(steps), *shape)`` (``shape``: the value's at reset).
+            check: check the substeps and the shape (``False``: the caller guarantees them, and ``truths`` is a
+                C-contiguous float array; the environment's per-step path).
         """
-        if self._rng is None:
-            raise ValueError(f"sensor {self.name}: reset() before sample()")
-        period = self.period_steps
-        for s in steps:
-            if s % period != 0 or s <= 0:
-                raise ValueError(f"sensor {self.name}: substep {s} is not a sample (period {period} substeps)")
-        x = np.ascontiguousarray(truths, dtype=float)
+        if check:
+            if self._rng is None:
+                raise ValueError(f"sensor {self.name}: reset() before sample()")
+            period = self.period_steps
+            for s in steps:
+                if s % period != 0 or s <= 0:
+                    raise ValueError(f"sensor {self.name}: substep {s} is not a sample (period {period} substeps)")
+            truths = np.ascontiguousarray(truths, dtype=float)
+            if truths.shape != (len(steps), *self._shape):
+                raise ValueError(f"{self.name} value must have shape {self._shape}, got {truths.shape[1:]}")
         k = len(steps)
-        if x.shape != (k, *self._shape):
-            raise ValueError(f"{self.name} value must have shape {self._shape}, got {x.shape[1:]}")
         if k == 0:
             return
-        normals, uniforms = self._draws(k)
-        values = self._measure(x, normals, self._walk_scale)
-        latency, dt, queue = self.latency_steps, self.physics_dt, self._queue
-        for j in self._delivered(uniforms) if self._drop_p > 0.0 else range(k):
-            s = steps[j]
-            queue.append((s + latency, s * dt, values[j]))
+        i = self._reserve(k)
+        values = self._measure(truths, self._normals, i, self._walk_scale)
+        latency, dt = self.latency_steps, self.physics_dt
+        if self._drop_p > 0.0:
+            self._queue.extend((steps[j] + latency, steps[j] * dt, values[j]) for j in self._delivered(i, k))
+        else:
+            self._queue.extend([(s + latency, s * dt, v) for s, v in zip(steps, values, strict=True)])
 
-    def _delivered(self, uniforms: np.ndarray) -> list[int]:
-        """The samples (indices) of a batch that no dropout loses, advancing the dropout state."""
+    def _delivered(self, i: int, k: int) -> list[int]:
+        """The samples of a batch (indices ``0..k-1``; draws from row ``i``) no dropout loses; the dropout state."""
         p, dropping, kept = self._drop_p, self._dropping, []
-        for j, u in enumerate(uniforms.tolist()):
+        for j, u in enumerate(self._uniforms[i : i + k].tolist()):
             if dropping > 0:
                 dropping -= 1
             elif u < p:
@@ -173,8 +177,8 @@ class Sensor:
         self._dropping = dropping
         return kept
 
-    def _draws(self, k: int) -> tuple[np.ndarray, np.ndarray]:
-        """The standard normals ``(k, 2, size)`` and uniforms ``(k,)`` of the next ``k`` due samples."""
+    def _reserve(self, k: int) -> int:
+        """The first of the rows of the next ``k`` due samples' draws (``_normals``, ``_uniforms``), drawn if needed."""
         i, normals, uniforms = self._row, self._normals, self._uniforms
         if i + k > uniforms.shape[0]:
             rng = self._rng
@@ -183,25 +187,17 @@ class Sensor:
             for _ in range(-(-(i + k - uniforms.shape[0]) // DRAW_BLOCK)):
                 parts_n.append(rng.standard_normal((DRAW_BLOCK, 2, *self._shape)).reshape(DRAW_BLOCK, 2, -1))
                 parts_u.append(rng.random(DRAW_BLOCK))
-            normals, uniforms, i = np.concatenate(parts_n), np.concatenate(parts_u), 0
-            self._normals, self._uniforms = normals, uniforms
+            self._normals, self._uniforms, i = np.concatenate(parts_n), np.concatenate(parts_u), 0
         self._row = i + k
-        return normals[i : i + k], uniforms[i : i + k]
+        return i
 
-    def _measure(self, x: np.ndarray, draws: np.ndarray, walk_scale: float) -> np.ndarray:
-        """The measured values ``(k, *shape)`` of the true values ``x`` (C-contiguous), advancing the bias."""
+    def _measure(self, x: np.ndarray, draws: np.ndarray, first: int, walk_scale: float) -> np.ndarray:
+        """The measured values ``(k, *shape)`` of the true values ``x`` (C-contiguous; draws from row ``first``)."""
         out = np.empty(x.shape)
         k = x.shape[0]
-        _measure_rows(
-            x.reshape(k, -1),
-            draws,
-            self._sigma_flat,
-            self._bias,
-            walk_scale,
-            self._angle_lo,
-            self._angle_hi,
-            out.reshape(k, -1),
-        )
+        flat_x, flat_out = (x, out) if x.ndim == 2 else (x.reshape(k, -1), out.reshape(k, -1))  # sonar: (k, K, 6)
+        lo, hi = self._angle_lo, self._angle_hi
+        _measure_rows(flat_x, draws, first, self._sigma_flat, self._bias, walk_scale, lo, hi, flat_out)
         return out
 
     def release(self, s_now: int) -> list[Sample]:
@@ -217,19 +213,20 @@ class Sensor:
 
 
 @jit
-def _measure_rows(x, draws, sigma, bias, walk_scale, angle_lo, angle_hi, out):  # pragma: no cover - compiled
+def _measure_rows(x, draws, first, sigma, bias, walk_scale, angle_lo, angle_hi, out):  # pragma: no cover - compiled
     """Rows ``out[j] = sigma * n_j + x[j] + b_j`` of consecutive samples, in place on the bias ``b``.
 
-    ``draws[j]``: the bias increments and the noises ``n_j`` of sample ``j`` (standard normals); with a walk the
+    ``draws[first + j]``: the bias increments and the noises ``n_j`` of sample ``j`` (standard normals); with a walk the
     bias first gains ``walk_scale`` times the increments (``b_j = b_(j-1) + walk_scale w_j``). Components
     ``angle_lo:angle_hi`` outside ``(-pi, pi]`` are wrapped (in-range values keep their bits). The operation
     order of the numpy expressions ``m = sigma * n; m += x; m += b``.
     """
     for j in range(x.shape[0]):
+        r = first + j
         for c in range(x.shape[1]):
             if walk_scale > 0.0:
-                bias[c] = bias[c] + walk_scale * draws[j, 0, c]
-            v = sigma[c] * draws[j, 1, c] + x[j, c]
+                bias[c] = bias[c] + walk_scale * draws[r, 0, c]
+            v = sigma[c] * draws[r, 1, c] + x[j, c]
             v = v + bias[c]
             if angle_lo <= c < angle_hi and not -math.pi < v <= math.pi:
                 v = math.pi - (math.pi - v) % TWO_PI
@@ -239,7 +236,7 @@ def _measure_rows(x, draws, sigma, bias, walk_scale, angle_lo, angle_hi, out):  
 def _warm_up() -> None:
     """Compile (or load from numba's cache) the kernel when a sensor is built, not in an environment's step."""
     one = np.zeros((1, 1))
-    _measure_rows(one, np.zeros((1, 2, 1)), np.zeros(1), np.zeros(1), 0.0, 0, 1, one.copy())
+    _measure_rows(one, np.zeros((1, 2, 1)), 0, np.zeros(1), np.zeros(1), 0.0, 0, 1, one.copy())
 
 
 class SensorBank:
