@@ -246,3 +246,52 @@ def test_errors_name_the_bad_input():
     bank.reset(0, 0, _initial())
     with pytest.raises(ValueError, match="unknown sensor 'compass'"):
         bank.sample(1, {"compass": np.zeros(3)})
+
+
+@pytest.mark.parametrize(
+    ("name", "spec"),
+    [
+        ("gyro", {"period": 0.01, "sigma": 0.1, "bias_sigma": 0.2, "bias_walk": 0.3}),
+        ("ahrs", {"period": 0.01, "sigma": 0.5}),  # wraps often
+        ("dvl", {"period": 0.02, "latency": 0.03, "sigma": 0.1, "dropout_prob": 0.3, "dropout_len": 3}),
+        ("sonar", {"period": 0.01, "sigma": (0.1, 0.2, 0.3, 0.4, 0.5, 0.6), "bias_walk": 0.1}),
+    ],
+)
+def test_batches_equal_samples_one_at_a_time(name, spec):
+    """sample_many over any batching gives the samples of sample() at each substep, bit for bit (draw blocks too)."""
+    shape = (2, 6) if name == "sonar" else (SENSOR_DIMS[name],)
+    truth = lambda s: np.full(shape, 3.0) + 0.01 * s  # noqa: E731  (angles beyond pi for the AHRS)
+    one = Sensor(name, SensorSpec(**spec), physics_dt=DT, control_substeps=N_SUB)
+    many = Sensor(name, SensorSpec(**spec), physics_dt=DT, control_substeps=N_SUB)
+    one.reset(np.random.default_rng(9), truth(0))
+    many.reset(np.random.default_rng(9), truth(0))
+    due = [s for s in range(1, 1500) if s % one.period_steps == 0]  # several draw blocks
+    got_one, got_many, k = [], [], 0
+    rng = np.random.default_rng(0)
+    while k < len(due):
+        batch = due[k : k + int(rng.integers(1, 6))]
+        for s in batch:
+            one.sample(s, truth(s))
+        many.sample_many(batch, np.array([truth(s) for s in batch]))
+        k += len(batch)
+        got_one += one.release(batch[-1])
+        got_many += many.release(batch[-1])
+    assert len(got_one) > 100
+    assert _same(got_one, got_many)
+
+
+def test_noise_does_not_depend_on_the_walk_or_dropout_settings():
+    plain = _run(_sensor("dvl", rng_seed=2, period=0.01, sigma=0.1), np.zeros(3), 300)
+    other = _run(_sensor("dvl", rng_seed=2, period=0.01, sigma=0.1, dropout_prob=0.2, dropout_len=2), np.zeros(3), 300)
+    by_step = {round(t / DT): v for _, t, v in plain}
+    assert 100 < len(other) < 300
+    for _, t, v in other:
+        np.testing.assert_array_equal(v, by_step[round(t / DT)])
+
+
+def test_sample_many_checks_its_input():
+    sensor = _sensor("dvl", period=0.02)
+    with pytest.raises(ValueError, match="substep 3 is not a sample"):
+        sensor.sample_many([2, 3], np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="dvl value must have shape"):
+        sensor.sample_many([2, 4], np.zeros((3, 3)))
