@@ -79,6 +79,35 @@ def vehicle_row(origin: tuple, quat: tuple, nu: tuple) -> list[float]:
     return [origin[0], -origin[1], -origin[2], phi, theta, psi, *nu]
 
 
+PROBE_VALUES = 13
+"""Values of one probe: the z-up world origin (3), the quaternion ``xyzw`` (4) and ``nu`` (6)."""
+
+
+@jit
+def _vehicle_table(probes, eta, nu, out):  # pragma: no cover - compiled
+    """Rows ``[eta; nu]`` of :func:`vehicle_row` for each probe (``probes``: ``(k, PROBE_VALUES)``), then ``eta, nu``.
+
+    The same float expressions as :func:`vehicle_row`, in the same order.
+    """
+    k = probes.shape[0]
+    for j in range(k):
+        x, y, z, w = probes[j, 3], probes[j, 4], probes[j, 5], probes[j, 6]
+        r00 = 1.0 - 2.0 * (y * y + z * z)
+        r10 = 2.0 * (x * y + z * w)
+        r20 = 2.0 * (x * z - y * w)
+        r21 = 2.0 * (y * z + x * w)
+        r22 = 1.0 - 2.0 * (x * x + y * y)
+        out[j, 0], out[j, 1], out[j, 2] = probes[j, 0], -probes[j, 1], -probes[j, 2]
+        out[j, 3] = math.atan2(-r21, -r22)
+        out[j, 4] = -math.asin(min(max(-r20, -1.0), 1.0))
+        out[j, 5] = math.atan2(-r10, r00)
+        for c in range(6):
+            out[j, 6 + c] = probes[j, 7 + c]
+    for c in range(6):
+        out[k, c] = eta[c]
+        out[k, 6 + c] = nu[c]
+
+
 def vehicle_truth(origin: tuple, quat: tuple, nu: tuple) -> tuple[np.ndarray, np.ndarray]:
     """NED pose ``eta`` and body velocity ``nu`` from the simulator probe's z-up world origin and quaternion."""
     row = np.array(vehicle_row(origin, quat, nu), dtype=float)
@@ -163,8 +192,8 @@ class RealismLayer:
         self._encoder_prev: tuple[float, np.ndarray] | None = None
         self._qdot = np.zeros(12)
         self._probe_i = 0
-        self._probed: list[tuple[int, tuple, tuple, tuple]] = []
-        """The step's probes after its first substep: ``(s, origin, quat, nu)``."""
+        self._probed: list[tuple[float, ...]] = []
+        """The step's probes after its first substep, in order: ``origin + quat + nu`` (:data:`PROBE_VALUES`)."""
         self._obstacles_now: Callable[[float], np.ndarray] | None = None
         sensors = self.bank.sensors
         self._vehicle_sensors: list[tuple[Sensor, slice | list[int]]] = [
@@ -172,6 +201,8 @@ class RealismLayer:
         ]
         limit = cfg.joint_speed_limit
         self._limit = np.zeros(0) if limit is None else np.atleast_1d(np.asarray(limit, dtype=float))
+        if self.sensing:  # compile (or load from numba's cache) now, not in a step
+            _vehicle_table(np.zeros((0, PROBE_VALUES)), np.zeros(6), np.zeros(6), np.empty((1, 12)))
 
     @property
     def action_dim(self) -> int:
@@ -291,7 +322,7 @@ class RealismLayer:
         self.s += self._sub
         info = {"tau_cmd": self._tau_sum / n, "thrust_saturated": self._thrust_saturated}
         if self.thrusters is not None:
-            info["thrust"] = self.thrusters.thrust.copy()
+            info["thrust"] = self.thrusters.thrust  # (a copy)
         return info
 
     # ------------------------------------------------------------------ sensors
@@ -300,7 +331,7 @@ class RealismLayer:
         i = self._probe_i
         self._probe_i = i + 1
         if i:  # the step's first substep starts at the state measure() sampled
-            self._probed.append((self.s + i, origin, quat, nu))
+            self._probed.append(origin + quat + nu)
 
     def measure(
         self, t: float, eta: np.ndarray, nu: np.ndarray, q: np.ndarray, obstacles: np.ndarray | None
@@ -313,16 +344,14 @@ class RealismLayer:
         probed = self._probed
         self._probed = []
         end = self.s
-        steps = [p[0] for p in probed]
-        steps.append(end)
-        rows = [vehicle_row(o, quat, v) for _, o, quat, v in probed]
-        rows.append([*eta.tolist(), *nu.tolist()])
-        table = np.array(rows)  # (k + 1, 12): [eta; nu] at each substep of the step after its first, and its end
-        first = steps[0]
+        first = end - len(probed)  # the probes are the substeps after the step's first, then comes its end
+        steps = list(range(first, end + 1))
+        table = np.empty((len(steps), 12))  # [eta; nu] at each of them (vehicle_row's conversion, compiled)
+        _vehicle_table(np.array(probed).reshape(-1, PROBE_VALUES), eta, nu, table)
         for sensor, cols in self._vehicle_sensors:
             period = sensor.period_steps
             if period == 1:
-                sensor.sample_many(steps, np.ascontiguousarray(table[:, cols]), check=False)
+                sensor.sample_many(steps, table[:, cols], check=False)
             elif -(-first // period) * period <= end:  # some substep of the step is due
                 due = [j for j, s in enumerate(steps) if s % period == 0]
                 sensor.sample_many([steps[j] for j in due], table[due][:, cols], check=False)
@@ -406,6 +435,8 @@ class MeasuredKinematics:
         self._frames = np.zeros((len(names), PLACEMENT_ROWS, 3))
         self._seg = np.zeros((2, n_links, 2, 3))
         self._plates = distance_kernels.plate_table(kin.params.plates)
+        self._scratch = (np.empty((N_ROWS, 3)), np.empty((N_ROWS, 3)), np.empty(N_ROWS, dtype=np.int64))
+        """The distance kernel's closest points and obstacle indices (not handed out: reused)."""
         _placements(
             np.zeros(6),
             np.zeros(N_JOINTS),
@@ -436,7 +467,7 @@ class MeasuredKinematics:
         if e.shape != (6,) or qq.shape != (N_JOINTS,):
             e, qq = finite_vector(eta, 6, "eta"), finite_vector(q, N_JOINTS, "q")  # raises the detailed error
         seg = np.empty(self._seg.shape)  # a new array per state: link_segments() hands it out
-        frames = np.empty(self._frames.shape)
+        frames = self._frames  # never handed out (frame_placement copies): reused
         ok = _placements(
             e,
             qq,
@@ -453,7 +484,7 @@ class MeasuredKinematics:
             finite_vector(eta, 6, "eta")
             finite_vector(q, N_JOINTS, "q")
         seg.flags.writeable = False
-        self._seg, self._frames = seg, frames
+        self._seg = seg
 
     def frame_placement(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Position (3) and rotation (3x3, frame -> NED) of a tabulated frame: the vehicle, tool tips, grasps, links."""
@@ -467,9 +498,8 @@ class MeasuredKinematics:
     def clearances(self) -> np.ndarray:
         """The 18 distances of :func:`~uvdms_gym.distances.compute_distances` (``"exact"``: the same kernel), new."""
         vehicle = self._frames[self._row["vehicle"]]
-        d, p, e = np.empty(N_ROWS), np.empty((N_ROWS, 3)), np.empty((N_ROWS, 3))
-        idx = np.empty(N_ROWS, dtype=np.int64)
-        distance_kernels.exact_rows(self._seg, vehicle[:3], vehicle[3], self._plates, d, p, e, idx)
+        d = np.empty(N_ROWS)
+        distance_kernels.exact_rows(self._seg, vehicle[:3], vehicle[3], self._plates, d, *self._scratch)
         return d
 
     def ee_positions(self) -> np.ndarray:

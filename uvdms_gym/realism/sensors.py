@@ -141,7 +141,7 @@ class Sensor:
             steps: the due substeps.
             truths: the true values at them, ``(len(steps), *shape)`` (``shape``: the value's at reset).
             check: check the substeps and the shape (``False``: the caller guarantees them, and ``truths`` is a
-                C-contiguous float array; the environment's per-step path).
+                float array of that shape, any strides; the environment's per-step path).
         """
         if check:
             if self._rng is None:
@@ -156,8 +156,17 @@ class Sensor:
         k = len(steps)
         if k == 0:
             return
-        i = self._reserve(k)
-        values = self._measure(truths, self._normals, i, self._walk_scale)
+        i = self._row  # (_reserve and _measure inlined for the per-step path)
+        if i + k > self._uniforms.shape[0]:
+            i = self._reserve(k)
+        else:
+            self._row = i + k
+        if truths.ndim == 2:
+            values = np.empty(truths.shape)
+            lo, hi = self._angle_lo, self._angle_hi
+            _measure_rows(truths, self._normals, i, self._sigma_flat, self._bias, self._walk_scale, lo, hi, values)
+        else:
+            values = self._measure(truths, self._normals, i, self._walk_scale)
         latency, dt = self.latency_steps, self.physics_dt
         if self._drop_p > 0.0:
             self._queue.extend((steps[j] + latency, steps[j] * dt, values[j]) for j in self._delivered(i, k))
@@ -192,7 +201,7 @@ class Sensor:
         return i
 
     def _measure(self, x: np.ndarray, draws: np.ndarray, first: int, walk_scale: float) -> np.ndarray:
-        """The measured values ``(k, *shape)`` of the true values ``x`` (C-contiguous; draws from row ``first``)."""
+        """The measured values ``(k, *shape)`` of the true values ``x`` (draws from row ``first``), a new array."""
         out = np.empty(x.shape)
         k = x.shape[0]
         flat_x, flat_out = (x, out) if x.ndim == 2 else (x.reshape(k, -1), out.reshape(k, -1))  # sonar: (k, K, 6)
@@ -202,8 +211,10 @@ class Sensor:
 
     def release(self, s_now: int) -> list[Sample]:
         """The queued samples with ``s + latency_steps <= s_now``, oldest first; they leave the queue."""
-        out: list[Sample] = []
         queue = self._queue
+        if not queue or queue[0][0] > s_now:
+            return []
+        out: list[Sample] = []
         while queue and queue[0][0] <= s_now:
             _, t, value = queue.popleft()
             out.append((t, value))
@@ -235,8 +246,9 @@ def _measure_rows(x, draws, first, sigma, bias, walk_scale, angle_lo, angle_hi, 
 
 def _warm_up() -> None:
     """Compile (or load from numba's cache) the kernel when a sensor is built, not in an environment's step."""
-    one = np.zeros((1, 1))
-    _measure_rows(one, np.zeros((1, 2, 1)), 0, np.zeros(1), np.zeros(1), 0.0, 0, 1, one.copy())
+    one, draws, zero = np.zeros((1, 1)), np.zeros((1, 2, 1)), np.zeros(1)
+    _measure_rows(one, draws, 0, zero, zero.copy(), 0.0, 0, 1, one.copy())
+    _measure_rows(np.zeros((1, 2))[:, 1:], draws, 0, zero, zero.copy(), 0.0, 0, 1, one.copy())  # a column view
 
 
 class SensorBank:

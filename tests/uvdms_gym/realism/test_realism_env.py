@@ -13,7 +13,7 @@ from gymnasium.utils.env_checker import check_env
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 from uvdms_gym.distances import compute_distances
-from uvdms_gym.envs.realism_layer import MeasuredKinematics, assemble_observation
+from uvdms_gym.envs.realism_layer import MeasuredKinematics, _vehicle_table, assemble_observation, vehicle_row
 from uvdms_gym.evaluation import run_episode
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.realism.config import LEVELS, to_substeps
@@ -306,3 +306,15 @@ def test_observe_estimate_equals_its_pinocchio_path(env_id, monkeypatch):
     if env_id == CIRCLE:  # the tracked output is kinematic: the truth's observation itself
         np.testing.assert_allclose(fast, u._observe()[0], rtol=0, atol=1e-6)
     env.close()
+
+
+def test_compiled_probe_rows_equal_vehicle_row():
+    rng = np.random.default_rng(6)
+    quats = rng.normal(size=(200, 4))
+    quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    probes = [tuple(rng.normal(size=3)) + tuple(qt) + tuple(rng.normal(size=6)) for qt in quats.tolist()]
+    eta, nu = rng.normal(size=6), rng.normal(size=6)
+    table = np.empty((len(probes) + 1, 12))
+    _vehicle_table(np.array(probes), eta, nu, table)
+    expected = [vehicle_row(p[:3], p[3:7], p[7:]) for p in probes] + [[*eta, *nu]]
+    np.testing.assert_array_equal(table, expected)
