@@ -20,12 +20,12 @@ latencies become substeps with :func:`~uvdms_gym.realism.config.to_substeps` (a 
 ``period=None`` (the encoders) is one sample per control step.
 
 Randomness: every sensor draws from its own generator (:func:`~uvdms_gym.realism.config.noise_streams`): at reset
-the turn-on bias, then the noise of the sample at ``s = 0``; after that in blocks of :data:`DRAW_BLOCK` due samples,
-each block its standard normals ``(DRAW_BLOCK, 2, *shape)`` (per sample a bias increment and a noise per component)
-then its ``DRAW_BLOCK`` uniforms (the dropout draws). The ``j``-th due sample takes row ``j`` of these blocks whether
-or not it is dropped, and whether or not the sensor has a bias walk or dropouts, so the same seed gives the same
-noise, one sensor's settings never shift another's samples (nor its own walk or dropout settings its noise), and
-samples taken one at a time (:meth:`Sensor.sample`) equal samples taken in batches (:meth:`Sensor.sample_many`).
+the turn-on bias, then the noise of the sample at ``s = 0``; then, per due sample whether or not it is dropped, the
+bias increments (with a bias walk), the noise, and the dropout draw (with dropouts), in this order. The same seed
+gives the same noise, and one sensor's settings never shift another's samples. A sensor without dropouts draws the
+normals of :data:`DRAW_BLOCK` due samples at once (numpy's generator fills an array in order, so these are the
+numbers of one draw per sample); one with dropouts draws each batch's samples in turn when it takes them. Samples
+taken one at a time (:meth:`Sensor.sample`) equal samples taken in batches (:meth:`Sensor.sample_many`).
 """
 
 from __future__ import annotations
@@ -92,7 +92,9 @@ class Sensor:
         self._queue: deque[tuple[int, float, np.ndarray]] = deque()
         self._rng: np.random.Generator | None = None
         self._shape: tuple[int, ...] = (self.dim,)
-        self._normals = np.zeros((0, 2, self.dim))
+        self._draw_rows = 2 if self._walk_scale > 0.0 else 1
+        """Standard normal rows a sample draws: the bias increments (with a walk), then the noise."""
+        self._normals = np.zeros((0, self._draw_rows, self.dim))
         self._uniforms = np.zeros(0)
         self._row = 0
         self._bias = np.zeros(self.dim)
@@ -113,12 +115,12 @@ class Sensor:
             raise ValueError(f"initial {self.name} value must have shape ({self.dim},), got {x.shape}")
         self._rng, self._shape = rng, x.shape
         self._sigma_flat = np.tile(self._sigma, x.size // self.dim)  # per component of the flattened value
-        self._normals, self._uniforms, self._row = np.zeros((0, 2, x.size)), np.zeros(0), 0
+        self._normals, self._uniforms, self._row = np.zeros((0, self._draw_rows, x.size)), np.zeros(0), 0
         self._bias = (self.spec.bias_sigma * rng.standard_normal(x.shape)).reshape(-1)
         self._queue.clear()
         self._dropping = 0
-        draws = np.zeros((1, 2, x.size))
-        draws[0, 1] = rng.standard_normal(x.shape).reshape(-1)
+        draws = np.zeros((1, self._draw_rows, x.size))
+        draws[0, -1] = rng.standard_normal(x.shape).reshape(-1)
         self.latest = (0.0, self._measure(x[np.newaxis], draws, 0, 0.0)[0])
 
     def due(self, s: int) -> bool:
@@ -157,7 +159,7 @@ class Sensor:
         if k == 0:
             return
         i = self._row  # (_reserve and _measure inlined for the per-step path)
-        if i + k > self._uniforms.shape[0]:
+        if i + k > self._normals.shape[0]:
             i = self._reserve(k)
         else:
             self._row = i + k
@@ -187,16 +189,28 @@ class Sensor:
         return kept
 
     def _reserve(self, k: int) -> int:
-        """The first of the rows of the next ``k`` due samples' draws (``_normals``, ``_uniforms``), drawn if needed."""
-        i, normals, uniforms = self._row, self._normals, self._uniforms
-        if i + k > uniforms.shape[0]:
+        """The first of the rows of the next ``k`` due samples' draws (``_normals``, ``_uniforms``), drawn if needed.
+
+        Module docstring (Randomness): blocks of :data:`DRAW_BLOCK` samples' normals without dropouts, else exactly
+        the ``k`` samples, each its normals then its dropout draw.
+        """
+        i, normals = self._row, self._normals
+        if i + k > normals.shape[0]:
             rng = self._rng
             assert rng is not None
-            parts_n, parts_u = [normals[i:]], [uniforms[i:]]
-            for _ in range(-(-(i + k - uniforms.shape[0]) // DRAW_BLOCK)):
-                parts_n.append(rng.standard_normal((DRAW_BLOCK, 2, *self._shape)).reshape(DRAW_BLOCK, 2, -1))
-                parts_u.append(rng.random(DRAW_BLOCK))
-            self._normals, self._uniforms, i = np.concatenate(parts_n), np.concatenate(parts_u), 0
+            rows, shape = self._draw_rows, (self._draw_rows, *self._shape)
+            if self._drop_p > 0.0:  # (a batch is taken whole: nothing is left of the previous one)
+                normals, uniforms = np.empty((k, rows, normals.shape[2])), np.empty(k)
+                for j in range(k):
+                    normals[j] = rng.standard_normal(shape).reshape(rows, -1)
+                    uniforms[j] = rng.random()
+                self._uniforms = uniforms
+            else:
+                parts = [normals[i:]]
+                for _ in range(-(-(i + k - normals.shape[0]) // DRAW_BLOCK)):
+                    parts.append(rng.standard_normal((DRAW_BLOCK, *shape)).reshape(DRAW_BLOCK, rows, -1))
+                normals = np.concatenate(parts)
+            self._normals, i = normals, 0
         self._row = i + k
         return i
 
@@ -227,17 +241,18 @@ class Sensor:
 def _measure_rows(x, draws, first, sigma, bias, walk_scale, angle_lo, angle_hi, out):  # pragma: no cover - compiled
     """Rows ``out[j] = sigma * n_j + x[j] + b_j`` of consecutive samples, in place on the bias ``b``.
 
-    ``draws[first + j]``: the bias increments and the noises ``n_j`` of sample ``j`` (standard normals); with a walk the
-    bias first gains ``walk_scale`` times the increments (``b_j = b_(j-1) + walk_scale w_j``). Components
-    ``angle_lo:angle_hi`` outside ``(-pi, pi]`` are wrapped (in-range values keep their bits). The operation
-    order of the numpy expressions ``m = sigma * n; m += x; m += b``.
+    ``draws[first + j]``: sample ``j``'s standard normals, the bias increments (row 0, with a walk) and the noises
+    ``n_j`` (the last row); with a walk the bias first gains ``walk_scale`` times the increments (``b_j = b_(j-1) +
+    walk_scale w_j``). Components ``angle_lo:angle_hi`` outside ``(-pi, pi]`` are wrapped (in-range values keep their
+    bits). The operation order of the numpy expressions ``m = sigma * n; m += x; m += b``.
     """
+    noise = draws.shape[1] - 1
     for j in range(x.shape[0]):
         r = first + j
         for c in range(x.shape[1]):
             if walk_scale > 0.0:
                 bias[c] = bias[c] + walk_scale * draws[r, 0, c]
-            v = sigma[c] * draws[r, 1, c] + x[j, c]
+            v = sigma[c] * draws[r, noise, c] + x[j, c]
             v = v + bias[c]
             if angle_lo <= c < angle_hi and not -math.pi < v <= math.pi:
                 v = math.pi - (math.pi - v) % TWO_PI
