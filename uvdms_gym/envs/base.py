@@ -251,6 +251,8 @@ class UVDMSEnv(gym.Env, EzPickle):
 
     def _make_layer(self) -> RealismLayer | None:
         """The action path and sensors at ``realism > 0`` or in thrusters mode (``None``: the oracle's direct path)."""
+        self._estimate_refs: tuple[float, Any, np.ndarray] | None = None
+        """:meth:`observe_estimate`'s preview reference: ``(t, task, refs)``."""
         if self.realism is None and self.action_mode != "thrusters":
             return None
         from uvdms_gym.envs.realism_layer import RealismLayer
@@ -266,9 +268,10 @@ class UVDMSEnv(gym.Env, EzPickle):
             sensing=self.realism is not None,
         )
         loop, zeta_max, tau_max, dt = self._loop, self.zeta_max, self.tau_max, self.physics_dt
+        velocity = self.action_mode == "velocity"
 
         def torque(action: np.ndarray, zeta: np.ndarray, begin: bool) -> np.ndarray:
-            if self.action_mode == "velocity":
+            if velocity:
                 if begin:
                     loop.begin(action * zeta_max)  # the kinematic model holds the step's starting state
                 return loop.torque(zeta, dt)
@@ -582,15 +585,29 @@ class UVDMSEnv(gym.Env, EzPickle):
         """
         if self.task is None:
             raise RuntimeError("call reset() before observe_estimate()")
-        kin = self._measured_kin or KinematicModel(self.params)
-        self._measured_kin = kin
+        from uvdms_gym.envs.realism_layer import MeasuredKinematics, assemble_observation
+
+        kin = self._measured_kin
+        if kin is None or type(kin) is KinematicModel:  # once: the compiled placements, where the model allows
+            model = kin or KinematicModel(self.params)
+            kin = MeasuredKinematics(model) if MeasuredKinematics.supports(model) else model
+            self._measured_kin = kin
         eta, nu, q, qdot = (np.array(v, dtype=float) for v in (eta, nu, q, qdot))
-        kin.set_state(eta, q, np.concatenate([nu, qdot]))
-        d = compute_distances(kin, "exact").d.copy()
+        kin.set_state(eta, q)
+        fast = type(kin) is MeasuredKinematics
+        d = kin.clearances() if fast else compute_distances(kin, "exact").d  # a new array
         y, rot = self._output_at(kin)
-        refs = self.task.reference(self.t + self._preview_times)
+        cached = self._estimate_refs  # the preview reference at this time, if the step's truth computed it
+        if cached is not None and cached[0] == self.t and cached[1] is self.task:
+            refs = cached[2]
+        else:
+            refs = self.task.reference(self.t + self._preview_times)
+            self._estimate_refs = (self.t, self.task, refs)
         blocks, _, _ = self._errors_at(y, rot, refs, kin.frame_placement("vehicle")[1])
-        obs = self._assemble(blocks, eta, nu, q, qdot, d)
+        if fast and type(self)._assemble is UVDMSEnv._assemble:  # the same values in one compiled call
+            obs = assemble_observation(blocks, eta, nu, q, qdot, d, self._nu_scale, self._qdot_scale)
+        else:
+            obs = self._assemble(blocks, eta, nu, q, qdot, d)
         keys = {"eta": eta, "nu": nu, "q": q, "qdot": qdot, "y": y, "distances": d, "min_distance": min(d.tolist())}
         return obs, keys
 
@@ -635,6 +652,14 @@ class UVDMSEnv(gym.Env, EzPickle):
         layer = self._layer
         assert layer is not None
         self._truth = {k: info[k] for k in TRUTH_KEYS if k in info}
+        ref0 = info.get("y_ref")  # row 0 of the truth's preview reference at this time: reuse the whole of it
+        refs = ref0.base if isinstance(ref0, np.ndarray) else None
+        if (
+            isinstance(refs, np.ndarray)
+            and refs.shape == (self._preview_times.size, ref0.size)
+            and refs.__array_interface__["data"][0] == ref0.__array_interface__["data"][0]
+        ):
+            self._estimate_refs = (self.t, self.task, refs)
         eta, nu, q, qdot = layer.measured_state()
         rows = info.get("obstacles")
         obs_m, keys = self.observe_estimate(eta, nu, q, qdot, None if rows is None else layer.measured_obstacles(rows))

@@ -11,8 +11,10 @@
   (:class:`~uvdms_gym.realism.actuation.Thrusters`) make the wrench that acts, and each arm drive cuts its torque
   beyond its rated speed (:func:`~uvdms_gym.realism.actuation.limit_joint_speed`).
 * **Sensors.** The simulator's probe (:meth:`~uvdms_gym.physics.sim.UVDMSSim.set_probe`) hands the vehicle's state
-  at every substep to the sensors due then; the state at the end of a control step is sampled from the
-  environment's own read. :meth:`RealismLayer.measure` releases what arrived by the end of the step and forms the
+  at every substep; the layer keeps it, and at the end of the control step (:meth:`RealismLayer.measure`) each
+  sensor samples the step's due substeps in one batch, the end of the step from the environment's own read
+  (the same samples as one at a time: samples are only released at control-step ends).
+  :meth:`RealismLayer.measure` releases what arrived by the end of the step and forms the
   *raw measured state*: position from the fix (``x``, ``y``) and the depth sensor (``z``), attitude from the AHRS,
   body velocity from the DVL and the gyro, joint angles from the encoders and joint rates as the difference of the
   last two encoder samples, obstacle centres and velocities from the sonar track; each the newest sample, held
@@ -30,18 +32,37 @@ from typing import Any
 
 import numpy as np
 
-from uvdms_gym.realism.actuation import DEFAULT_LAYOUT, Thrusters, limit_joint_speed
+from uvdms_gym.distances import kernels as distance_kernels
+from uvdms_gym.distances.exact import N_ROWS
+from uvdms_gym.envs.base import CLEARANCE_CLIP, OBS_CLIP
+from uvdms_gym.physics.kinematics import KinematicModel
+from uvdms_gym.physics.params import ARM_SIDES, D1, D2, N_JOINTS
+from uvdms_gym.realism.actuation import DEFAULT_LAYOUT, Thrusters, actuate, limit_joint_speed
 from uvdms_gym.realism.config import SENSOR_NAMES, RealismConfig, to_substeps
-from uvdms_gym.realism.sensors import SensorBank
+from uvdms_gym.realism.sensors import Sensor, SensorBank
+from uvdms_gym.utils.jit import jit
+from uvdms_gym.utils.validation import finite_vector
 
 N_THRUSTER_ACTIONS = 8
 """Thruster commands at the front of a ``action_mode="thrusters"`` action (``uvdms_gym.envs.base.N_THRUSTERS``)."""
 
 Measurements = dict[str, list[tuple[float, np.ndarray]]]
 
+VEHICLE_COLUMNS: dict[str, slice | list[int]] = {
+    "ahrs": slice(3, 6),
+    "gyro": slice(9, 12),
+    "dvl": slice(6, 9),
+    "depth": slice(2, 3),
+    "fix": [0, 1, 2, 5],
+}
+"""What each vehicle sensor measures of a row ``[eta (6); nu (6)]`` (:func:`sensor_values`' selections)."""
+NO_OBSTACLES = np.zeros((0, 11))
+"""The obstacle rows of a task without outer obstacles (read only)."""
+NO_OBSTACLES.flags.writeable = False
 
-def vehicle_truth(origin: tuple, quat: tuple, nu: tuple) -> tuple[np.ndarray, np.ndarray]:
-    """NED pose ``eta`` and body velocity ``nu`` from the simulator probe's z-up world origin and quaternion.
+
+def vehicle_row(origin: tuple, quat: tuple, nu: tuple) -> list[float]:
+    """``[eta; nu]`` (12 floats): NED pose and body velocity from the probe's z-up world origin and quaternion.
 
     The conversion of :func:`uvdms_gym.physics.state.state_from_raw` for a body-origin read (no centre-of-gravity
     offset), in plain floats.
@@ -55,8 +76,42 @@ def vehicle_truth(origin: tuple, quat: tuple, nu: tuple) -> tuple[np.ndarray, np
     phi = math.atan2(-r21, -r22)
     psi = math.atan2(-r10, r00)
     theta = -math.asin(min(max(-r20, -1.0), 1.0))
-    eta = np.array([origin[0], -origin[1], -origin[2], phi, theta, psi])
-    return eta, np.array(nu, dtype=float)
+    return [origin[0], -origin[1], -origin[2], phi, theta, psi, *nu]
+
+
+PROBE_VALUES = 13
+"""Values of one probe: the z-up world origin (3), the quaternion ``xyzw`` (4) and ``nu`` (6)."""
+
+
+@jit
+def _vehicle_table(probes, eta, nu, out):  # pragma: no cover - compiled
+    """Rows ``[eta; nu]`` of :func:`vehicle_row` for each probe (``probes``: ``(k, PROBE_VALUES)``), then ``eta, nu``.
+
+    The same float expressions as :func:`vehicle_row`, in the same order.
+    """
+    k = probes.shape[0]
+    for j in range(k):
+        x, y, z, w = probes[j, 3], probes[j, 4], probes[j, 5], probes[j, 6]
+        r00 = 1.0 - 2.0 * (y * y + z * z)
+        r10 = 2.0 * (x * y + z * w)
+        r20 = 2.0 * (x * z - y * w)
+        r21 = 2.0 * (y * z + x * w)
+        r22 = 1.0 - 2.0 * (x * x + y * y)
+        out[j, 0], out[j, 1], out[j, 2] = probes[j, 0], -probes[j, 1], -probes[j, 2]
+        out[j, 3] = math.atan2(-r21, -r22)
+        out[j, 4] = -math.asin(min(max(-r20, -1.0), 1.0))
+        out[j, 5] = math.atan2(-r10, r00)
+        for c in range(6):
+            out[j, 6 + c] = probes[j, 7 + c]
+    for c in range(6):
+        out[k, c] = eta[c]
+        out[k, 6 + c] = nu[c]
+
+
+def vehicle_truth(origin: tuple, quat: tuple, nu: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """NED pose ``eta`` and body velocity ``nu`` from the simulator probe's z-up world origin and quaternion."""
+    row = np.array(vehicle_row(origin, quat, nu), dtype=float)
+    return row[:6], row[6:]
 
 
 def sensor_values(names: tuple[str, ...], eta: np.ndarray, nu: np.ndarray, **extra: Any) -> dict[str, np.ndarray]:
@@ -137,7 +192,17 @@ class RealismLayer:
         self._encoder_prev: tuple[float, np.ndarray] | None = None
         self._qdot = np.zeros(12)
         self._probe_i = 0
+        self._probed: list[tuple[float, ...]] = []
+        """The step's probes after its first substep, in order: ``origin + quat + nu`` (:data:`PROBE_VALUES`)."""
         self._obstacles_now: Callable[[float], np.ndarray] | None = None
+        sensors = self.bank.sensors
+        self._vehicle_sensors: list[tuple[Sensor, slice | list[int]]] = [
+            (sensors[n], cols) for n, cols in VEHICLE_COLUMNS.items() if n in sensors
+        ]
+        limit = cfg.joint_speed_limit
+        self._limit = np.zeros(0) if limit is None else np.atleast_1d(np.asarray(limit, dtype=float))
+        if self.sensing:  # compile (or load from numba's cache) now, not in a step
+            _vehicle_table(np.zeros((0, PROBE_VALUES)), np.zeros(6), np.zeros(6), np.empty((1, 12)))
 
     @property
     def action_dim(self) -> int:
@@ -161,13 +226,14 @@ class RealismLayer:
         """
         self.s = 0
         self._pending = []
+        self._probed = []
         self._held = np.zeros(self.action_dim)
         if self.thrusters is not None:
             self.thrusters.reset()
         self._obstacles_now = obstacles_at
         if not self.sensing:
             return {}
-        extra = {"q": q, "obstacles": obstacles_at(0.0) if obstacles_at is not None else np.zeros((0, 11))}
+        extra = {"q": q, "obstacles": obstacles_at(0.0) if obstacles_at is not None else NO_OBSTACLES}
         initial = sensor_values(self.names, eta, nu, **extra)
         self.bank.reset(seed, episode, initial)
         self._encoder_prev = None
@@ -179,6 +245,7 @@ class RealismLayer:
         self._pending.append((self.s + self.delay_steps, np.asarray(action, dtype=float)))
         self._sub = 0
         self._probe_i = 0
+        self._probed = []
         self._tau_sum[:] = 0.0
         self._thrust_saturated = False
 
@@ -198,14 +265,25 @@ class RealismLayer:
             torque: ``(action, zeta, changed) -> tau`` (18): the environment's velocity loop or torque scaling of
                 the action in effect (not called in thrusters mode).
         """
+        thr, limit, tau_sum = self.thrusters, self._limit, self._tau_sum
 
         def law(zeta: np.ndarray) -> np.ndarray:
             s = self.s + self._sub
             self._sub += 1
-            action, changed = self.action_at(s)
+            pending = self._pending
+            if pending and pending[0][0] <= s:
+                action, changed = self.action_at(s)
+            else:  # (action_at without a call: the action in effect holds)
+                action, changed = self._held, False
             if self.action_mode == "thrusters":
                 return self._thrusters_law(action, zeta)
-            return self._actuate(torque(action, zeta, changed), zeta)
+            tau = torque(action, zeta, changed)
+            if thr is None:
+                return self._actuate(tau, zeta)
+            out = np.empty(18)  # (_actuate inlined: one compiled call, per substep)
+            if actuate(thr, tau, zeta[6:], limit, tau_sum, out) < 1.0:
+                self._thrust_saturated = True
+            return out
 
         return law
 
@@ -213,15 +291,12 @@ class RealismLayer:
         """Thrusters (allocation, rotors, dead zone) for the body wrench; the drives' speed limit for the joints."""
         thr = self.thrusters
         out = np.empty(18)
-        if thr is not None:
-            cmd, scale = thr.allocate(tau[:6])
-            if scale < 1.0:
+        if thr is not None:  # one compiled call: allocation, rotors, drive limits and the commanded sum
+            if actuate(thr, tau, zeta[6:], self._limit, self._tau_sum, out) < 1.0:
                 self._thrust_saturated = True
-            self._tau_sum[:6] += scale * tau[:6]  # = B f_cmd: the allocation keeps the direction
-            out[:6] = thr.step(cmd)
-        else:
-            self._tau_sum[:6] += tau[:6]
-            out[:6] = tau[:6]
+            return out
+        self._tau_sum[:6] += tau[:6]
+        out[:6] = tau[:6]
         out[6:] = self._joints(tau[6:], zeta)
         return out
 
@@ -247,44 +322,58 @@ class RealismLayer:
         self.s += self._sub
         info = {"tau_cmd": self._tau_sum / n, "thrust_saturated": self._thrust_saturated}
         if self.thrusters is not None:
-            info["thrust"] = self.thrusters.thrust.copy()
+            info["thrust"] = self.thrusters.thrust  # (a copy)
         return info
 
     # ------------------------------------------------------------------ sensors
     def probe(self, origin: tuple, quat: tuple, nu: tuple) -> None:
-        """The simulator's substep probe: sample the sensors due at this substep (not its first: see measure)."""
-        s = self.s + self._probe_i
-        self._probe_i += 1
-        if self._probe_i == 1:  # the step's first substep starts at the state measure() sampled
-            return
-        due = self.bank.due(s)
-        if not due:
-            return
-        eta, nu_arr = vehicle_truth(origin, quat, nu)
-        extra: dict[str, Any] = {}
-        if "sonar" in due and self._obstacles_now is not None:
-            extra["obstacles"] = self._obstacles_now(s * self.physics_dt)
-        if "encoders" in due:
-            due = tuple(n for n in due if n != "encoders")  # joint angles are read at control-step ends only
-        self.bank.sample(s, sensor_values(due, eta, nu_arr, **extra))
+        """The simulator's substep probe: keep the state for :meth:`measure` (not the first substep's: see there)."""
+        i = self._probe_i
+        self._probe_i = i + 1
+        if i:  # the step's first substep starts at the state measure() sampled
+            self._probed.append(origin + quat + nu)
 
     def measure(
         self, t: float, eta: np.ndarray, nu: np.ndarray, q: np.ndarray, obstacles: np.ndarray | None
     ) -> Measurements:
-        """Sample the sensors due at the end of the step from the true state; release what has arrived by now."""
-        due = self.bank.due(self.s)
-        if due:
-            rows = obstacles if obstacles is not None else np.zeros((0, 11))
-            self.bank.sample(self.s, sensor_values(due, eta, nu, q=q, obstacles=rows))
-        return self.bank.release(self.s)
+        """Sample the step's due substeps (the probes, then the end from the true state); release what has arrived.
+
+        Each sensor takes its samples of the step in one batch (:meth:`~uvdms_gym.realism.sensors.Sensor.sample_many`),
+        the same samples as one at a time. Joint angles are read at control-step ends only.
+        """
+        probed = self._probed
+        self._probed = []
+        end = self.s
+        first = end - len(probed)  # the probes are the substeps after the step's first, then comes its end
+        steps = list(range(first, end + 1))
+        table = np.empty((len(steps), 12))  # [eta; nu] at each of them (vehicle_row's conversion, compiled)
+        _vehicle_table(np.array(probed).reshape(-1, PROBE_VALUES), eta, nu, table)
+        for sensor, cols in self._vehicle_sensors:
+            period = sensor.period_steps
+            if period == 1:
+                sensor.sample_many(steps, table[:, cols], check=False)
+            elif -(-first // period) * period <= end:  # some substep of the step is due
+                due = [j for j, s in enumerate(steps) if s % period == 0]
+                sensor.sample_many([steps[j] for j in due], table[due][:, cols], check=False)
+        sensors = self.bank.sensors
+        encoders = sensors.get("encoders")
+        if encoders is not None and end % encoders.period_steps == 0:
+            encoders.sample_many((end,), np.array(q, dtype=float)[np.newaxis], check=False)
+        sonar = sensors.get("sonar")
+        if sonar is not None and -(-first // sonar.period_steps) * sonar.period_steps <= end:
+            due = [s for s in steps if s % sonar.period_steps == 0]
+            ends = obstacles if obstacles is not None else NO_OBSTACLES
+            source = self._obstacles_now
+            values = [ends if s == end or source is None else source(s * self.physics_dt) for s in due]
+            sonar.sample_many(due, np.array([np.asarray(v, dtype=float)[:, :6] for v in values]), check=False)
+        return self.bank.release(end)
 
     def measured_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The raw measured ``eta, nu, q, qdot`` (module docstring): the newest sample of each sensor."""
-        bank = self.bank
-        fix, depth, ahrs = bank.latest("fix")[1], bank.latest("depth")[1], bank.latest("ahrs")[1]
-        eta = np.array([fix[0], fix[1], depth[0], ahrs[0], ahrs[1], ahrs[2]])
-        nu = np.concatenate([bank.latest("dvl")[1], bank.latest("gyro")[1]])
-        t_q, q = bank.latest("encoders")
+        sensors = self.bank.sensors
+        eta = np.concatenate((sensors["fix"].latest[1][:2], sensors["depth"].latest[1], sensors["ahrs"].latest[1]))
+        nu = np.concatenate((sensors["dvl"].latest[1], sensors["gyro"].latest[1]))
+        t_q, q = sensors["encoders"].latest
         prev = self._encoder_prev
         if prev is None or t_q <= prev[0]:
             qdot = np.zeros_like(q) if prev is None else self._qdot
@@ -301,3 +390,255 @@ class RealismLayer:
         if rows.shape[0]:
             rows[:, :6] = self.bank.latest("sonar")[1]
         return rows
+
+
+FREE_FLYER = "JointModelFreeFlyer"
+"""Pinocchio's name of the root joint :class:`MeasuredKinematics` expects."""
+REVOLUTE_Z = "JointModelRZ"
+"""Pinocchio's name of the joints :class:`MeasuredKinematics` expects after the root (revolute about z)."""
+PLACEMENT_ROWS = 4
+"""Rows of a placement in :class:`MeasuredKinematics`' tables: the rotation (3 rows), then the translation."""
+
+
+class MeasuredKinematics:
+    """The frame placements of a measured (or estimated) state, in one compiled forward-kinematics pass.
+
+    What the observation of a state reads of a :class:`~uvdms_gym.physics.kinematics.KinematicModel` (the vehicle
+    frame, the tool tips, the grasp frames and the links' capsule axes), with the same read API
+    (:meth:`frame_placement`, :meth:`link_segments`, :meth:`ee_positions`, :meth:`object_pose`) and no Jacobians:
+    the environment's :meth:`~uvdms_gym.envs.base.UVDMSEnv.observe_estimate` runs it every step at ``realism > 0``,
+    where Pinocchio's own pass costs little but reading its frames from Python costs several times more. The joint
+    and frame placements come from the model's Pinocchio tree (a free-flyer root, revolute-z joints); the
+    placements equal Pinocchio's to rounding (``tests/uvdms_gym/realism/test_realism_env.py``).
+
+    Args:
+        kin: the kinematic model whose tree is transcribed (:meth:`supports` must hold).
+    """
+
+    def __init__(self, kin: KinematicModel) -> None:
+        if not self.supports(kin):
+            raise ValueError("MeasuredKinematics needs a free-flyer root and revolute-z joints")
+        m = kin.model
+        self.params = kin.params
+        joints = range(m.njoints)
+        self._joints = np.array([[m.parents[j], m.idx_qs[j] - 7] for j in joints], dtype=np.int64)
+        self._joint_table = np.array([_placement_rows(m.jointPlacements[j]) for j in joints])
+        names = ["vehicle", *(f"{s}_ee" for s in ARM_SIDES), *(f"{s}_grasp" for s in ARM_SIDES)]
+        n_links = kin.params.arm.n_links
+        names += [f"{s}_link{i}" for s in ARM_SIDES for i in range(n_links)]
+        fid = {f.name: i for i, f in enumerate(m.frames)}
+        self._row = {name: k for k, name in enumerate(names)}
+        self._frame_joint = np.array([m.frames[fid[n]].parentJoint for n in names], dtype=np.int64)
+        self._frame_table = np.array([_placement_rows(m.frames[fid[n]].placement) for n in names])
+        self._first_link = len(names) - 2 * n_links
+        self._seg_local = np.ascontiguousarray(kin._seg_local_h[:, :, :3])  # (2 n_links, 2, 3), link frames
+        self._frames = np.zeros((len(names), PLACEMENT_ROWS, 3))
+        self._seg = np.zeros((2, n_links, 2, 3))
+        self._plates = distance_kernels.plate_table(kin.params.plates)
+        self._scratch = (np.empty((N_ROWS, 3)), np.empty((N_ROWS, 3)), np.empty(N_ROWS, dtype=np.int64))
+        """The distance kernel's closest points and obstacle indices (not handed out: reused)."""
+        _placements(
+            np.zeros(6),
+            np.zeros(N_JOINTS),
+            self._joints,
+            self._joint_table,
+            self._frame_joint,
+            self._frame_table,
+            self._first_link,
+            self._seg_local,
+            self._frames,
+            self._seg.reshape(-1, 2, 3),
+        )
+
+    @staticmethod
+    def supports(kin: KinematicModel) -> bool:
+        """Whether the model is a free-flyer root with revolute-z joints (what the compiled pass transcribes)."""
+        m = kin.model
+        kinds = [m.joints[j].shortname() for j in range(1, m.njoints)]
+        return kinds[:1] == [FREE_FLYER] and all(k == REVOLUTE_Z for k in kinds[1:])
+
+    def set_state(self, eta: np.ndarray, q: np.ndarray, zeta: np.ndarray | None = None) -> None:
+        """Place every frame at the state ``(eta, q)`` (``zeta`` is accepted and unused: no dynamics here).
+
+        Raises:
+            ValueError: ``eta`` or ``q`` has the wrong shape or non-finite entries (the message names it).
+        """
+        e, qq = np.asarray(eta, dtype=float), np.asarray(q, dtype=float)
+        if e.shape != (6,) or qq.shape != (N_JOINTS,):
+            e, qq = finite_vector(eta, 6, "eta"), finite_vector(q, N_JOINTS, "q")  # raises the detailed error
+        seg = np.empty(self._seg.shape)  # a new array per state: link_segments() hands it out
+        frames = self._frames  # never handed out (frame_placement copies): reused
+        ok = _placements(
+            e,
+            qq,
+            self._joints,
+            self._joint_table,
+            self._frame_joint,
+            self._frame_table,
+            self._first_link,
+            self._seg_local,
+            frames,
+            seg.reshape(-1, 2, 3),
+        )
+        if not ok:
+            finite_vector(eta, 6, "eta")
+            finite_vector(q, N_JOINTS, "q")
+        seg.flags.writeable = False
+        self._seg = seg
+
+    def frame_placement(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Position (3) and rotation (3x3, frame -> NED) of a tabulated frame: the vehicle, tool tips, grasps, links."""
+        f = self._frames[self._row[name]]
+        return f[3].copy(), f[:3].copy()
+
+    def link_segments(self) -> np.ndarray:
+        """Capsule axes of all links in NED, ``(2, n_links, 2, 3)`` (read only), as ``KinematicModel``'s."""
+        return self._seg
+
+    def clearances(self) -> np.ndarray:
+        """The 18 distances of :func:`~uvdms_gym.distances.compute_distances` (``"exact"``: the same kernel), new."""
+        vehicle = self._frames[self._row["vehicle"]]
+        d = np.empty(N_ROWS)
+        distance_kernels.exact_rows(self._seg, vehicle[:3], vehicle[3], self._plates, d, *self._scratch)
+        return d
+
+    def ee_positions(self) -> np.ndarray:
+        """Tool-tip positions (2, 3): row 0 left, row 1 right, NED."""
+        return self._frames[1:3, 3].copy()
+
+    def object_pose(self, side: str = "right") -> tuple[np.ndarray, np.ndarray]:
+        """Pose of the gripped object's frame as carried by one arm: centre in NED and rotation object -> NED."""
+        return self.frame_placement(f"{side}_grasp")
+
+
+def _placement_rows(placement: Any) -> np.ndarray:
+    """A Pinocchio ``SE3`` as ``PLACEMENT_ROWS x 3``: the rotation, then the translation."""
+    return np.vstack([np.asarray(placement.rotation, dtype=float), np.asarray(placement.translation, dtype=float)])
+
+
+@jit
+def _placements(eta, q, joints, jtab, fjoint, ftab, first_link, seg_local, frames, seg):  # pragma: no cover - compiled
+    """Forward kinematics of :class:`MeasuredKinematics`; False (outputs incomplete) for a non-finite state.
+
+    Joint 0 is the universe, joint 1 the free flyer (``R_NB`` from the ZYX Euler angles ``eta[3:6]``, position
+    ``eta[:3]``), every later joint revolute about its z axis at ``q[idx]``: ``oMi = oMi[parent] * placement *
+    Rz(q)`` (``joints[j]``: parent and index in ``q``; ``jtab[j]``: placement). Frames: ``oMf = oMi[fjoint[f]]
+    * ftab[f]``; link ``l``'s capsule end ``a``: ``R_f s_la + p_f``.
+    """
+    if not (np.isfinite(eta).all() and np.isfinite(q).all()):
+        return False
+    nj = joints.shape[0]
+    om = np.zeros((nj, PLACEMENT_ROWS, 3))
+    for r in range(3):
+        om[0, r, r] = 1.0
+    local = np.empty((PLACEMENT_ROWS, 3))
+    _free_flyer(eta, local)
+    tmp = np.empty((PLACEMENT_ROWS, 3))
+    _compose(jtab[1], local, tmp)  # the root's placement: the identity in practice
+    _compose(om[joints[1, 0]], tmp, om[1])
+    for j in range(2, nj):
+        _revolute_z(jtab[j], q[joints[j, 1]], local)
+        _compose(om[joints[j, 0]], local, om[j])
+    for f in range(fjoint.shape[0]):
+        _compose(om[fjoint[f]], ftab[f], frames[f])
+    for lk in range(seg_local.shape[0]):
+        fr = frames[first_link + lk]
+        for a in range(2):
+            for r in range(3):
+                x = fr[r, 0] * seg_local[lk, a, 0] + fr[r, 1] * seg_local[lk, a, 1] + fr[r, 2] * seg_local[lk, a, 2]
+                seg[lk, a, r] = x + fr[3, r]
+    return True
+
+
+@jit
+def _free_flyer(eta, out):  # pragma: no cover - compiled
+    """The free flyer's motion: ``R_NB`` of the ZYX Euler angles ``eta[3:6]`` (``frames.euler_to_rot``), ``eta[:3]``."""
+    cf, sf = math.cos(eta[3]), math.sin(eta[3])
+    ct, st = math.cos(eta[4]), math.sin(eta[4])
+    cp, sp = math.cos(eta[5]), math.sin(eta[5])
+    out[0, 0], out[0, 1], out[0, 2] = cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st
+    out[1, 0], out[1, 1], out[1, 2] = sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf
+    out[2, 0], out[2, 1], out[2, 2] = -st, ct * sf, ct * cf
+    out[3, 0], out[3, 1], out[3, 2] = eta[0], eta[1], eta[2]
+
+
+@jit
+def _revolute_z(placement, angle, out):  # pragma: no cover - compiled
+    """``placement * Rz(angle)``: a revolute-z joint's placement in its parent and its motion."""
+    c, s = math.cos(angle), math.sin(angle)
+    for r in range(3):
+        out[r, 0] = c * placement[r, 0] + s * placement[r, 1]
+        out[r, 1] = -s * placement[r, 0] + c * placement[r, 1]
+        out[r, 2] = placement[r, 2]
+        out[3, r] = placement[3, r]
+
+
+@jit
+def _compose(a, b, out):  # pragma: no cover - compiled
+    """``out = a * b`` of two placements (``PLACEMENT_ROWS x 3``): ``R = R_a R_b``, ``p = R_a p_b + p_a``."""
+    for r in range(3):
+        for c in range(3):
+            out[r, c] = a[r, 0] * b[0, c] + a[r, 1] * b[1, c] + a[r, 2] * b[2, c]
+        out[3, r] = (a[r, 0] * b[3, 0] + a[r, 1] * b[3, 1] + a[r, 2] * b[3, 2]) + a[3, r]
+
+
+def assemble_observation(
+    blocks: np.ndarray,
+    eta: np.ndarray,
+    nu: np.ndarray,
+    q: np.ndarray,
+    qdot: np.ndarray,
+    d: np.ndarray,
+    nu_scale: np.ndarray,
+    qdot_scale: np.ndarray,
+) -> np.ndarray:
+    """:meth:`UVDMSEnv._assemble <uvdms_gym.envs.base.UVDMSEnv._assemble>` in one compiled call (float32).
+
+    The same values in the same operation order (``sin`` and ``cos`` from the C library, as numpy's where it
+    does not vectorize them; ``tests/uvdms_gym/realism/test_realism_env.py`` compares the two).
+    """
+    out = np.empty(blocks.size + 2 + nu.size + 2 * q.size + qdot.size + d.size, dtype=np.float32)
+    _assemble(blocks, eta, nu, q, qdot, d, nu_scale, qdot_scale, D2 - D1, out)
+    return out
+
+
+@jit
+def _assemble(blocks, eta, nu, q, qdot, d, nu_scale, qdot_scale, band, out):  # pragma: no cover - compiled
+    """:func:`assemble_observation` into ``out``: each value, then clipped to ``[-OBS_CLIP, OBS_CLIP]``."""
+    k = 0
+    for i in range(blocks.shape[0]):
+        out[k] = _clip(blocks[i])
+        k += 1
+    for i in range(3, 5):
+        out[k] = _clip(eta[i])
+        k += 1
+    for i in range(nu.shape[0]):
+        out[k] = _clip(nu[i] / nu_scale[i])
+        k += 1
+    for i in range(q.shape[0]):
+        out[k] = _clip(math.sin(q[i]))
+        k += 1
+    for i in range(q.shape[0]):
+        out[k] = _clip(math.cos(q[i]))
+        k += 1
+    for i in range(qdot.shape[0]):
+        out[k] = _clip(qdot[i] / qdot_scale[i])
+        k += 1
+    for i in range(d.shape[0]):
+        v = d[i]
+        if v < 0.0:  # np.maximum then np.minimum: NaN passes through
+            v = 0.0
+        if v > CLEARANCE_CLIP:
+            v = CLEARANCE_CLIP
+        out[k] = _clip((v - D1) / band)
+        k += 1
+
+
+@jit
+def _clip(v):  # pragma: no cover - compiled
+    """``v`` clipped to ``[-OBS_CLIP, OBS_CLIP]`` (NaN passes through, as through ``np.maximum`` and ``np.minimum``)."""
+    if v < -OBS_CLIP:
+        v = -OBS_CLIP
+    if v > OBS_CLIP:
+        v = OBS_CLIP
+    return v

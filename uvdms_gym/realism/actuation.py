@@ -389,12 +389,86 @@ def _step(b, cmd, thrust, fmax, rmax, dead_zone, alpha, wrench):  # pragma: no c
     return True
 
 
+def actuate(
+    thrusters: Thrusters, tau: np.ndarray, qdot: np.ndarray, limit: np.ndarray, tau_sum: np.ndarray, out: np.ndarray
+) -> float:
+    """One physics substep of the whole actuation in one compiled call (the per-substep path of the environment).
+
+    The body wrench ``tau[:6]`` through :meth:`Thrusters.allocate` and :meth:`Thrusters.step`, the joint torques
+    ``tau[6:]`` through :func:`limit_joint_speed` (no limit if ``limit`` is empty): the same arithmetic, bit for bit.
+
+    Args:
+        thrusters: the thrusters (their actual thrusts advance one substep).
+        tau: the generalized force the controller wants (6 + k).
+        qdot: the joint rates (k).
+        limit: the drives' rated speed: one value, one per joint, or none (empty: no limit).
+        tau_sum: the commanded generalized force is added to it (6 + k): ``scale * tau[:6]`` (``B`` times the
+            thrust commands: the allocation keeps the direction) and the limited joint torques.
+        out: receives the generalized force that acts (6 + k): the thrusters' wrench, the limited joint torques.
+
+    Returns:
+        The allocation's scale (``< 1``: the thrusters saturated).
+
+    Raises:
+        ValueError: ``tau`` is not finite, or a limit is not finite and ``> 0``.
+    """
+    scale = _actuate(
+        thrusters.pinv,
+        thrusters.matrix,
+        tau,
+        qdot,
+        thrusters._thrust,
+        thrusters.max_forward,
+        thrusters.max_reverse,
+        thrusters.dead_zone,
+        thrusters.alpha,
+        limit,
+        tau_sum,
+        out,
+    )
+    if scale < 0.0:
+        if scale == _BAD_LIMIT:
+            raise ValueError(f"realism: joint_speed_limit must be finite and > 0, got {limit.tolist()}")
+        raise ValueError(f"realism: wrench must be finite, got {tau[:WRENCH_DIM].tolist()}")
+    return scale
+
+
+_BAD_LIMIT = -2.0
+"""What :func:`_actuate` returns for a joint speed limit that is not finite and ``> 0`` (``-1``: a bad wrench)."""
+
+
+@jit
+def _actuate(pinv, b, tau, qdot, thrust, fmax, rmax, dead_zone, alpha, limit, tau_sum, out):  # pragma: no cover
+    """:func:`actuate`: ``_allocate``, ``_step`` and ``_limit_speed`` on preallocated arrays; the scale.
+
+    Returns ``-1`` (nothing changed) for a non-finite wrench, ``-2`` for a bad limit (thrusts already advanced).
+    """
+    nw = pinv.shape[1]
+    cmd = np.empty(pinv.shape[0])
+    scale = _allocate(pinv, tau[:nw], fmax, rmax, cmd)
+    if scale < 0.0:
+        return scale
+    for j in range(nw):
+        tau_sum[j] += scale * tau[j]  # = B f_cmd: the allocation keeps the direction
+    _step(b, cmd, thrust, fmax, rmax, dead_zone, alpha, out[:nw])
+    nq = tau.shape[0] - nw
+    tq = tau[nw:].copy()
+    if limit.shape[0] > 0 and not _limit_speed(tq, qdot, limit):
+        return _BAD_LIMIT
+    for i in range(nq):
+        tau_sum[nw + i] += tq[i]
+        out[nw + i] = tq[i]
+    return scale
+
+
 def _warm_up() -> None:
     """Compile (or load from numba's cache) the kernels now, when the thrusters are built, not in a step."""
     pinv, b, v, out = np.zeros((1, WRENCH_DIM)), np.zeros((WRENCH_DIM, 1)), np.zeros(WRENCH_DIM), np.zeros(1)
     _allocate(pinv, v, 1.0, 1.0, out)
     _step(b, out, out.copy(), 1.0, 1.0, 0.0, 1.0, v)
     _limit_speed(out.copy(), out, np.ones(1))
+    tau, total = np.zeros(WRENCH_DIM + 1), np.zeros(WRENCH_DIM + 1)
+    _actuate(pinv, b, tau, out, out.copy(), 1.0, 1.0, 0.0, 1.0, np.ones(1), total, total.copy())
 
 
 def limit_joint_speed(tau_q: np.ndarray, qdot: np.ndarray, limit: float | np.ndarray) -> np.ndarray:

@@ -19,25 +19,32 @@ A sample taken at ``s`` is released to the controller at ``s + latency_steps`` (
 latencies become substeps with :func:`~uvdms_gym.realism.config.to_substeps` (a period of at least one substep);
 ``period=None`` (the encoders) is one sample per control step.
 
-Randomness: every sensor draws from its own generator (:func:`~uvdms_gym.realism.config.noise_streams`), in a fixed
-order per due sample whether or not the sample is dropped (bias increments, then noise, then the dropout draw), so
-the same seed gives the same noise and one sensor's settings never shift another's samples.
+Randomness: every sensor draws from its own generator (:func:`~uvdms_gym.realism.config.noise_streams`): at reset
+the turn-on bias, then the noise of the sample at ``s = 0``; then, per due sample whether or not it is dropped, the
+bias increments (with a bias walk), the noise, and the dropout draw (with dropouts), in this order. The same seed
+gives the same noise, and one sensor's settings never shift another's samples. A sensor without dropouts draws the
+normals of :data:`DRAW_BLOCK` due samples at once (numpy's generator fills an array in order, so these are the
+numbers of one draw per sample); one with dropouts draws each batch's samples in turn when it takes them. Samples
+taken one at a time (:meth:`Sensor.sample`) equal samples taken in batches (:meth:`Sensor.sample_many`).
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from uvdms_gym.realism.config import SENSOR_DIMS, SENSOR_NAMES, RealismConfig, SensorSpec, noise_streams, to_substeps
+from uvdms_gym.utils.jit import jit
 
 ANGLE_COMPONENTS: dict[str, tuple[int, ...]] = {"ahrs": (0, 1, 2), "fix": (3,)}
 """Components of each sensor that are angles, wrapped to ``(-pi, pi]`` (other sensors: none)."""
 TWO_PI = 2.0 * math.pi
 """A full turn, rad."""
+DRAW_BLOCK = 256
+"""Due samples whose random draws a sensor takes from its generator at once (module docstring: Randomness)."""
 MAX_DUE_TABLE = 100_000
 """Longest common period (substeps) for which :class:`SensorBank` tabulates the due sensors of every substep."""
 
@@ -77,16 +84,23 @@ class Sensor:
         self.latency_steps = to_substeps(spec.latency, physics_dt)
         self.dim = SENSOR_DIMS[name]
         self._sigma = spec.sigma_vector(self.dim)
-        self._angles = list(ANGLE_COMPONENTS.get(name, ()))
+        angles = ANGLE_COMPONENTS.get(name, ())  # consecutive components
+        self._angle_lo, self._angle_hi = (angles[0], angles[-1] + 1) if angles else (0, 0)
+        self._sigma_flat = self._sigma
         self._walk_scale = spec.bias_walk * math.sqrt(self.period_steps * physics_dt)
         self._drop_p, self._drop_n = float(spec.dropout_prob), int(spec.dropout_len)
         self._queue: deque[tuple[int, float, np.ndarray]] = deque()
         self._rng: np.random.Generator | None = None
         self._shape: tuple[int, ...] = (self.dim,)
-        self._draw_shape: tuple[int, ...] = (1, self.dim)
+        self._draw_rows = 2 if self._walk_scale > 0.0 else 1
+        """Standard normal rows a sample draws: the bias increments (with a walk), then the noise."""
+        self._normals = np.zeros((0, self._draw_rows, self.dim))
+        self._uniforms = np.zeros(0)
+        self._row = 0
         self._bias = np.zeros(self.dim)
         self._dropping = 0
         self.latest: Sample = (0.0, np.zeros(self.dim))
+        _warm_up()
 
     def reset(self, rng: np.random.Generator, initial: np.ndarray) -> None:
         """Start an episode: draw the turn-on bias, take the sample at ``s = 0`` and release it at once.
@@ -100,11 +114,14 @@ class Sensor:
         if not ok:
             raise ValueError(f"initial {self.name} value must have shape ({self.dim},), got {x.shape}")
         self._rng, self._shape = rng, x.shape
-        self._draw_shape = (2 if self._walk_scale > 0.0 else 1, *x.shape)
-        self._bias = self.spec.bias_sigma * rng.standard_normal(x.shape)
+        self._sigma_flat = np.tile(self._sigma, x.size // self.dim)  # per component of the flattened value
+        self._normals, self._uniforms, self._row = np.zeros((0, self._draw_rows, x.size)), np.zeros(0), 0
+        self._bias = (self.spec.bias_sigma * rng.standard_normal(x.shape)).reshape(-1)
         self._queue.clear()
         self._dropping = 0
-        self.latest = (0.0, self._measure(x, rng.standard_normal(x.shape)))
+        draws = np.zeros((1, self._draw_rows, x.size))
+        draws[0, -1] = rng.standard_normal(x.shape).reshape(-1)
+        self.latest = (0.0, self._measure(x[np.newaxis], draws, 0, 0.0)[0])
 
     def due(self, s: int) -> bool:
         """Whether the sensor samples at substep ``s``."""
@@ -112,53 +129,141 @@ class Sensor:
 
     def sample(self, s: int, truth: np.ndarray) -> None:
         """Take the sample of due substep ``s > 0`` of the true value ``truth``; queue it unless dropped."""
-        rng = self._rng
-        if rng is None:
-            raise ValueError(f"sensor {self.name}: reset() before sample()")
-        if s % self.period_steps != 0 or s <= 0:
-            raise ValueError(f"sensor {self.name}: substep {s} is not a sample (period {self.period_steps} substeps)")
-        draws = rng.standard_normal(self._draw_shape)  # bias increments (with a walk) then the noise
-        if self._walk_scale > 0.0:
-            self._bias += self._walk_scale * draws[0]
-        noise = draws[-1]
-        if self._drop_p > 0.0:
-            u = rng.random()
-            if self._dropping > 0:
-                self._dropping -= 1
-                return
-            if u < self._drop_p:
-                self._dropping = self._drop_n - 1
-                return
-        value = self._measure(np.asarray(truth, dtype=float), noise)
-        self._queue.append((s + self.latency_steps, s * self.physics_dt, value))
-
-    def _measure(self, x: np.ndarray, standard_noise: np.ndarray) -> np.ndarray:
-        """``x + b + sigma * noise`` with the angle components wrapped to ``(-pi, pi]``."""
+        x = np.asarray(truth, dtype=float)
         if x.shape != self._shape:
             raise ValueError(f"{self.name} value must have shape {self._shape}, got {x.shape}")
-        m = self._sigma * standard_noise
-        m += x
-        m += self._bias
-        if self._angles:
-            if m.ndim == 1:  # on floats: a few numpy calls on a 1-element selection cost several microseconds
-                for i in self._angles:
-                    v = float(m[i])
-                    if not -math.pi < v <= math.pi:
-                        m[i] = math.pi - (math.pi - v) % TWO_PI
+        self.sample_many((s,), x[np.newaxis])
+
+    def sample_many(self, steps: Sequence[int], truths: np.ndarray, *, check: bool = True) -> None:
+        """Take the samples of due substeps ``steps`` (increasing, ``> 0``) at once; queue those not dropped.
+
+        The same samples as :meth:`sample` at each substep in turn (module docstring: Randomness).
+
+        Args:
+            steps: the due substeps.
+            truths: the true values at them, ``(len(steps), *shape)`` (``shape``: the value's at reset).
+            check: check the substeps and the shape (``False``: the caller guarantees them, and ``truths`` is a
+                float array of that shape, any strides; the environment's per-step path).
+        """
+        if check:
+            if self._rng is None:
+                raise ValueError(f"sensor {self.name}: reset() before sample()")
+            period = self.period_steps
+            for s in steps:
+                if s % period != 0 or s <= 0:
+                    raise ValueError(f"sensor {self.name}: substep {s} is not a sample (period {period} substeps)")
+            truths = np.ascontiguousarray(truths, dtype=float)
+            if truths.shape != (len(steps), *self._shape):
+                raise ValueError(f"{self.name} value must have shape {self._shape}, got {truths.shape[1:]}")
+        k = len(steps)
+        if k == 0:
+            return
+        i = self._row  # (_reserve and _measure inlined for the per-step path)
+        if i + k > self._normals.shape[0]:
+            i = self._reserve(k)
+        else:
+            self._row = i + k
+        if truths.ndim == 2:
+            values = np.empty(truths.shape)
+            lo, hi = self._angle_lo, self._angle_hi
+            _measure_rows(truths, self._normals, i, self._sigma_flat, self._bias, self._walk_scale, lo, hi, values)
+        else:
+            values = self._measure(truths, self._normals, i, self._walk_scale)
+        latency, dt = self.latency_steps, self.physics_dt
+        if self._drop_p > 0.0:
+            self._queue.extend((steps[j] + latency, steps[j] * dt, values[j]) for j in self._delivered(i, k))
+        else:
+            self._queue.extend([(s + latency, s * dt, v) for s, v in zip(steps, values, strict=True)])
+
+    def _delivered(self, i: int, k: int) -> list[int]:
+        """The samples of a batch (indices ``0..k-1``; draws from row ``i``) no dropout loses; the dropout state."""
+        p, dropping, kept = self._drop_p, self._dropping, []
+        for j, u in enumerate(self._uniforms[i : i + k].tolist()):
+            if dropping > 0:
+                dropping -= 1
+            elif u < p:
+                dropping = self._drop_n - 1
             else:
-                m[:, self._angles] = wrap_pi(m[:, self._angles])
-        return m
+                kept.append(j)
+        self._dropping = dropping
+        return kept
+
+    def _reserve(self, k: int) -> int:
+        """The first of the rows of the next ``k`` due samples' draws (``_normals``, ``_uniforms``), drawn if needed.
+
+        Module docstring (Randomness): blocks of :data:`DRAW_BLOCK` samples' normals without dropouts, else exactly
+        the ``k`` samples, each its normals then its dropout draw.
+        """
+        i, normals = self._row, self._normals
+        if i + k > normals.shape[0]:
+            rng = self._rng
+            assert rng is not None
+            rows, shape = self._draw_rows, (self._draw_rows, *self._shape)
+            if self._drop_p > 0.0:  # (a batch is taken whole: nothing is left of the previous one)
+                normals, uniforms = np.empty((k, rows, normals.shape[2])), np.empty(k)
+                for j in range(k):
+                    normals[j] = rng.standard_normal(shape).reshape(rows, -1)
+                    uniforms[j] = rng.random()
+                self._uniforms = uniforms
+            else:
+                parts = [normals[i:]]
+                for _ in range(-(-(i + k - normals.shape[0]) // DRAW_BLOCK)):
+                    parts.append(rng.standard_normal((DRAW_BLOCK, *shape)).reshape(DRAW_BLOCK, rows, -1))
+                normals = np.concatenate(parts)
+            self._normals, i = normals, 0
+        self._row = i + k
+        return i
+
+    def _measure(self, x: np.ndarray, draws: np.ndarray, first: int, walk_scale: float) -> np.ndarray:
+        """The measured values ``(k, *shape)`` of the true values ``x`` (draws from row ``first``), a new array."""
+        out = np.empty(x.shape)
+        k = x.shape[0]
+        flat_x, flat_out = (x, out) if x.ndim == 2 else (x.reshape(k, -1), out.reshape(k, -1))  # sonar: (k, K, 6)
+        lo, hi = self._angle_lo, self._angle_hi
+        _measure_rows(flat_x, draws, first, self._sigma_flat, self._bias, walk_scale, lo, hi, flat_out)
+        return out
 
     def release(self, s_now: int) -> list[Sample]:
         """The queued samples with ``s + latency_steps <= s_now``, oldest first; they leave the queue."""
-        out: list[Sample] = []
         queue = self._queue
+        if not queue or queue[0][0] > s_now:
+            return []
+        out: list[Sample] = []
         while queue and queue[0][0] <= s_now:
             _, t, value = queue.popleft()
             out.append((t, value))
         if out:
             self.latest = out[-1]
         return out
+
+
+@jit
+def _measure_rows(x, draws, first, sigma, bias, walk_scale, angle_lo, angle_hi, out):  # pragma: no cover - compiled
+    """Rows ``out[j] = sigma * n_j + x[j] + b_j`` of consecutive samples, in place on the bias ``b``.
+
+    ``draws[first + j]``: sample ``j``'s standard normals, the bias increments (row 0, with a walk) and the noises
+    ``n_j`` (the last row); with a walk the bias first gains ``walk_scale`` times the increments (``b_j = b_(j-1) +
+    walk_scale w_j``). Components ``angle_lo:angle_hi`` outside ``(-pi, pi]`` are wrapped (in-range values keep their
+    bits). The operation order of the numpy expressions ``m = sigma * n; m += x; m += b``.
+    """
+    noise = draws.shape[1] - 1
+    for j in range(x.shape[0]):
+        r = first + j
+        for c in range(x.shape[1]):
+            if walk_scale > 0.0:
+                bias[c] = bias[c] + walk_scale * draws[r, 0, c]
+            v = sigma[c] * draws[r, noise, c] + x[j, c]
+            v = v + bias[c]
+            if angle_lo <= c < angle_hi and not -math.pi < v <= math.pi:
+                v = math.pi - (math.pi - v) % TWO_PI
+            out[j, c] = v
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) the kernel when a sensor is built, not in an environment's step."""
+    one, draws, zero = np.zeros((1, 1)), np.zeros((1, 2, 1)), np.zeros(1)
+    _measure_rows(one, draws, 0, zero, zero.copy(), 0.0, 0, 1, one.copy())
+    _measure_rows(np.zeros((1, 2))[:, 1:], draws, 0, zero, zero.copy(), 0.0, 0, 1, one.copy())  # a column view
 
 
 class SensorBank:

@@ -11,6 +11,7 @@ import pytest
 from uvdms_gym.realism.actuation import (
     DEFAULT_LAYOUT,
     Thrusters,
+    actuate,
     allocation_matrix,
     limit_joint_speed,
 )
@@ -348,3 +349,42 @@ def test_limit_joint_speed_per_joint_limits_and_errors():
         limit_joint_speed([1.0], [1.0], 0.0)
     with pytest.raises(ValueError, match="realism: limit_joint_speed needs tau_q and qdot"):
         limit_joint_speed([1.0, 2.0], [1.0], 1.0)
+
+
+# --- the environment's per-substep path ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("limit", [np.ones(1), np.linspace(0.5, 1.5, 12), np.zeros(0)])
+def test_actuate_is_allocate_step_and_limit_bit_for_bit(limit):
+    """One compiled call equals the three documented steps, thrusts, commanded sums and saturation included."""
+    fused = thrusters(rotor_time_constant=0.05, dead_zone=0.125)
+    plain = thrusters(rotor_time_constant=0.05, dead_zone=0.125)
+    rng = np.random.default_rng(4)
+    total_fused, total_plain = np.zeros(18), np.zeros(18)
+    saturated = 0
+    for _ in range(300):
+        tau = rng.normal(size=18) * np.r_[[600.0] * 3, [200.0] * 3, [20.0] * 12]  # saturates now and then
+        qdot = rng.normal(size=12)
+        out = np.empty(18)
+        scale = actuate(fused, tau, qdot, limit, total_fused, out)
+        cmd, scale_plain = plain.allocate(tau[:6])
+        total_plain[:6] += scale_plain * tau[:6]
+        wrench = plain.step(cmd)
+        joints = tau[6:] if limit.size == 0 else limit_joint_speed(tau[6:], qdot, limit if limit.size > 1 else 1.0)
+        total_plain[6:] += joints
+        assert scale == scale_plain
+        np.testing.assert_array_equal(out, np.r_[wrench, joints])
+        np.testing.assert_array_equal(fused.thrust, plain.thrust)
+        saturated += scale < 1.0
+    np.testing.assert_array_equal(total_fused, total_plain)
+    assert 0 < saturated < 300
+
+
+def test_actuate_rejects_bad_input():
+    t = thrusters()
+    tau = np.zeros(18)
+    tau[2] = math.nan
+    with pytest.raises(ValueError, match="realism: wrench must be finite"):
+        actuate(t, tau, np.zeros(12), np.ones(1), np.zeros(18), np.empty(18))
+    with pytest.raises(ValueError, match="realism: joint_speed_limit must be finite and > 0"):
+        actuate(t, np.zeros(18), np.zeros(12), np.array([-1.0]), np.zeros(18), np.empty(18))

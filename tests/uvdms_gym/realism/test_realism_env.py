@@ -12,7 +12,10 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import uvdms_gym  # noqa: F401  (registers the ids)
+from uvdms_gym.distances import compute_distances
+from uvdms_gym.envs.realism_layer import MeasuredKinematics, _vehicle_table, assemble_observation, vehicle_row
 from uvdms_gym.evaluation import run_episode
+from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.realism.config import LEVELS, to_substeps
 from uvdms_gym.utils.kwargs import parse_kv
 
@@ -249,3 +252,69 @@ def test_bad_knobs_name_the_knob_through_make_and_env_kwargs(realism, knob):
         kwargs = parse_kv([f"realism={text}"])
         with pytest.raises(ValueError, match=knob):
             gym.make(CIRCLE, **kwargs)
+
+
+def test_measured_kinematics_places_frames_as_pinocchio():
+    model = KinematicModel()
+    fast = MeasuredKinematics(model)
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        eta = np.r_[rng.uniform(-5.0, 5.0, 3), rng.uniform(-math.pi, math.pi, 3)]
+        q = rng.uniform(-math.pi, math.pi, 12)
+        model.set_state(eta, q)
+        fast.set_state(eta, q)
+        for name in ("vehicle", "left_ee", "right_ee", "left_grasp", "right_grasp", "left_link3", "right_link6"):
+            for a, b in zip(model.frame_placement(name), fast.frame_placement(name), strict=True):
+                np.testing.assert_allclose(b, a, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(fast.link_segments(), model.link_segments(), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(fast.ee_positions(), model.ee_positions(), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(fast.clearances(), compute_distances(model, "exact").d, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="eta must be finite"):
+        fast.set_state(np.full(6, np.nan), np.zeros(12))
+
+
+def test_compiled_assembly_equals_assemble():
+    u = gym.make(CIRCLE, realism=3).unwrapped
+    rng = np.random.default_rng(5)
+    for _ in range(2000):
+        scale = rng.choice([0.1, 1.0, 30.0])
+        parts = [rng.normal(size=n) * scale for n in (18, 6, 6, 12, 12)] + [rng.uniform(-0.1, 0.5, 18)]
+        fast = assemble_observation(*parts, u._nu_scale, u._qdot_scale)
+        np.testing.assert_array_equal(fast, u._assemble(*parts))
+    u.close()
+
+
+@pytest.mark.parametrize("env_id", V1_IDS)
+def test_observe_estimate_equals_its_pinocchio_path(env_id, monkeypatch):
+    """The compiled placements and assembly give the observation of a KinematicModel and ``_assemble``."""
+    env = gym.make(env_id, realism=3)
+    env.reset(seed=SEED)
+    for a in _smooth_actions(10):
+        env.step(a)
+    u = env.unwrapped
+    truth = u.true_state()
+    state = (truth["eta"], truth["nu"], truth["q"], truth["qdot"], truth.get("obstacles"))
+    fast, fast_keys = u.observe_estimate(*state)
+    assert type(u._measured_kin) is MeasuredKinematics
+    monkeypatch.setattr(MeasuredKinematics, "supports", staticmethod(lambda kin: False))
+    u._measured_kin = KinematicModel(u.params)
+    slow, slow_keys = u.observe_estimate(*state)
+    np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-6)
+    for key in ("y", "distances"):
+        np.testing.assert_allclose(fast_keys[key], slow_keys[key], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fast_keys["distances"], truth["distances"], rtol=0, atol=1e-12)
+    if env_id == CIRCLE:  # the tracked output is kinematic: the truth's observation itself
+        np.testing.assert_allclose(fast, u._observe()[0], rtol=0, atol=1e-6)
+    env.close()
+
+
+def test_compiled_probe_rows_equal_vehicle_row():
+    rng = np.random.default_rng(6)
+    quats = rng.normal(size=(200, 4))
+    quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    probes = [tuple(rng.normal(size=3)) + tuple(qt) + tuple(rng.normal(size=6)) for qt in quats.tolist()]
+    eta, nu = rng.normal(size=6), rng.normal(size=6)
+    table = np.empty((len(probes) + 1, 12))
+    _vehicle_table(np.array(probes), eta, nu, table)
+    expected = [vehicle_row(p[:3], p[3:7], p[7:]) for p in probes] + [[*eta, *nu]]
+    np.testing.assert_array_equal(table, expected)
