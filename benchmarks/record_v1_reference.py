@@ -13,6 +13,7 @@ test asks for equality bit for bit.
 
 from __future__ import annotations
 
+import hashlib
 import platform
 import sys
 from importlib.metadata import version
@@ -72,13 +73,25 @@ def record(name: str, **extra: object) -> dict[str, np.ndarray]:
 
 
 def machine() -> str:
-    """Where a recording ran: the CPU model and the numpy and pybullet versions (equal: the same bits)."""
-    cpu = platform.processor() or platform.machine()
+    """Where a recording ran: CPU model, family, model number and flags (hashed), numpy and pybullet versions.
+
+    Equal fingerprints mean the same instruction set and the same library builds, so the same code paths and bits;
+    the model name alone is not enough (a virtual machine's "AMD EPYC" spans generations with other SIMD units).
+    """
+    info: dict[str, str] = {}
     try:
         with open("/proc/cpuinfo", encoding="utf-8") as f:
-            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
+            for line in f:
+                if not line.strip():  # the first processor's block is enough
+                    break
+                key, _, value = line.partition(":")
+                info[key.strip()] = value.strip()
+    except OSError:
         pass
+    fields = {k: info.get(k, "") for k in ("cpu family", "model", "flags")}
+    fields["model name"] = info.get("model name", platform.processor() or platform.machine())
+    flags = hashlib.sha256(fields["flags"].encode()).hexdigest()[:12]
+    cpu = f"{fields['model name']} (family {fields['cpu family']}, model {fields['model']}, flags {flags})"
     return f"{cpu} | numpy {np.__version__} | pybullet {version('pybullet')}"
 
 

@@ -2,9 +2,10 @@
 
 One episode per task of ``campc`` and the first test draw of a learned entry on its random task are run again from
 scratch with the current code (``realism`` left at its default 0) and compared with the episode documents committed
-under ``docs/leaderboard/entries``. On the machine type that computed them (AMD EPYC) the outcomes agree exactly;
-elsewhere numpy's last-bit differences (``tests/uvdms_gym/physics/test_same_physics.py``) may move a 500-step
-episode's figures slightly, so floats are compared to a relative 1e-6 and the discrete outcomes exactly.
+under ``docs/leaderboard/entries``. On the machine that computed them they agree bit for bit (measured for 0.6.0);
+on another host numpy's last-bit differences, amplified by a closed loop over hundreds of steps, move the floats
+(``docs/testing.md``: a return by up to 9e-4 relative, a transport's final millimetres far more), so the discrete
+outcomes are compared exactly and the return, RMSE and minimum distance to a relative 5e-3.
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ from uvdms_gym.evaluation import run_episode
 
 ENTRIES = Path(__file__).resolve().parents[3] / "docs" / "leaderboard" / "entries"
 EXACT_KEYS = ("contacts", "success", "steps", "terminated", "zone_steps")
-FLOAT_KEYS = ("return", "rmse_pos", "min_distance", "final_pos_error", "cost")
+FLOAT_KEYS = ("return", "rmse_pos", "min_distance")
+FLOAT_RTOL = 5e-3
 CASES = [("campc", task.name) for task in TASKS if task.realism == 0] + [
     ("distilled-dagger-campc-circle-v1", "circle-random")
 ]
@@ -44,4 +46,4 @@ def test_a_committed_episode_recomputed_afresh_is_unchanged(entry, task_name):
     for key in EXACT_KEYS:
         assert fresh[key] == committed[key], key
     for key in FLOAT_KEYS:
-        assert fresh[key] == pytest.approx(committed[key], rel=1e-6, abs=1e-9), key
+        assert fresh[key] == pytest.approx(committed[key], rel=FLOAT_RTOL, abs=1e-9), key
