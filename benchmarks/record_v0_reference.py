@@ -32,27 +32,37 @@ CASES: dict[str, tuple[str, dict, float]] = {
 }
 
 
-def actions(name: str, n: int = N_STEPS) -> np.ndarray:
-    """The fixed action sequence of a case: a smoothed random walk scaled by the case's amplitude."""
+def actions(name: str, n: int = N_STEPS, cases: dict[str, tuple[str, dict, float]] | None = None) -> np.ndarray:
+    """The fixed action sequence of a case (of ``cases``, default :data:`CASES`): a smoothed random walk scaled by
+    the case's amplitude."""
     rng = np.random.default_rng(sum(map(ord, name)))
     raw = rng.uniform(-1.0, 1.0, (n, 18))
     out = np.zeros_like(raw)
     a = np.zeros(18)
     for k in range(n):
         a = 0.9 * a + 0.1 * raw[k]
-        out[k] = CASES[name][2] * a
+        out[k] = (cases or CASES)[name][2] * a
     return out
 
 
-def record(name: str) -> dict[str, np.ndarray]:
-    """Roll out one case and return its arrays (keys prefixed with the case name)."""
-    env_id, kwargs, _ = CASES[name]
-    env = gym.make(env_id, disable_env_checker=True, **kwargs)
-    keys = ("eta", "nu", "q", "qdot", "distances")
+KEYS: tuple[str, ...] = ("eta", "nu", "q", "qdot", "distances")
+"""The ``info`` arrays recorded per step (besides the observation and the reward)."""
+
+
+def record(
+    name: str,
+    cases: dict[str, tuple[str, dict, float]] | None = None,
+    keys: tuple[str, ...] = KEYS,
+    **extra: object,
+) -> dict[str, np.ndarray]:
+    """Roll out one case of ``cases`` (default :data:`CASES`; its kwargs updated with ``extra``) and return its
+    arrays ``keys``, the observations and the rewards (keys prefixed with the case name)."""
+    env_id, kwargs, _ = (cases or CASES)[name]
+    env = gym.make(env_id, disable_env_checker=True, **kwargs, **extra)
     rows: dict[str, list] = {k: [] for k in (*keys, "obs", "reward")}
     try:
         env.reset(seed=7)
-        for a in actions(name):
+        for a in actions(name, cases=cases):
             obs, reward, terminated, truncated, info = env.step(a.astype(np.float32))
             for k in keys:
                 rows[k].append(np.asarray(info[k], dtype=np.float64))

@@ -14,18 +14,24 @@ test asks for equality bit for bit.
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import platform
 import sys
 from importlib.metadata import version
+from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 
-N_STEPS = 200
-_FREE_TORQUE = {"action_mode": "torque", "terminate_on_contact": False, "max_tracking_error": 100.0}
-"""Torque mode run through contacts and large errors, so that 200 steps of free dynamics are compared."""
+_V0_PATH = Path(__file__).with_name("record_v0_reference.py")
+_spec = importlib.util.spec_from_file_location("record_v0_reference", _V0_PATH)
+_V0 = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_V0)
+KEYS: tuple[str, ...] = (*_V0.KEYS, "tau")
+"""The ``info`` arrays recorded per step: the v0 recorder's and the applied generalized force."""
+_FREE_TORQUE = _V0._FREE_TORQUE
+"""Torque mode run through contacts and large errors (the v0 recorder's), so that free dynamics are compared."""
 CASES: dict[str, tuple[str, dict, float]] = {
     # name: (id, gym.make kwargs, action amplitude)
     "circle_random_hydro_velocity": ("uvdms/CircleTrack-v1", {"case": "random", "hydro_randomization": 0.3}, 0.5),
@@ -39,37 +45,9 @@ CASES: dict[str, tuple[str, dict, float]] = {
 }
 
 
-def actions(name: str, n: int = N_STEPS) -> np.ndarray:
-    """The fixed action sequence of a case: a smoothed random walk scaled by the case's amplitude."""
-    rng = np.random.default_rng(sum(map(ord, name)))
-    raw = rng.uniform(-1.0, 1.0, (n, 18))
-    out = np.zeros_like(raw)
-    a = np.zeros(18)
-    for k in range(n):
-        a = 0.9 * a + 0.1 * raw[k]
-        out[k] = CASES[name][2] * a
-    return out
-
-
 def record(name: str, **extra: object) -> dict[str, np.ndarray]:
-    """Roll out one case (its kwargs updated with ``extra``) and return its arrays (keys prefixed with its name)."""
-    env_id, kwargs, _ = CASES[name]
-    env = gym.make(env_id, disable_env_checker=True, **kwargs, **extra)
-    keys = ("eta", "nu", "q", "qdot", "distances", "tau")
-    rows: dict[str, list] = {k: [] for k in (*keys, "obs", "reward")}
-    try:
-        env.reset(seed=7)
-        for a in actions(name):
-            obs, reward, terminated, truncated, info = env.step(a.astype(np.float32))
-            for k in keys:
-                rows[k].append(np.asarray(info[k], dtype=np.float64))
-            rows["obs"].append(obs)
-            rows["reward"].append(reward)
-            if terminated or truncated:
-                break
-    finally:
-        env.close()
-    return {f"{name}/{k}": np.asarray(v) for k, v in rows.items()}
+    """Roll out one case (its kwargs updated with ``extra``): the v0 recorder's rollout on :data:`CASES`."""
+    return _V0.record(name, CASES, KEYS, **extra)
 
 
 def machine() -> str:

@@ -437,18 +437,7 @@ class MeasuredKinematics:
         self._plates = distance_kernels.plate_table(kin.params.plates)
         self._scratch = (np.empty((N_ROWS, 3)), np.empty((N_ROWS, 3)), np.empty(N_ROWS, dtype=np.int64))
         """The distance kernel's closest points and obstacle indices (not handed out: reused)."""
-        _placements(
-            np.zeros(6),
-            np.zeros(N_JOINTS),
-            self._joints,
-            self._joint_table,
-            self._frame_joint,
-            self._frame_table,
-            self._first_link,
-            self._seg_local,
-            self._frames,
-            self._seg.reshape(-1, 2, 3),
-        )
+        self.set_state(np.zeros(6), np.zeros(N_JOINTS))  # compiles (or loads) the kernel now, not in a step
 
     @staticmethod
     def supports(kin: KinematicModel) -> bool:
