@@ -21,7 +21,7 @@ from leaderboard.stats.metrics import (  # (the table constants live in stats: t
     TIMING_METRICS,
     timing_summary,
 )
-from leaderboard.stats.ranking import RankedRow
+from leaderboard.stats.ranking import PRIVILEGED_RANK, RankedRow
 from leaderboard.suite.entries import Entry
 from leaderboard.suite.entry_info import entry_details
 from leaderboard.suite.tasks import CHECK_SPLIT, REALISM_DRAWS, TRACKS, env_version
@@ -237,7 +237,7 @@ def _csv_text(result: LeaderboardResult) -> str:
         cells: list[Any] = [
             row.entry.track,
             row.task.name,
-            row.rank,
+            PRIVILEGED_RANK if row.entry.privileged else row.rank,
             int(row.tied),
             row.entry.name,
             row.entry.kind,
@@ -276,7 +276,7 @@ def _aggregation(entry: Entry) -> str:
 def _task_document(row: RankedRow, split: str) -> dict[str, Any]:
     """One task of an entry document: its rank, statistics and episodes, and its generalisation check."""
     document = {
-        "rank": row.rank,
+        "rank": PRIVILEGED_RANK if row.entry.privileged else row.rank,
         "tied": row.tied,
         "seed_protocol": protocol_record(split),
         "timing": row.timing,

@@ -42,7 +42,9 @@ class RankedRow:
 
     @property
     def rank_label(self) -> str:
-        """``3`` or ``3=`` for a tie."""
+        """``3`` or ``3=`` for a tie; ``ref`` for a privileged reference row (not ranked)."""
+        if self.entry.privileged:
+            return PRIVILEGED_RANK
         return f"{self.rank}=" if self.tied else str(self.rank)
 
     @property
@@ -61,8 +63,22 @@ def _sort_key(row: RankedRow) -> tuple[float, float, str]:
     )
 
 
+PRIVILEGED_RANK = "ref"
+"""The rank label of a privileged reference row (it reads the true state: shown after the ranked rows, not ranked)."""
+
+
 def rank_rows(rows: Sequence[RankedRow]) -> list[RankedRow]:
-    """Rank one (track, task) group in place and return it sorted (rule in the module docstring)."""
+    """Rank one (track, task) group in place and return it sorted (rule in the module docstring).
+
+    Privileged reference rows (``Entry.privileged``) are not ranked: rank 0, listed after the ranked rows.
+    """
+    references = sorted((r for r in rows if r.entry.privileged), key=_sort_key)
+    for row in references:
+        row.rank, row.tied = 0, False
+    return _rank_competitors([r for r in rows if not r.entry.privileged]) + references
+
+
+def _rank_competitors(rows: Sequence[RankedRow]) -> list[RankedRow]:
     ordered = sorted(rows, key=_sort_key)
     leader: RankedRow | None = None
     group: list[RankedRow] = []
