@@ -65,6 +65,20 @@ def test_ranking_contact_free_success_first_then_rmse():
     assert [r.rank_label for r in ranked] == ["1", "2", "3"]
 
 
+def test_a_privileged_reference_row_is_listed_after_the_ranked_rows_unranked():
+    privileged = _row("campc-privileged", (1.0, 1.0, 1.0), (0.001, 0.0009, 0.0011))
+    privileged.entry = lb.Entry(
+        name="campc-privileged", kind="baseline", spec="campc-privileged", track="velocity", privileged=True
+    )
+    rows = [_row("safe", (1.0, 1.0, 1.0), (0.05, 0.04, 0.06)), privileged, _row("colliding", (0.2, 0.0, 0.4), None)]
+    ranked = rank_rows(rows)
+    assert [(r.entry.name, r.rank_label) for r in ranked] == [
+        ("safe", "1"),
+        ("colliding", "2"),
+        ("campc-privileged", "ref"),
+    ]
+
+
 def test_ties_when_both_intervals_overlap_competition_ranking():
     rows = [
         _row("a", (1.0, 1.0, 1.0), (0.020, 0.015, 0.030)),
