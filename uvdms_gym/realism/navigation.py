@@ -774,6 +774,57 @@ class NavigationFilterWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return obs, reward, terminated, truncated, info
 
     def _observe(self, info: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
-        obs, state_keys = self.env.unwrapped.observe_estimate(*self.filter.state())
+        # the obstacles as measured (the sonar's track in info), never the true rows
+        obs, state_keys = self.env.unwrapped.observe_estimate(*self.filter.state(), info.get("obstacles"))
         info.update(state_keys)
         return obs, info
+
+
+class FilteredController:
+    """A controller fed the navigation filter's estimate where the oracle state was: the wrapper's job, per controller.
+
+    For a controller evaluated on an unwrapped environment (the leaderboard's, ``uvdms evaluate``'s): at each
+    ``predict`` the filter takes ``info["measurements"]`` and ``info["tau_cmd"]``, and the controller receives the
+    observation and ``info`` state keys of the estimate (``env.unwrapped.observe_estimate``, with the obstacles as
+    measured). At ``realism=0`` it passes ``obs`` and ``info`` through unchanged.
+
+    Args:
+        controller: anything with ``reset(seed)`` and ``predict(obs, info)``.
+        env: the environment the controller drives (wrapped or not).
+    """
+
+    def __init__(self, controller: Any, env: gym.Env) -> None:
+        self.controller = controller
+        self._env = env.unwrapped
+        cfg = self._env.realism
+        self.filter = (
+            None
+            if cfg is None
+            else NavigationFilter(
+                cfg, self._env.params, control_dt=self._env.control_dt, physics_dt=self._env.physics_dt
+            )
+        )
+        self._started = False
+
+    def __getattr__(self, name: str) -> Any:
+        """The wrapped controller's attributes (``last_record``, ``last_di``, ``action_mode``, ...)."""
+        if name == "controller":  # not set yet (unpickling): no recursion
+            raise AttributeError(name)
+        return getattr(self.controller, name)
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start an episode: the filter starts at the next ``predict``'s initial samples."""
+        self._started = False
+        self.controller.reset(seed)
+
+    def predict(self, obs: Any, info: dict[str, Any]) -> Any:
+        """The controller's action for the estimated state's observation and ``info``."""
+        if self.filter is None:
+            return self.controller.predict(obs, info)
+        if self._started:
+            self.filter.update(float(info["t"]), info["measurements"], info["tau_cmd"])
+        else:
+            self.filter.reset(float(info["t"]), info["measurements"])
+            self._started = True
+        obs_hat, keys = self._env.observe_estimate(*self.filter.state(), info.get("obstacles"))
+        return self.controller.predict(obs_hat, {**info, **keys})

@@ -87,3 +87,49 @@ def test_copies_continue_as_the_original(how):
         assert reward_a == reward_b
     env.close()
     twin.close()
+
+
+class _Keep:
+    """A controller that keeps what it is handed and holds still."""
+
+    def __init__(self) -> None:
+        self.seen: list[tuple[np.ndarray, dict]] = []
+
+    def reset(self, seed=None) -> None:
+        self.seen.clear()
+
+    def predict(self, obs, info):
+        self.seen.append((obs, info))
+        return np.zeros(18, dtype=np.float32)
+
+
+def test_filtered_controller_hands_the_estimate_and_passes_through_at_level_zero():
+    from uvdms_gym.realism.navigation import FilteredController
+
+    env = gym.make("uvdms/TransportObstacles-v1", current="random", realism=2)
+    base = env.unwrapped
+    inner = _Keep()
+    controller = FilteredController(inner, env)
+    obs, info = env.reset(seed=SEED)
+    controller.reset(SEED)
+    nav = NavigationFilter(base.realism, base.params, control_dt=base.control_dt, physics_dt=base.physics_dt)
+    for k in range(STEPS):
+        action = controller.predict(obs, info)
+        if k == 0:
+            nav.reset(info["t"], info["measurements"])
+        else:
+            nav.update(info["t"], info["measurements"], info["tau_cmd"])
+        seen_obs, seen_info = inner.seen[-1]
+        expected, _ = base.observe_estimate(*nav.state(), info["obstacles"])  # the sonar's rows, not the truth
+        np.testing.assert_array_equal(seen_obs, expected)
+        np.testing.assert_array_equal(seen_info["eta"], nav.state()[0])
+        np.testing.assert_array_equal(seen_info["obstacles"], info["obstacles"])
+        obs, _, _, _, info = env.step(action)
+    env.close()
+    oracle = gym.make("uvdms/CircleTrack-v1")
+    inner = _Keep()
+    controller = FilteredController(inner, oracle)
+    obs, info = oracle.reset(seed=SEED)
+    controller.predict(obs, info)
+    assert inner.seen[-1][0] is obs and inner.seen[-1][1] is info
+    oracle.close()
