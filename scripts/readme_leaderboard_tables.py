@@ -3,10 +3,12 @@
     python scripts/readme_leaderboard_tables.py [--leaderboard docs/leaderboard/leaderboard.md] [--readme README.md]
 
 The README's "#### Velocity track" and "#### Torque track" sections each hold one markdown table with the columns
-below and the first :data:`TOP_ROWS` rows of every task; this replaces those tables by the same columns and rows
-of the tables under "### Velocity track" and "### Torque track" of ``leaderboard.md`` (written by
+below and the first :data:`TOP_ROWS` rows of every oracle task; this replaces those tables by the same columns and
+rows of the tables under "### Velocity track" and "### Torque track" of ``leaderboard.md`` (written by
 ``uvdms leaderboard --out docs/leaderboard``), so that the README never shows figures the committed run did not
-produce. Run it after regenerating the leaderboard.
+produce. The realism track's tasks (labels with ", realism ") go to the README's "#### Realism track" table instead:
+per task, the first ranked row and the rows of :data:`REALISM_ROWS`, from the velocity track. Run it after
+regenerating the leaderboard.
 """
 
 from __future__ import annotations
@@ -19,6 +21,11 @@ COLUMNS = ("Task", "Rank", "Entry", "Contact-free success", "RMSE pos (mm)", "Mi
 TRACKS = ("Velocity track", "Torque track")
 TOP_ROWS: dict[str, int] = {"Velocity track": 3, "Torque track": 1}
 """Rows shown per task (the leaderboard's ranking order) in each track's README table."""
+REALISM_MARK = ", realism "
+"""What a realism-track task's label contains (``leaderboard.suite.tasks``: ``"<label>, realism <level>"``)."""
+REALISM_HEADING = "Realism track"
+REALISM_ROWS: tuple[str, ...] = ("campc", "campc-raw", "campc-privileged (privileged)")
+"""Entries (as the Entry column shows them) the README's realism table keeps besides each task's first row."""
 
 
 def _cells(line: str) -> list[str]:
@@ -39,8 +46,33 @@ def _table_after(text: str, heading: str) -> tuple[int, int]:
     return start, end
 
 
+def _track_rows(leaderboard_md: str, track: str) -> tuple[list[str], list[list[str]]]:
+    """The header and the rows of one track's table in ``leaderboard.md``."""
+    start, end = _table_after(leaderboard_md, f"### {track}")
+    lines = leaderboard_md[start:end].splitlines()
+    return _cells(lines[0]), [_cells(line) for line in lines[2:]]
+
+
+def realism_table(leaderboard_md: str) -> str:
+    """The README's realism table: per realism task, its first ranked row and the rows of :data:`REALISM_ROWS`."""
+    header, rows = _track_rows(leaderboard_md, TRACKS[0])
+    index = [header.index(c) for c in COLUMNS]
+    task_col, entry_col = header.index("Task"), header.index("Entry")
+    align = ["---" if c in ("Task", "Rank", "Entry") else "--:" for c in COLUMNS]
+    out = ["| " + " | ".join(COLUMNS) + " |", "|" + "|".join(align) + "|"]
+    first: set[str] = set()
+    for cells in rows:
+        task = cells[task_col]
+        if REALISM_MARK not in task:
+            continue
+        if task not in first or cells[entry_col] in REALISM_ROWS:
+            first.add(task)
+            out.append("| " + " | ".join(cells[i] for i in index) + " |")
+    return "\n".join(out) + "\n"
+
+
 def readme_table(leaderboard_md: str, track: str) -> str:
-    """The README form of one track's table: :data:`COLUMNS` and each task's first :data:`TOP_ROWS` rows."""
+    """The README form of one track's table: :data:`COLUMNS` and each oracle task's first :data:`TOP_ROWS` rows."""
     start, end = _table_after(leaderboard_md, f"### {track}")
     lines = leaderboard_md[start:end].splitlines()
     header = _cells(lines[0])
@@ -54,6 +86,8 @@ def readme_table(leaderboard_md: str, track: str) -> str:
     for line in lines[2:]:
         cells = _cells(line)
         task = cells[header.index("Task")]
+        if REALISM_MARK in task:  # the realism table's (realism_table)
+            continue
         shown[task] = shown.get(task, 0) + 1
         if shown[task] <= TOP_ROWS[track]:
             out.append("| " + " | ".join(cells[i] for i in index) + " |")
@@ -65,6 +99,9 @@ def update_readme(readme: str, leaderboard_md: str) -> str:
     for track in TRACKS:
         start, end = _table_after(readme, f"#### {track}")
         readme = readme[:start] + readme_table(leaderboard_md, track) + readme[end:]
+    if REALISM_MARK in leaderboard_md:
+        start, end = _table_after(readme, f"#### {REALISM_HEADING}")
+        readme = readme[:start] + realism_table(leaderboard_md) + readme[end:]
     return readme
 
 
