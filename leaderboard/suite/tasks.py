@@ -119,9 +119,9 @@ TASKS: tuple[Task, ...] = (
         paper=False,
     ),
 )
-REALISM_DRAWS = 50
-"""Draws per task of the realism track (fewer than :data:`DEFAULT_EPISODES`: nine tasks; intervals about ±0.14 at
-rates near 0.5)."""
+REALISM_DRAWS = 30
+"""Draws per task of the realism track (fewer than :data:`DEFAULT_EPISODES`: nine tasks; intervals about ±0.18 at
+rates near 0.5, narrower near 0 and 1)."""
 REALISM_LEVELS: tuple[int, ...] = (1, 2, 3)
 """The realism track's levels (:mod:`uvdms_gym.realism`)."""
 REALISM_BASES: tuple[str, ...] = ("circle-random", "transport-random", "transport-obstacles")
@@ -133,7 +133,7 @@ def _realism_tasks(tasks: Sequence[Task]) -> tuple[Task, ...]:
 
     The same environments and draws as the oracle tasks, with ``realism=<level>`` added to their keywords; at most
     :data:`REALISM_DRAWS` draws and no generalisation check (at 100 draws with the check, the track would cost
-    six times the rest of the leaderboard).
+    more than three times the rest of the leaderboard).
     """
     out = []
     for level in REALISM_LEVELS:
