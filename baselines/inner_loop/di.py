@@ -333,7 +333,11 @@ class DynamicInversionController:
         if a_eq is not None:
             a_eq = np.asarray(a_eq, dtype=float)
             m_inv_at = np.linalg.solve(mbar, a_eq.T)
-            proj = self._eye - m_inv_at @ np.linalg.solve(a_eq @ m_inv_at, a_eq)
+            gram = a_eq @ m_inv_at
+            try:
+                proj = self._eye - m_inv_at @ np.linalg.solve(gram, a_eq)
+            except np.linalg.LinAlgError:  # a singular closed chain (an arm stretched out): least squares
+                proj = self._eye - m_inv_at @ np.linalg.pinv(gram) @ a_eq
         e2 = self.zeta_rm - zeta
         if proj is not None:
             e2 = proj @ e2

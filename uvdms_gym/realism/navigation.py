@@ -592,6 +592,9 @@ class NavigationFilter:
         self._a = np.zeros((12, N_CORE))
         self._t = 0.0
         self._s = 0
+        self.restarts = 0
+        """Restarts after a divergence (:meth:`_restart_if_diverged`)."""
+        self._latest: dict[str, tuple[float, np.ndarray]] = {}
         self.x = np.zeros(self._n)
         self.P = np.eye(self._n)
         self._q, self._qd = np.zeros(N_JOINTS), np.zeros(N_JOINTS)
@@ -652,8 +655,29 @@ class NavigationFilter:
         self._qd = np.zeros(N_JOINTS)
         self._pj = [self._enc_var.copy(), np.zeros(N_JOINTS), np.full(N_JOINTS, JOINT_PRIOR_RATE_SIGMA**2)]
         tab = self._tab
+        self._keep_latest(measurements)
         for row in self._pack(measurements):
             _apply(self.x, self.P, row, tab[0][int(row[0])], tab[1], tab[2], tab[3], tab[6])
+
+    def _keep_latest(self, measurements: Mapping[str, list[tuple[float, np.ndarray]]]) -> None:
+        """Remember each sensor's newest sample (what a restart after a divergence starts from)."""
+        latest = self._latest
+        for name, samples in measurements.items():
+            if samples:
+                latest[name] = samples[-1]
+
+    def _restart_if_diverged(self, t: float) -> None:
+        """Start again from each sensor's newest sample if the estimate or its variances became non-finite.
+
+        A controller far outside the model's validity (a torque cascade tumbling the vehicle) can drive the EKF's
+        linearisation to overflow; the vehicle's software then re-initialises its navigation, as a real one would,
+        rather than handing out NaN. :attr:`restarts` counts it.
+        """
+        core = N_CORE
+        if np.isfinite(self.x[:core]).all() and np.isfinite(np.diagonal(self.P)[:core]).all():
+            return
+        self.restarts += 1
+        self.reset(t, {name: [(t, value)] for name, (_, value) in self._latest.items()})
 
     def update(self, t: float, measurements: Mapping[str, list[tuple[float, np.ndarray]]], tau_cmd: np.ndarray) -> None:
         """Advance to ``t`` with the commanded force of the step just ended and fuse the samples released in it.
@@ -708,6 +732,8 @@ class NavigationFilter:
             z,
         )
         self._t, self._s = float(t), s_to
+        self._keep_latest(measurements)
+        self._restart_if_diverged(t)
 
     def _pack(self, measurements: Mapping[str, list[tuple[float, np.ndarray]]]) -> np.ndarray:
         """The fused samples as rows ``(sensor index, substep, v0..v3)``."""
