@@ -27,7 +27,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -36,6 +36,8 @@ from gymnasium.utils import EzPickle
 
 from uvdms_gym.distances import compute_distances, contact_thresholds, velocity_damper
 from uvdms_gym.envs.lowlevel import VelocityLoop
+from uvdms_gym.envs.measured import COMPILED_EQUIVALENT, MeasuredState
+from uvdms_gym.envs.tracking import CLEARANCE_CLIP, OBS_CLIP
 from uvdms_gym.physics.current import CurrentModel, CurrentState, parse_current
 from uvdms_gym.physics.hydro import HydroScale
 from uvdms_gym.physics.kinematics import KinematicModel
@@ -49,33 +51,14 @@ from uvdms_gym.utils.display import gui_available, require_display
 from uvdms_gym.utils.kwargs import check_init_kwargs
 from uvdms_gym.utils.legacy import MOVED_NAMES, moved_names
 
-if TYPE_CHECKING:  # the realism layer is imported where it is built (realism > 0 or thrusters mode)
-    from uvdms_gym.envs.realism_layer import Measurements, RealismLayer
-
 PREVIEW_TIMES: tuple[float, ...] = (0.0, 0.4, 0.8)
 """Reference preview horizon of the observation, s."""
-OBS_CLIP = 10.0
-CLEARANCE_CLIP = 0.3
 OBS_DIM = 80
 ACTION_DIM = 18
 N_THRUSTERS = 8
 """Thrusters of the vehicle (``action_mode="thrusters"`` commands them, then the 12 joint torques)."""
 ACTION_MODES: tuple[str, ...] = ("velocity", "torque", "thrusters")
 """``velocity`` and ``torque``: 18 values; ``thrusters``: 8 thruster commands and 12 joint torques (20 values)."""
-TRUTH_KEYS: tuple[str, ...] = (
-    "eta",
-    "nu",
-    "q",
-    "qdot",
-    "y",
-    "distances",
-    "min_distance",
-    "current",
-    "obstacles",
-    "obstacle_distances",
-    "min_obstacle_distance",
-)
-"""The ``info`` keys that describe the state: measured at ``realism > 0``, true in :meth:`UVDMSEnv.true_state`."""
 CONTACT_MARGIN = 0.01
 """Rows whose exact distance is within this of contact (m) are checked with PyBullet for contact."""
 PHYSICS_ERROR_REWARD = -100.0
@@ -126,7 +109,7 @@ def _weights(*values: float) -> dict[str, float]:
     return {name: float(w) for name, w in weights.items()}
 
 
-class UVDMSEnv(gym.Env, EzPickle):
+class UVDMSEnv(MeasuredState, gym.Env, EzPickle):
     """Base class: one simulator, one kinematic model, a task; see the module docstring.
 
     Pickling and ``copy.deepcopy`` work the Gymnasium way (:class:`gymnasium.utils.EzPickle`): the constructor's
@@ -248,37 +231,6 @@ class UVDMSEnv(gym.Env, EzPickle):
         self._measured_kin = KinematicModel(self.params) if self.realism is not None else None
         self._truth: dict[str, Any] = {}
         self._episode_count = 0
-
-    def _make_layer(self) -> RealismLayer | None:
-        """The action path and sensors at ``realism > 0`` or in thrusters mode (``None``: the oracle's direct path)."""
-        self._estimate_refs: tuple[float, Any, np.ndarray] | None = None
-        """:meth:`observe_estimate`'s preview reference: ``(t, task, refs)``."""
-        if self.realism is None and self.action_mode != "thrusters":
-            return None
-        from uvdms_gym.envs.realism_layer import RealismLayer
-
-        layer = RealismLayer(
-            self.realism or RealismConfig(level=0, thrusters=True),
-            action_mode=self.action_mode,
-            zeta_max=self.zeta_max,
-            tau_max=self.tau_max,
-            physics_dt=self.physics_dt,
-            n_substeps=self.n_substeps,
-            with_obstacles=self.has_outer_obstacles,
-            sensing=self.realism is not None,
-        )
-        loop, zeta_max, tau_max, dt = self._loop, self.zeta_max, self.tau_max, self.physics_dt
-        velocity = self.action_mode == "velocity"
-
-        def torque(action: np.ndarray, zeta: np.ndarray, begin: bool) -> np.ndarray:
-            if velocity:
-                if begin:
-                    loop.begin(action * zeta_max)  # the kinematic model holds the step's starting state
-                return loop.torque(zeta, dt)
-            return action * tau_max
-
-        self._layer_law = layer.feedback(torque)
-        return layer
 
     def __getstate__(self) -> dict[str, Any]:
         """The constructor's arguments (:class:`~gymnasium.utils.EzPickle`) and, during an episode, the episode."""
@@ -548,126 +500,7 @@ class UVDMSEnv(gym.Env, EzPickle):
         np.minimum(np.maximum(obs, -OBS_CLIP, out=obs), OBS_CLIP, out=obs)
         return obs.astype(np.float32)
 
-    # ----------------------------------------------------------------- realism: measurements and the truth
-    def true_state(self) -> dict[str, Any]:
-        """The true state of the current step: the one documented path to the truth.
-
-        The ``info`` keys of :data:`TRUTH_KEYS` the environment has (``eta``, ``nu``, ``q``, ``qdot``, ``y``, the
-        distances, the current, the obstacles' rows and gaps), computed from the simulator. At ``realism=0`` they
-        equal ``info``'s; at ``realism > 0`` ``info`` holds their measured values instead. For metrics
-        (:func:`uvdms_gym.evaluation.run_episode` judges on it), training-time teachers and the leaderboard's
-        privileged reference rows only: a controller that reads it is not evaluated as a measured one.
-        """
-        if self.task is None:
-            raise RuntimeError("call reset() before true_state()")
-        if self.realism is None:
-            return {k: self._last_info[k] for k in TRUTH_KEYS if k in self._last_info}
-        return dict(self._truth)
-
-    def observe_estimate(
-        self,
-        eta: np.ndarray,
-        nu: np.ndarray,
-        q: np.ndarray,
-        qdot: np.ndarray,
-        obstacles: np.ndarray | None = None,
-    ) -> tuple[np.ndarray, dict[str, Any]]:
-        """The observation and ``info`` state keys of an estimated (or measured) state, at the current time.
-
-        What the environment builds from the truth at ``realism=0``, built from ``(eta, nu, q, qdot)`` instead: the
-        tracking errors against the reference, the clearances, the scaled velocities (and, with obstacles, their
-        slots from the given rows). The navigation filter's wrapper (:mod:`uvdms_gym.realism.navigation`) puts
-        its estimate where the oracle state was with it.
-
-        Returns:
-            ``(obs, keys)``: the observation and the ``info`` keys ``eta``, ``nu``, ``q``, ``qdot``, ``y``,
-            ``distances``, ``min_distance`` (and the obstacle keys) of that state.
-        """
-        if self.task is None:
-            raise RuntimeError("call reset() before observe_estimate()")
-        from uvdms_gym.envs.realism_layer import MeasuredKinematics, assemble_observation
-
-        kin = self._measured_kin
-        if kin is None or type(kin) is KinematicModel:  # once: the compiled placements, where the model allows
-            model = kin or KinematicModel(self.params)
-            kin = MeasuredKinematics(model) if MeasuredKinematics.supports(model) else model
-            self._measured_kin = kin
-        eta, nu, q, qdot = (np.array(v, dtype=float) for v in (eta, nu, q, qdot))
-        kin.set_state(eta, q)
-        fast = type(kin) is MeasuredKinematics
-        d = kin.clearances() if fast else compute_distances(kin, "exact").d  # a new array
-        y, rot = self._output_at(kin)
-        cached = self._estimate_refs  # the preview reference at this time, if the step's truth computed it
-        if cached is not None and cached[0] == self.t and cached[1] is self.task:
-            refs = cached[2]
-        else:
-            refs = self.task.reference(self.t + self._preview_times)
-            self._estimate_refs = (self.t, self.task, refs)
-        blocks, _, _ = self._errors_at(y, rot, refs, kin.frame_placement("vehicle")[1])
-        if fast and type(self)._assemble is UVDMSEnv._assemble:  # the same values in one compiled call
-            obs = assemble_observation(blocks, eta, nu, q, qdot, d, self._nu_scale, self._qdot_scale)
-        else:
-            obs = self._assemble(blocks, eta, nu, q, qdot, d)
-        keys = {"eta": eta, "nu": nu, "q": q, "qdot": qdot, "y": y, "distances": d, "min_distance": min(d.tolist())}
-        return obs, keys
-
-    def _output_at(self, kin: KinematicModel) -> tuple[np.ndarray, np.ndarray | None]:
-        """Tracked output ``y`` (6) of a kinematic model's state and the rotation it came from (if any)."""
-        raise NotImplementedError  # pragma: no cover - abstract
-
-    def _errors_at(
-        self, y: np.ndarray, rot: np.ndarray | None, refs: np.ndarray, r_nb: np.ndarray
-    ) -> tuple[np.ndarray, float, float]:
-        """:meth:`_errors` of an output from :meth:`_output_at` (default: the output alone)."""
-        return self._errors(y, refs, r_nb)
-
-    def _obstacle_rows(self, t: float) -> np.ndarray | None:
-        """The outer obstacles' true rows at time ``t`` (``None``: the task has none)."""
-        return None
-
-    def _reset_layer(
-        self, noise_key: tuple[int, int], obs: np.ndarray, info: dict[str, Any]
-    ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Start the realism layer's episode at the true initial state; the measured observation at ``realism > 0``."""
-        layer = self._layer
-        assert layer is not None
-        source = self._obstacle_rows if self.has_outer_obstacles else None
-        measurements = layer.reset(*noise_key, info["eta"], info["nu"], info["q"], obstacles_at=source)
-        info.update(tau_cmd=np.zeros(ACTION_DIM), thrust_saturated=False)
-        if layer.thrusters is not None:
-            info["thrust"] = layer.thrusters.thrust.copy()
-        if not layer.sensing:
-            return obs, info
-        return self._measured(obs, info, measurements)
-
-    def _layer_measure(self, info: dict[str, Any]) -> Measurements:
-        """The sensors' samples at the end of the step (from the true ``info``) and what arrived by now."""
-        assert self._layer is not None
-        return self._layer.measure(self.t, info["eta"], info["nu"], info["q"], info.get("obstacles"))
-
-    def _measured(
-        self, obs: np.ndarray, info: dict[str, Any], measurements: Measurements
-    ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Keep the truth aside and put the raw measured state where it was (observation and state keys)."""
-        layer = self._layer
-        assert layer is not None
-        self._truth = {k: info[k] for k in TRUTH_KEYS if k in info}
-        ref0 = info.get("y_ref")  # row 0 of the truth's preview reference at this time: reuse the whole of it
-        refs = ref0.base if isinstance(ref0, np.ndarray) else None
-        if (
-            isinstance(refs, np.ndarray)
-            and refs.shape == (self._preview_times.size, ref0.size)
-            and refs.__array_interface__["data"][0] == ref0.__array_interface__["data"][0]
-        ):
-            self._estimate_refs = (self.t, self.task, refs)
-        eta, nu, q, qdot = layer.measured_state()
-        rows = info.get("obstacles")
-        obs_m, keys = self.observe_estimate(eta, nu, q, qdot, None if rows is None else layer.measured_obstacles(rows))
-        info.pop("current", None)
-        info.update(keys)
-        info["measurements"] = measurements
-        self._obs = obs_m
-        return obs_m.copy(), info
+    setattr(_assemble, COMPILED_EQUIVALENT, True)  # assemble_observation computes the same values
 
     def _reward_terms(self, a: np.ndarray, info: dict[str, Any]) -> dict[str, float]:
         w = self.weights

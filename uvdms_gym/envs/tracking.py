@@ -14,6 +14,10 @@ from uvdms_gym.utils.jit import jit
 
 POS_SCALE = 0.5
 """Position errors in the observation are divided by this, m."""
+OBS_CLIP = 10.0
+"""Every observation value is clipped to ``[-OBS_CLIP, OBS_CLIP]``."""
+CLEARANCE_CLIP = 0.3
+"""Clearances are clipped to ``[0, CLEARANCE_CLIP]`` m before scaling (``uvdms_gym.envs.base``'s observation)."""
 
 
 def errors_positions(y: np.ndarray, refs: np.ndarray, r_nb: np.ndarray) -> tuple[np.ndarray, float, float]:

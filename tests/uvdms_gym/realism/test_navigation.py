@@ -12,7 +12,8 @@ from scripts.filter_consistency import FIRST_SEED, make_env, nees, random_comman
 from uvdms_gym.physics.params import UVDMSParams
 from uvdms_gym.realism.actuation import DEFAULT_LAYOUT, allocation_matrix
 from uvdms_gym.realism.config import LEVELS
-from uvdms_gym.realism.navigation import N_CORE, NavigationFilter, _derivative, _thruster_wrench
+from uvdms_gym.realism.ekf import N_CORE, _derivative, _thruster_wrench
+from uvdms_gym.realism.navigation import NavigationFilter
 
 EPISODES, STEPS = 20, 250
 """The consistency test's episodes (validation seeds from :data:`FIRST_SEED`) and control steps per episode."""

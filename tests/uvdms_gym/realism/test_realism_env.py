@@ -13,7 +13,8 @@ from gymnasium.utils.env_checker import check_env
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 from uvdms_gym.distances import compute_distances
-from uvdms_gym.envs.realism_layer import MeasuredKinematics, _vehicle_table, assemble_observation, vehicle_row
+from uvdms_gym.envs.measured_kinematics import MeasuredKinematics, assemble_observation
+from uvdms_gym.envs.realism_layer import _vehicle_table, vehicle_row
 from uvdms_gym.evaluation import run_episode
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.realism.config import LEVELS, to_substeps
