@@ -80,8 +80,24 @@ def _fmt(cell: dict[str, Any] | None) -> str:
     return f"{s['mean']:.2f}{interval}, {rmse * 1000:.1f} mm" if rmse is not None else f"{s['mean']:.2f}{interval}"
 
 
+PLOTTED_BASELINES: tuple[str, ...] = ("campc", "campc-raw", "campc-privileged", "campc-nndi", "mpc")
+"""The baselines the figure draws (the table has every entry); besides them, each task's best learned entry."""
+
+
+def plotted(rows: dict[str, list[dict[str, Any] | None]]) -> dict[str, list[dict[str, Any] | None]]:
+    """The rows the figure draws: :data:`PLOTTED_BASELINES` and the learned entry best at level 1 (then level 0)."""
+    learned = {name: cells for name, cells in rows.items() if name not in PLOTTED_BASELINES and name != "hold"}
+
+    def score(cells: list[dict[str, Any] | None]) -> tuple[float, float]:
+        return tuple(c["success"]["mean"] if c is not None else -1.0 for c in (cells[1], cells[0]))  # type: ignore[return-value]
+
+    best = max(learned, key=lambda name: score(learned[name]), default=None)
+    keep = [name for name in rows if name in PLOTTED_BASELINES or name == best]
+    return {name: rows[name] for name in keep}
+
+
 def plot_ladder(table: dict[str, dict[str, list[dict[str, Any] | None]]], path: Path) -> Path:
-    """Success and RMSE against the level, one column per task."""
+    """Success and RMSE against the level, one column per task (the rows of :func:`plotted`)."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -91,7 +107,7 @@ def plot_ladder(table: dict[str, dict[str, list[dict[str, Any] | None]]], path: 
     fig, axes = plt.subplots(2, len(table), figsize=(5 * len(table), 7), squeeze=False)
     for col, (base, rows) in enumerate(table.items()):
         top, bottom = axes[0, col], axes[1, col]
-        for name, cells in rows.items():
+        for name, cells in plotted(rows).items():
             keep = [i for i, c in enumerate(cells) if c is not None]
             if not keep:
                 continue
@@ -120,7 +136,7 @@ def plot_ladder(table: dict[str, dict[str, list[dict[str, Any] | None]]], path: 
             ax.set_xticks(levels)
             ax.set_xlabel("realism level")
             ax.grid(alpha=0.3)
-        top.legend(fontsize=7)
+        bottom.legend(*top.get_legend_handles_labels(), fontsize=7, loc="upper left")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
