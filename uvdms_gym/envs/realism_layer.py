@@ -135,7 +135,8 @@ class RealismLayer:
     Args:
         cfg: the realism level.
         action_mode: the environment's action mode.
-        zeta_max, tau_max: the environment's action scales (velocity and torque modes).
+        zeta_max: the environment's velocity-mode action scale (18).
+        tau_max: the environment's torque-mode action scale (18).
         physics_dt: the physics step, s.
         n_substeps: physics steps per control step.
         with_obstacles: the environment has outer obstacles (the sonar is on).

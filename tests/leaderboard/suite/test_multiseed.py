@@ -459,6 +459,7 @@ def assert_reproduced_from_its_episodes(root: Path, task_list) -> None:
             track=doc["track"],
             env_id=doc["env_id"],
             members=members,
+            privileged="privileged" in doc,  # a reference row: unranked
         )
         for name, cell in doc["tasks"].items():
             task = tasks[name]
