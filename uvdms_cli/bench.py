@@ -10,8 +10,8 @@ negligible). They are measurements, never test assertions.
 from __future__ import annotations
 
 import time
-from typing import Any
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
