@@ -1,6 +1,6 @@
 """Consistency of the navigation filter in the real environment: NEES of ``(eta, nu)`` and RMSE, per level.
 
-    python -m scripts.filter_consistency [--episodes 20] [--steps 250] [--levels 1 2 3] [--seed 2000000000]
+    python -m scripts.filter_consistency [--episodes 20] [--steps 250] [--levels 1 2 3] [--seed S]
                                          [--policy random|campc-privileged]
 
 Each episode is ``gym.make("uvdms/CircleTrack-v1", case="random", hydro_randomization=0.3, realism=L)`` (random
@@ -34,6 +34,7 @@ from scipy import stats
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 from uvdms_gym.realism.navigation import NavigationFilter
+from uvdms_gym.seeds import split_seeds
 
 ENV_ID = "uvdms/CircleTrack-v1"
 """The task the filter is checked on."""
@@ -51,8 +52,8 @@ COMPONENTS = ("x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r"
 """Names of the 12 estimated components."""
 CONFIDENCE = 0.95
 """Two-sided probability of the NEES bounds."""
-FIRST_SEED = 2_000_000_000
-"""First episode seed (the validation seeds; the test seeds from 3e9 are never used here)."""
+FIRST_SEED = split_seeds("validation", 1)[0]
+"""First episode seed: the first validation draw (``uvdms_gym.seeds``); the test splits are never used here."""
 POLICIES = ("random", "campc-privileged")
 """The motions an episode can follow (module docstring)."""
 

@@ -295,6 +295,18 @@ class DynamicInversionController:
         eta2w = wrap_angle(np.asarray(eta2, dtype=float))
         return np.concatenate([self.tau_prev, zeta, q, eta2w]) * self._inv_scale
 
+    def _chain_projection(self, mbar: np.ndarray, a_eq: np.ndarray) -> np.ndarray:
+        """``I - M^-1 A^T (A M^-1 A^T)^-1 A``: the closed chain's projection of the velocity error.
+
+        On a singular chain (an arm stretched out, seen under realism) the inverse is a least-squares one.
+        """
+        m_inv_at = np.linalg.solve(mbar, a_eq.T)
+        gram = a_eq @ m_inv_at
+        try:
+            return self._eye - m_inv_at @ np.linalg.solve(gram, a_eq)
+        except np.linalg.LinAlgError:
+            return self._eye - m_inv_at @ np.linalg.pinv(gram) @ a_eq
+
     def step(
         self,
         zeta_cmd: np.ndarray,
@@ -329,15 +341,7 @@ class DynamicInversionController:
             self.zeta_rm = zeta.copy()
             self._started = True
         mbar, bbar = self.model.evaluate(eta, q, zeta)
-        proj = None
-        if a_eq is not None:
-            a_eq = np.asarray(a_eq, dtype=float)
-            m_inv_at = np.linalg.solve(mbar, a_eq.T)
-            gram = a_eq @ m_inv_at
-            try:
-                proj = self._eye - m_inv_at @ np.linalg.solve(gram, a_eq)
-            except np.linalg.LinAlgError:  # a singular closed chain (an arm stretched out): least squares
-                proj = self._eye - m_inv_at @ np.linalg.pinv(gram) @ a_eq
+        proj = None if a_eq is None else self._chain_projection(mbar, np.asarray(a_eq, dtype=float))
         e2 = self.zeta_rm - zeta
         if proj is not None:
             e2 = proj @ e2

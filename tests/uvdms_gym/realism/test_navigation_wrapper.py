@@ -12,8 +12,9 @@ from gymnasium.utils.env_checker import check_env
 
 import uvdms_gym  # noqa: F401  (registers the ids)
 from uvdms_gym.realism.navigation import NavigationFilter, NavigationFilterWrapper
+from uvdms_gym.seeds import split_seeds
 
-SEED = 2_000_000_003
+SEED = split_seeds("validation", 4)[3]  # a validation draw
 """A validation seed."""
 STEPS = 6
 """Steps of each episode (a fix and a DVL sample arrive within them at level 1)."""

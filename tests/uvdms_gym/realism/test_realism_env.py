@@ -18,11 +18,12 @@ from uvdms_gym.envs.realism_layer import _vehicle_table, vehicle_row
 from uvdms_gym.evaluation import run_episode
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.realism.config import LEVELS, to_substeps
+from uvdms_gym.seeds import split_seeds
 from uvdms_gym.utils.kwargs import parse_kv
 
 CIRCLE = "uvdms/CircleTrack-v1"
 KW = {"case": "random", "hydro_randomization": 0.3}
-SEED = 2_000_000_011  # a validation draw
+SEED = split_seeds("validation", 12)[11]  # a validation draw
 V1_IDS = ("uvdms/CircleTrack-v1", "uvdms/Transport-v1", "uvdms/TransportObstacles-v1")
 
 
