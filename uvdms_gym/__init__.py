@@ -6,7 +6,9 @@ Importing the package registers the environments (entry points are strings, so n
 * ``uvdms/Transport-v0``: transport of a gripped cylinder;
 * ``uvdms/CircleTrack-v1``, ``uvdms/Transport-v1``: the same tasks with a bounded, non-negative per-step reward
   and a contact penalty, under which ending an episode early never pays (:mod:`uvdms_gym.envs.bounded_reward`);
-* ``uvdms/TransportObstacles-v1``: the v1 transport among moving outer obstacles (:mod:`uvdms_gym.envs.obstacles`).
+* ``uvdms/TransportObstacles-v1``: the v1 transport among moving outer obstacles (:mod:`uvdms_gym.envs.obstacles`);
+* ``uvdms/CooperativeTransport-v1``, ``uvdms/CooperativeTransportObstacles-v1``: the two v1 transports with the
+  object held by friction instead of welded (:mod:`uvdms_gym.envs.cooperative`).
 
 ``gymnasium.make("uvdms_gym:uvdms/CircleTrack-v0")`` also works without importing the package first
 (RL Zoo's ``--gym-packages uvdms_gym``).
@@ -28,6 +30,8 @@ _REGISTRATIONS: tuple[tuple[str, str, int], ...] = (
     ("uvdms/CircleTrack-v1", "uvdms_gym.envs.circle:CircleTrackV1Env", 500),
     ("uvdms/Transport-v1", "uvdms_gym.envs.transport:TransportV1Env", 600),
     ("uvdms/TransportObstacles-v1", "uvdms_gym.envs.obstacles:TransportObstaclesV1Env", 600),
+    ("uvdms/CooperativeTransport-v1", "uvdms_gym.envs.cooperative:CooperativeTransportV1Env", 600),
+    ("uvdms/CooperativeTransportObstacles-v1", "uvdms_gym.envs.cooperative:CooperativeTransportObstaclesV1Env", 600),
 )
 """(id, entry point, max_episode_steps) of every registered environment."""
 ENV_IDS: tuple[str, ...] = tuple(env_id for env_id, _, _ in _REGISTRATIONS)

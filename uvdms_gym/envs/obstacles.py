@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from uvdms_gym.distances.outer import RobotTrack, compute_outer_distances, part_names, robot_track, track_gaps
-from uvdms_gym.envs.base import CLEARANCE_CLIP, CONTACT_MARGIN, OBS_CLIP, OBS_DIM
+from uvdms_gym.envs.base import CLEARANCE_CLIP, CONTACT_MARGIN, OBS_CLIP
 from uvdms_gym.envs.obstacle_scenarios import random_obstacles
 from uvdms_gym.envs.transport import TransportV1Env, vehicle_pose_for_object
 from uvdms_gym.physics.obstacles import (
@@ -25,7 +25,6 @@ from uvdms_gym.physics.obstacles import (
     parse_obstacles,
 )
 from uvdms_gym.physics.params import D1, D2
-from uvdms_gym.physics.sim import UVDMSSim
 from uvdms_gym.utils.jit import jit
 
 NOMINAL_GRID_DT = 0.2
@@ -106,7 +105,7 @@ class TransportObstaclesV1Env(TransportV1Env):
         self._scripted_rows: list[int] = []
         self._nominal_track: RobotTrack | None = None
         self._parts = part_names(True)
-        dim = OBS_DIM + OBSTACLE_SLOT * n_observed_obstacles
+        dim = self.observation_space.shape[0] + OBSTACLE_SLOT * n_observed_obstacles  # OBS_DIM (+ the grasp's)
         self.observation_space = type(self.observation_space)(-OBS_CLIP, OBS_CLIP, (dim,), np.float32)
         if self._scripted is not None:
             try:
@@ -117,8 +116,8 @@ class TransportObstaclesV1Env(TransportV1Env):
 
     has_outer_obstacles = True
 
-    def _make_sim(self) -> UVDMSSim:
-        return UVDMSSim(self.params, physics_dt=self.physics_dt, gui=self.render_mode == "human", outer_collisions=True)
+    def _sim_options(self) -> dict[str, Any]:
+        return {**super()._sim_options(), "outer_collisions": True}
 
     # ----------------------------------------------------------------- scenario
     def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:

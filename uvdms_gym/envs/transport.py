@@ -2,17 +2,22 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
 from uvdms_gym.envs.base import UVDMSEnv
 from uvdms_gym.envs.bounded_reward import BoundedReward
+from uvdms_gym.envs.grip_channel import GRASP_OBS_DIM, GRIP_ACTION_DIM, GripChannel
 from uvdms_gym.envs.references import TransportTask, make_transport_task
 from uvdms_gym.envs.tracking import errors_pose
 from uvdms_gym.physics.frames import euler_to_rot, rot_to_euler
+from uvdms_gym.physics.grip import parse_grasp
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.render import ReferenceScene
+from uvdms_gym.physics.sim import UVDMSSim
 
 SUCCESS_POSITION = 0.02
 """Success: object position error below this (m) ..."""
@@ -72,8 +77,10 @@ class TransportEnv(UVDMSEnv):
 
     ## Arguments
     ``goal`` (``"paper"`` or ``"random"``: a goal drawn from ``tasks.RANDOM_GOAL_ENVELOPE``), ``start_pose`` /
-    ``goal_pose`` (NED m + ZYX Euler **degrees**), ``move_time`` (s, default 20), and the common arguments
-    of the circle task.
+    ``goal_pose`` (NED m + ZYX Euler **degrees**), ``move_time`` (s, default 20), ``grasp`` (``"rigid"``, the
+    default: the object welded to both hands; ``"friction"`` or a mapping of knobs: held by friction, with two grip
+    commands in the action, four gripper readings in the observation, slip, drop and crush in ``info`` and the
+    episode's end: :mod:`uvdms_gym.envs.grip_channel`), and the common arguments of the circle task.
 
     ## Version History
     * v0: initial release.
@@ -90,9 +97,17 @@ class TransportEnv(UVDMSEnv):
         start_pose: tuple[float, ...] | None = None,
         goal_pose: tuple[float, ...] | None = None,
         move_time: float = 20.0,
+        grasp: str | Mapping[str, Any] = "rigid",
         **kwargs: Any,
     ) -> None:
+        self.grasp_config = parse_grasp(grasp)  # before the simulator is built; ValueError naming the knob
+        """The friction grasp's knobs (:mod:`uvdms_gym.physics.grip`), or ``None`` for the rigid grasp."""
+        self._grip = None if self.grasp_config is None else GripChannel(self.grasp_config)
         super().__init__(**kwargs)
+        if self._grip is not None:
+            self.action_dim += GRIP_ACTION_DIM
+            self.action_space = gym.spaces.Box(-1.0, 1.0, (self.action_dim,), np.float32)
+            self._grow_observation(GRASP_OBS_DIM)
         self.goal = goal
         self._task_kwargs = {"start_pose": start_pose, "goal_pose": goal_pose, "move_time": move_time}
         try:
@@ -102,6 +117,43 @@ class TransportEnv(UVDMSEnv):
             raise
         # compile (or load from numba's disk cache) the step's kernels now, not in the first step
         errors_pose(task.start[:3], np.eye(3), task.reference(np.zeros(1)), np.eye(3))
+
+    def _grow_observation(self, extra: int) -> None:
+        """Add ``extra`` values to the observation space (same bounds)."""
+        box = self.observation_space
+        self.observation_space = gym.spaces.Box(box.low.flat[0], box.high.flat[0], (box.shape[0] + extra,), np.float32)
+
+    def _make_sim(self) -> UVDMSSim:
+        return UVDMSSim(self.params, physics_dt=self.physics_dt, gui=self.render_mode == "human", **self._sim_options())
+
+    def _sim_options(self) -> dict[str, Any]:
+        """The simulator's keywords beyond the common ones (the grasp; the obstacle task adds its collisions)."""
+        return {} if self.grasp_config is None else {"grasp": self.grasp_config}
+
+    # ----------------------------------------------------------------- the friction grasp
+    def _start_episode(self, noise_key: tuple[int, int] = (0, 0)) -> tuple[np.ndarray, dict[str, Any]]:
+        obs, info = super()._start_episode(noise_key)
+        if self._grip is None:
+            return obs, info
+        self._grip.reset()
+        return np.concatenate([obs, self._grip.observe(self._sim.grasp, self._obj_rot, info)]), info
+
+    def _apply(self, a: np.ndarray) -> tuple[np.ndarray, bool]:
+        if self._grip is None:
+            return super()._apply(a)
+        self._sim.grasp.set_grip(*self._grip.grip_command(a))
+        return super()._apply(a[:-GRIP_ACTION_DIM])
+
+    def step(self, action):
+        """As :meth:`UVDMSEnv.step`; with the friction grasp, the grasp's block, ``info`` keys and episode end."""
+        obs, reward, terminated, truncated, info = super().step(action)
+        if self._grip is None:
+            return obs, reward, terminated, truncated, info
+        if info.get("physics_error") is not None:
+            return np.concatenate([obs, np.zeros(GRASP_OBS_DIM, np.float32)]), reward, terminated, truncated, info
+        block = self._grip.observe(self._sim.grasp, self._obj_rot, info)
+        terminated = terminated or info["dropped"] or info["crushed"]
+        return np.concatenate([obs, block]), reward, terminated, truncated, info
 
     def _build_task(self, rng: np.random.Generator) -> TransportTask:
         return make_transport_task(self.goal, rng, **self._task_kwargs)

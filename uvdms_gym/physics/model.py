@@ -264,7 +264,7 @@ def build_urdf(
     return "\n".join(parts)
 
 
-def build_object_urdf(params: UVDMSParams, *, collision: bool = False) -> str:
+def build_object_urdf(params: UVDMSParams, *, collision: bool = False, sleeves: bool = False) -> str:
     """URDF of the gripped cylinder: axis along the object's ``y``, frame at its centre.
 
     Args:
@@ -272,6 +272,8 @@ def build_object_urdf(params: UVDMSParams, *, collision: bool = False) -> str:
         collision: add a collision capsule of the object's radius whose total length is the cylinder's (core
             segment ``length - 2 radius``), the shape outer obstacles collide with; without it the object has
             no collision shape.
+        sleeves: add each hand's sleeve and the two joints that connect it to the object (:data:`SLEEVE_JOINTS`),
+            for the friction grasp; without them the object is one rigid body (the rigid grasp's).
     """
     o = params.obj
     inertia = _cylinder_inertia(o.mass, o.radius, o.length, np.array([0.0, 1.0, 0.0]))
@@ -282,14 +284,42 @@ def build_object_urdf(params: UVDMSParams, *, collision: bool = False) -> str:
             f'<collision><origin xyz="0 0 0" rpy="{math.pi / 2:.12g} 0 0"/>'
             f'<geometry><capsule radius="{o.radius:.12g}" length="{core:.12g}"/></geometry></collision>'
         )
+    sleeves = _sleeves() if sleeves else ""
     return (
         '<?xml version="1.0"?><robot name="object">'
         f'<link name="object">{_inertial(o.mass, (0, 0, 0), inertia)}'
         f'<visual><origin xyz="0 0 0" rpy="{math.pi / 2:.12g} 0 0"/>'
         f'<geometry><cylinder radius="{o.radius:.12g}" length="{o.length:.12g}"/></geometry>'
         '<material name="obj"><color rgba="0.1 0.5 0.9 1"/></material></visual>'
-        f"{col}</link></robot>"
+        f"{col}</link>{sleeves}</robot>"
     )
+
+
+SLEEVE_JOINTS: tuple[str, ...] = ("left_slide", "left_twist", "right_slide", "right_twist")
+"""The friction grasp's object joints, in their PyBullet index order: per hand, sliding along the object's axis (m)
+and turning about it (rad); the sleeve after them is welded to the hand."""
+
+
+def _sleeves() -> str:
+    """Per hand, a prismatic then a continuous joint along the object's axis, and the sleeve after them.
+
+    The sleeve sits at the object's centre (the grasp frame): the two joints are the two motions the friction grasp
+    leaves to friction (:mod:`uvdms_gym.physics.grip`).
+    """
+    parts = []
+    for side in ("left", "right"):
+        parts.append(_tiny_link(f"{side}_carriage"))
+        parts.append(_tiny_link(f"{side}_sleeve"))
+        parts.append(
+            f'<joint name="{side}_slide" type="prismatic"><parent link="object"/><child link="{side}_carriage"/>'
+            '<origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="0 1 0"/>'
+            '<limit lower="-1" upper="1" effort="1e9" velocity="1e3"/></joint>'
+        )
+        parts.append(
+            f'<joint name="{side}_twist" type="continuous"><parent link="{side}_carriage"/>'
+            f'<child link="{side}_sleeve"/><origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="0 1 0"/></joint>'
+        )
+    return "".join(parts)
 
 
 _URDF_DIRS: dict[int, Path] = {}

@@ -303,3 +303,29 @@ D2 = 0.12
 # all-positive choice curls both arms down through the bottom plate).
 CIRCLE_Q0_LEFT_DEG: tuple[float, ...] = (-10.0, -50.0, -15.0, 50.0, -15.0, 10.0)
 CIRCLE_Q0_RIGHT_DEG: tuple[float, ...] = (20.0, -60.0, 20.0, 55.0, 20.0, 25.0)
+
+
+@dataclass(frozen=True)
+class GripperParams:
+    """The friction grasp's gripper and contact [D] (``grasp="friction"``, :mod:`uvdms_gym.physics.grip`).
+
+    Each hand closes jaws that conform to the cylinder: the jaws' shape holds the object against every relative
+    motion but two, sliding along its axis and turning about it, which only friction resists. Each hand's contact
+    is a uniformly pressed band of the cylinder's surface, so its limit surface is the ellipse
+    ``(f / (mu F))^2 + (m / (mu r_t F))^2 <= 1`` in the axial force ``f`` and the twisting moment ``m`` it
+    transmits (``F``: the grip force; ``r_t``: the torsional radius, the object's radius for a band on its
+    surface). ``mu`` absorbs the jaws' wedge factor: the axial capacity is ``mu F``.
+    """
+
+    mu: float = 0.5
+    """Effective friction coefficient of each hand (rubber pads on a wet plastic pipe, 0.4-0.6) [D]."""
+    torsion_radius: float = 0.05
+    """Torsional radius ``r_t`` of each hand's contact band, m (the object's radius) [D]."""
+    grip_max: float = 300.0
+    """Largest grip force a gripper can command, N (underwater parallel-jaw grippers: 200-600 N) [D]."""
+    crush_force: float = 200.0
+    """Squeeze limit of the object: a grip force above it crushes the object (the episode ends), N [D]."""
+    drop_slip: float = 0.05
+    """Axial slip at which a hand has lost the object (the band leaves its 0.1 m of pipe beyond the hand), m [D]."""
+    grip_initial: float = 40.0
+    """Grip force of both hands at reset, N [D] (about four times what holding the object still needs)."""

@@ -32,7 +32,9 @@ from pybullet_utils import bullet_client
 from uvdms_gym.physics import frames, render
 from uvdms_gym.physics.body import configure_engine, load_body
 from uvdms_gym.physics.contacts import ContactMonitor
+from uvdms_gym.physics.friction_grasp import FrictionGrasp
 from uvdms_gym.physics.grasp import Grasp, RigidGrasp
+from uvdms_gym.physics.grip import FrictionGraspConfig
 from uvdms_gym.physics.hydro import (
     HydroCoefficients,
     HydroScale,
@@ -75,6 +77,9 @@ class UVDMSSim(Stepping):
         outer_collisions: give the hull a collision box and the gripped object a collision capsule, so that outer
             obstacles (:meth:`set_obstacles`) collide with the links, the object and the vehicle. Off by default
             (nothing outside the robot exists, and the hull and object need no collision shape).
+        grasp: ``None`` welds the object to both hands (:class:`~uvdms_gym.physics.grasp.RigidGrasp`); a
+            :class:`~uvdms_gym.physics.grip.FrictionGraspConfig` holds it by friction
+            (:class:`~uvdms_gym.physics.friction_grasp.FrictionGrasp`).
 
     Use as a context manager or call :meth:`close` (idempotent).
     """
@@ -89,6 +94,7 @@ class UVDMSSim(Stepping):
         hydro_scale: HydroScale | None = None,
         self_collision: bool = False,
         outer_collisions: bool = False,
+        grasp: FrictionGraspConfig | None = None,
     ) -> None:
         if not (math.isfinite(physics_dt) and physics_dt > 0.0):
             raise ValueError(f"physics_dt must be finite and > 0, got {physics_dt!r}")
@@ -96,6 +102,7 @@ class UVDMSSim(Stepping):
         self._arms = bool(arms)
         self._self_collision = bool(self_collision)
         self._outer = bool(outer_collisions)
+        self._grasp_config = grasp
         self._dt = float(physics_dt)
         self._inv_dt = 1.0 / self._dt
         self._closed = True
@@ -126,9 +133,20 @@ class UVDMSSim(Stepping):
         # moving links in the order of q (their link index equals their joint index)
         self._state_links = [self._am_link, *self._joints]
         self._r_g = np.array(self._params.vehicle.r_g, dtype=float)
-        self._grasp: Grasp = RigidGrasp(
-            c, self._body, self._link_index, self._params, physics_dt=self._dt, collision=self._outer
-        )
+        if self._grasp_config is None:
+            self._grasp: Grasp = RigidGrasp(
+                c, self._body, self._link_index, self._params, physics_dt=self._dt, collision=self._outer
+            )
+        else:
+            self._grasp = FrictionGrasp(
+                c,
+                self._body,
+                self._link_index,
+                self._params,
+                physics_dt=self._dt,
+                collision=self._outer,
+                config=self._grasp_config,
+            )
         self._contacts = ContactMonitor(c, robot, self._params, self_collision=self._self_collision)
         self._obstacle_bodies = ObstacleBodies(c)
         self._markers: render.ReferenceMarkers | None = None  # created by show_reference (rendering only)
@@ -166,7 +184,7 @@ class UVDMSSim(Stepping):
 
     @property
     def grasp(self) -> Grasp:
-        """The gripped object and its closed chain (a :class:`~uvdms_gym.physics.grasp.RigidGrasp`)."""
+        """The gripped object and its grasp (rigid, or :class:`~uvdms_gym.physics.friction_grasp.FrictionGrasp`)."""
         return self._grasp
 
     @property

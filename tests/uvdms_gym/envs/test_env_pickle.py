@@ -37,6 +37,8 @@ KWARGS = {  # non-default keywords, so that a copy that dropped them would show
     "uvdms/Transport-v0": {"goal": "random", "current": [0.1, -0.05, 0.0]},
     "uvdms/Transport-v1": {"goal": "paper", "contact_weight": 5.0},
     "uvdms/TransportObstacles-v1": {"current": "random", "n_observed_obstacles": 2},
+    "uvdms/CooperativeTransport-v1": {"goal": "random", "grasp": {"mu": 0.4}},
+    "uvdms/CooperativeTransportObstacles-v1": {"current": "random", "grasp": {"crush_force": 120.0}},
 }
 STEPS = 4
 SEED = 11

@@ -260,7 +260,7 @@ def test_every_environment_takes_a_current(env_id, spec):
         assert info["current"].shape == (3,)
         assert np.array_equal(env.unwrapped._sim.current, info["current"])
         for _ in range(2):
-            _, _, _, _, info = env.step(np.zeros(18, np.float32))
+            _, _, _, _, info = env.step(np.zeros(env.action_space.shape, np.float32))
             assert np.array_equal(env.unwrapped._sim.current, info["current"])
         if spec != "random":
             assert info["current"].tolist() == spec

@@ -1,0 +1,104 @@
+"""What the friction grasp adds to a transport environment: two grip commands, the grasp's readings, its costs.
+
+With ``grasp="friction"`` (:mod:`uvdms_gym.physics.grip`) a transport environment's action gains two values, the
+grip force command of each hand, ``F = (a + 1) / 2 * grip_max`` (so ``-1`` opens the gripper and ``1`` squeezes at
+its limit); the observation gains :data:`GRASP_OBS_DIM` values, what each gripper measures: its grip force over
+``grip_max`` and the axial force its wrist transmits to the object over :data:`AXIAL_FORCE_SCALE` (a wrist
+force-torque sensor; slip itself is not measured). :class:`GripChannel` does that bookkeeping and fills ``info``:
+
+* ``grip`` (2, N), ``hand_forces`` (2, 6: each hand's wrench on the object, NED, about its centre);
+* ``slip`` (2, 2: axial slip m, turn rad), ``slip_distance`` (2, m: how far each contact moved over the surface),
+  ``slip_max`` (the largest ``slip_distance`` of either hand so far in the episode);
+* ``internal_force`` (N): the squeeze (< 0) or stretch (> 0) along the object, half the difference of the hands'
+  axial forces (the component of their wrenches that moves nothing: Erhart & Hirche 2015);
+* ``load_share`` (2): each hand's part of the net force the hands exert, ``F_k . F / |F|^2`` (0.5 each when
+  ``F = 0``);
+* ``dropped`` (a hand's axial slip reached ``drop_slip``), ``crushed`` (a grip force above ``crush_force``): either
+  ends the episode as a failure;
+* the costs ``cost_slip`` (1 while a contact moves more than :data:`SLIP_STEP_TOLERANCE` in a step),
+  ``cost_drop`` and ``cost_crush`` (1 at the step that dropped or crushed the object), added to ``info["cost"]``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from uvdms_gym.physics.friction_grasp import FrictionGrasp
+from uvdms_gym.physics.grip import FrictionGraspConfig
+
+GRIP_ACTION_DIM = 2
+"""Action values the friction grasp adds: the grip command of the left, then the right hand."""
+GRASP_OBS_DIM = 4
+"""Observation values it adds: grip force left, right (over ``grip_max``); axial wrist force left, right."""
+AXIAL_FORCE_SCALE = 20.0
+"""Scale of the observed axial wrist forces, N (the clip of the observation, 10, is then 200 N)."""
+SLIP_STEP_TOLERANCE = 1.0e-4
+"""Movement of a contact over the object's surface in one control step that counts as slipping, m."""
+
+
+class GripChannel:
+    """The friction grasp's action split, observation block and ``info`` keys for one environment.
+
+    Args:
+        config: the grasp's knobs.
+    """
+
+    def __init__(self, config: FrictionGraspConfig) -> None:
+        self.config = config
+        self._slip_prev = np.zeros(2)
+        self._slip_max = 0.0
+        self._block = np.zeros(GRASP_OBS_DIM, np.float32)
+
+    def reset(self) -> None:
+        """Start an episode (the grasp was attached with ``grip_initial``)."""
+        self._slip_prev = np.zeros(2)
+        self._slip_max = 0.0
+
+    def grip_command(self, a: np.ndarray) -> tuple[float, float]:
+        """The grip forces (N) of the last :data:`GRIP_ACTION_DIM` action values (in ``[-1, 1]``)."""
+        g = self.config.grip_max
+        return 0.5 * (float(a[-2]) + 1.0) * g, 0.5 * (float(a[-1]) + 1.0) * g
+
+    def observe(self, grasp: FrictionGrasp, rot_object: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        """Fill ``info`` with the grasp's readings and costs (module docstring); return the observation block."""
+        cfg = self.config
+        forces = grasp.forces()
+        axis = rot_object[:, 1]  # the object's axis (its y) in NED
+        axial = forces[:, :3] @ axis
+        net = forces[0, :3] + forces[1, :3]
+        nn = float(net @ net)
+        share_left = float(forces[0, :3] @ net) / nn if nn > 1e-18 else 0.5
+        slip = grasp.slip()
+        dist = grasp.slip_distance()
+        grip = np.array(grasp.grip)
+        moved = float(np.max(np.abs(dist - self._slip_prev)))
+        self._slip_prev = dist
+        self._slip_max = max(self._slip_max, float(dist.max()))
+        dropped = bool(np.abs(slip[:, 0]).max() >= cfg.drop_slip)
+        crushed = bool(grip.max() > cfg.crush_force)
+        costs = {
+            "cost_slip": 1.0 if moved > SLIP_STEP_TOLERANCE else 0.0,
+            "cost_drop": 1.0 if dropped else 0.0,
+            "cost_crush": 1.0 if crushed else 0.0,
+        }
+        info.update(
+            grip=grip,
+            hand_forces=forces,
+            slip=slip,
+            slip_distance=dist,
+            slip_max=self._slip_max,
+            internal_force=0.5 * float(axial[1] - axial[0]),
+            load_share=np.array([share_left, 1.0 - share_left]),
+            dropped=dropped,
+            crushed=crushed,
+            **costs,
+        )
+        info["cost"] = info["cost"] + sum(costs.values())
+        if dropped or crushed:
+            info["is_success"] = False
+        block = self._block
+        block[:2] = grip / cfg.grip_max
+        block[2:] = np.clip(axial / AXIAL_FORCE_SCALE, -10.0, 10.0)
+        return block.copy()
