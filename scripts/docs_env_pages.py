@@ -68,6 +68,9 @@ RANGES: dict[str, str] = {
     "precision_scale": "> 0 m",
     "obstacles": '`"random"` or a list of obstacle specifications ([OBSTACLES](../OBSTACLES.md))',
     "n_observed_obstacles": ">= 0 observation slots",
+    "grasp": '`"rigid"` (the object welded to both hands), `"friction"` (held by friction, two grip commands more), '
+    'or a mapping of the friction knobs `{"mu": 0.4, "crush_force": 120, ...}` (`mu`, `torsion_radius`: one value '
+    "or `[left, right]`; `grip_max`, `crush_force`, `drop_slip`, `grip_initial`: `FrictionGraspConfig`)",
 }
 """The admissible values of every environment keyword (the constructors check them)."""
 SECTION_ORDER = (
@@ -153,6 +156,7 @@ def page(env_id: str) -> str:
         cls = type(env.unwrapped)
         obs_space, act_space = env.observation_space, env.action_space
         reward_terms = sorted(k for k in info if k.startswith("reward_"))
+        cost_terms = sorted(k for k in info if k.startswith("cost_"))
     finally:
         env.close()
     summary, sections = docstring_sections(cls)
@@ -171,7 +175,7 @@ def page(env_id: str) -> str:
         f"{obs_space.dtype})` |",
         f"| `max_episode_steps` | {spec.max_episode_steps} |",
         f"| Reward terms in `info` | {', '.join(f'`{k}`' for k in reward_terms)} |",
-        "| Cost terms in `info` | `cost_contact`, `cost_zone` (summed in `cost`) |",
+        f"| Cost terms in `info` | {', '.join(f'`{k}`' for k in cost_terms)} (summed in `cost`) |",
         "",
     ]
     for name in SECTION_ORDER:

@@ -7,8 +7,10 @@ below and the first :data:`TOP_ROWS` rows of every oracle task; this replaces th
 rows of the tables under "### Velocity track" and "### Torque track" of ``leaderboard.md`` (written by
 ``uvdms leaderboard --out docs/leaderboard``), so that the README never shows figures the committed run did not
 produce. The realism track's tasks (labels with ", realism ") go to the README's "#### Realism track" table instead:
-per task, the first ranked row and the rows of :data:`REALISM_ROWS`, from the velocity track. Run it after
-regenerating the leaderboard.
+per task, the first ranked row and the rows of :data:`REALISM_ROWS`, from the velocity track. The cooperative
+tasks (labels starting with "Cooperative") go to the README's "#### Cooperative transport" table: per task, the first
+:data:`COOP_TOP_ROWS` rows of the velocity track with :data:`COOP_COLUMNS` (the slip and the drop rate added). Run it
+after regenerating the leaderboard.
 """
 
 from __future__ import annotations
@@ -26,6 +28,15 @@ REALISM_MARK = ", realism "
 REALISM_HEADING = "Realism track"
 REALISM_ROWS: tuple[str, ...] = ("campc", "campc-raw", "campc-privileged (privileged)")
 """Entries (as the Entry column shows them) the README's realism table keeps besides each task's first row."""
+
+
+COOP_MARK = "Cooperative"
+"""How a cooperative task's label starts (``leaderboard.suite.tasks.COOP_TASKS``)."""
+COOP_HEADING = "Cooperative transport"
+COOP_COLUMNS = (*COLUMNS[:-1], "Max slip (mm)", "Drop rate", "n")
+"""The columns of the README's cooperative table."""
+COOP_TOP_ROWS = 3
+"""Rows shown per cooperative task (the velocity track's ranking order)."""
 
 
 def _cells(line: str) -> list[str]:
@@ -71,6 +82,29 @@ def realism_table(leaderboard_md: str) -> str:
     return "\n".join(out) + "\n"
 
 
+def coop_table(leaderboard_md: str) -> str:
+    """The README's cooperative table: per cooperative task, its first :data:`COOP_TOP_ROWS` velocity-track rows.
+
+    Raises:
+        ValueError: The velocity track's table lacks one of :data:`COOP_COLUMNS`.
+    """
+    header, rows = _track_rows(leaderboard_md, TRACKS[0])
+    missing = [c for c in COOP_COLUMNS if c not in header]
+    if missing:
+        raise ValueError(f"the {TRACKS[0]} table of the leaderboard has no column(s) {missing}")
+    index = [header.index(c) for c in COOP_COLUMNS]
+    align = ["---" if c in ("Task", "Rank", "Entry") else "--:" for c in COOP_COLUMNS]
+    out = ["| " + " | ".join(COOP_COLUMNS) + " |", "|" + "|".join(align) + "|"]
+    shown: dict[str, int] = {}
+    for cells in rows:
+        task = cells[header.index("Task")]
+        if task.startswith(COOP_MARK):
+            shown[task] = shown.get(task, 0) + 1
+            if shown[task] <= COOP_TOP_ROWS:
+                out.append("| " + " | ".join(cells[i] for i in index) + " |")
+    return "\n".join(out) + "\n"
+
+
 def readme_table(leaderboard_md: str, track: str) -> str:
     """The README form of one track's table: :data:`COLUMNS` and each oracle task's first :data:`TOP_ROWS` rows."""
     start, end = _table_after(leaderboard_md, f"### {track}")
@@ -86,7 +120,7 @@ def readme_table(leaderboard_md: str, track: str) -> str:
     for line in lines[2:]:
         cells = _cells(line)
         task = cells[header.index("Task")]
-        if REALISM_MARK in task:  # the realism table's (realism_table)
+        if REALISM_MARK in task or task.startswith(COOP_MARK):  # the realism and cooperative tables' (below)
             continue
         shown[task] = shown.get(task, 0) + 1
         if shown[task] <= TOP_ROWS[track]:
@@ -95,13 +129,23 @@ def readme_table(leaderboard_md: str, track: str) -> str:
 
 
 def update_readme(readme: str, leaderboard_md: str) -> str:
-    """``readme`` with the table under each ``#### <track>`` heading replaced by :func:`readme_table`."""
+    """``readme`` with the table under each ``#### <track>`` heading replaced by :func:`readme_table`.
+
+    The realism and cooperative tables are replaced by :func:`realism_table` and :func:`coop_table` when the
+    leaderboard has such tasks.
+
+    Raises:
+        ValueError: A heading without a table, or a leaderboard table without the columns the README shows.
+    """
     for track in TRACKS:
         start, end = _table_after(readme, f"#### {track}")
         readme = readme[:start] + readme_table(leaderboard_md, track) + readme[end:]
     if REALISM_MARK in leaderboard_md:
         start, end = _table_after(readme, f"#### {REALISM_HEADING}")
         readme = readme[:start] + realism_table(leaderboard_md) + readme[end:]
+    if f"| {COOP_MARK}" in leaderboard_md:  # (a heading with a table under it: add one to the README first)
+        start, end = _table_after(readme, f"#### {COOP_HEADING}")
+        readme = readme[:start] + coop_table(leaderboard_md) + readme[end:]
     return readme
 
 

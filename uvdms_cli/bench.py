@@ -220,23 +220,80 @@ def _bench_realism(env_id: str, n_blocks: int, block_steps: int, warmup: int) ->
     }
 
 
-def _alternating_blocks(envs: dict, seed: int, n_blocks: int, block_steps: int, warmup: int) -> dict[Any, list[float]]:
+GRASP_BENCH_ENV_ID = "uvdms/Transport-v1"
+"""The transport ``uvdms bench env`` times with the friction grasp against the rigid grasp (the issue's bound: 1.3x)."""
+GRASP_BENCH_GRIP = 0.0
+"""The grip command of both hands in the grasp benchmark: half of ``grip_max`` (150 N), which holds the object under
+the random actions without crushing it (above ``crush_force``, 200 N, an episode ends at once)."""
+
+
+def _bench_grasp(n_blocks: int, block_steps: int, warmup: int) -> dict:
+    """The transport with ``grasp="friction"`` against ``grasp="rigid"``, in alternating blocks from the same seed.
+
+    Both run velocity mode without termination on contact and take the same random velocity actions; the friction
+    environment's two grip commands stay at :data:`GRASP_BENCH_GRIP`. Its episodes may still end on a drop (then it
+    resets, untimed, as on any episode end: ``resets`` counts them). The ratio is the median of the per-pair
+    ratios, so each pair runs under the same machine load; only ``step()`` is timed.
+    """
+    import gymnasium as gym
+
+    envs = {
+        grasp: gym.make(GRASP_BENCH_ENV_ID, action_mode="velocity", terminate_on_contact=False, grasp=grasp)
+        for grasp in ("friction", "rigid")
+    }
+    resets = _ResetCounter(envs["friction"])
+    blocks = _alternating_blocks(envs, 0, n_blocks, block_steps, warmup, extra_action=GRASP_BENCH_GRIP)
+    for env in envs.values():
+        env.close()
+    ratios = np.array(blocks["friction"]) / np.array(blocks["rigid"])
+    return {
+        "env_id": GRASP_BENCH_ENV_ID,
+        "grip_command": GRASP_BENCH_GRIP,
+        "step_us": float(np.median(blocks["friction"])),
+        "rigid_step_us": float(np.median(blocks["rigid"])),
+        "ratio_to_rigid": float(np.median(ratios)),
+        "ratio_blocks": ratios.tolist(),
+        "resets": resets.count,
+    }
+
+
+class _ResetCounter:
+    """Counts an environment's ``reset`` calls (wraps the method of the instance)."""
+
+    def __init__(self, env: Any) -> None:
+        self.count = -1  # (the first reset starts the run, not after an episode's end)
+        self._reset = env.reset
+        env.reset = self
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        self.count += 1
+        return self._reset(*args, **kwargs)
+
+
+def _alternating_blocks(
+    envs: dict, seed: int, n_blocks: int, block_steps: int, warmup: int, extra_action: float = 0.0
+) -> dict[Any, list[float]]:
     """Per environment, the mean µs of ``step()`` in each of ``n_blocks`` blocks, the environments taking turns.
 
     Every environment starts from ``seed`` and takes the same random actions (uniform in ``[-0.3, 0.3]``), after
     ``warmup`` untimed steps; an episode's end resets it to ``seed`` (untimed). Taking turns block by block keeps
-    each block pair under the same machine load, so their ratio is the figure to report.
+    each block pair under the same machine load, so their ratio is the figure to report. An environment with more
+    than 18 action values (the friction grasp's grip commands) gets ``extra_action`` in each of the others.
     """
-    actions = np.random.default_rng(0).uniform(-0.3, 0.3, (warmup + n_blocks * block_steps, 18)).astype(np.float32)
+    base = np.random.default_rng(0).uniform(-0.3, 0.3, (warmup + n_blocks * block_steps, 18)).astype(np.float32)
+    per_env = {}
+    for key, env in envs.items():
+        extra = np.full((len(base), env.action_space.shape[0] - 18), extra_action, np.float32)
+        per_env[key] = np.concatenate([base, extra], axis=1)
     blocks: dict[Any, list[float]] = {key: [] for key in envs}
-    for env in envs.values():
+    for key, env in envs.items():
         env.reset(seed=seed)
-        for a in actions[:warmup]:
+        for a in per_env[key][:warmup]:
             env.step(a)
     for b in range(n_blocks):
         for key, env in envs.items():
             elapsed = 0.0
-            for a in actions[warmup + b * block_steps : warmup + (b + 1) * block_steps]:
+            for a in per_env[key][warmup + b * block_steps : warmup + (b + 1) * block_steps]:
                 t0 = time.perf_counter()
                 _, _, term, trunc, _ = env.step(a)
                 elapsed += time.perf_counter() - t0
@@ -268,7 +325,8 @@ def bench_env(quick: bool = False) -> dict:
     two grasp constraints, solved by the direct LCP solver) and ``ratio_to_env_physics`` the step against
     that, i.e. the cost on top of the physics engine. ``uvdms/TransportObstacles-v1`` is measured against
     ``uvdms/Transport-v1`` in alternating blocks (:func:`_bench_obstacles`), and each v1 environment at realism
-    level 3 against level 0 (``realism``, :func:`_bench_realism`; the bound is 1.3x).
+    level 3 against level 0 (``realism``, :func:`_bench_realism`; the bound is 1.3x), and the transport with the
+    friction grasp against the rigid grasp (``grasp``, :func:`_bench_grasp`; the bound is 1.3x).
     """
     import gymnasium as gym
 
@@ -326,6 +384,7 @@ def bench_env(quick: bool = False) -> dict:
         env_id: _bench_realism(env_id, n_blocks, block_steps, warmup)
         for env_id in ("uvdms/CircleTrack-v1", "uvdms/Transport-v1", OBSTACLE_ENV_ID)
     }
+    result["grasp"] = _bench_grasp(n_blocks, block_steps, warmup)
     result["bare_step_us"] = float(np.median(bare_all))
     result["warmup_steps"] = warmup
     result["blocks"] = {"n_blocks": n_blocks, "block_steps": block_steps}

@@ -30,7 +30,13 @@ Definitions (per episode):
 * ``controller_ms_median``: median wall time of ``controller.predict`` (ms);
 * ``qp_slack_max``: largest collision slack of the MPC over the run (m/s; ``None`` for controllers without a QP,
   e.g. agents); ``qp_unsolved``: steps whose QP did not reach ``"solved"`` (``None`` likewise);
-* ``steps``, ``terminated``, ``truncated``, ``physics_error`` (the message, or ``None``).
+* ``steps``, ``terminated``, ``truncated``, ``physics_error`` (the message, or ``None``);
+* the friction grasp's (:data:`GRASP_EPISODE_KEYS`; ``None`` on a rigid-grasp environment, where the object is
+  welded to the hands): ``slip_max`` (m, the largest ``info["slip_max"]`` over the steps: how far either hand's
+  contact moved over the object's surface), ``dropped`` / ``crushed`` (bool: the episode ended by a drop or a
+  crush, ``info["dropped"]`` / ``info["crushed"]`` at the last step), ``internal_force_max`` (N, the largest
+  ``|info["internal_force"]|`` over the samples, the one after reset included) and ``internal_force_rms`` (N, its
+  RMS over the same samples). A drop or a crush terminates the episode, so such an episode is never a success.
 
 With ``save_trajectory`` an episode also holds ``trajectory``: lists over the samples of ``t``, ``y``, ``y_ref``,
 ``distances``, ``eta``, ``nu``, ``q``, ``qdot``, ``action``, ``tau`` (the generalized force applied during the step
@@ -72,8 +78,16 @@ EPISODE_KEYS: tuple[str, ...] = (
     "terminated",
     "truncated",
     "physics_error",
+    "slip_max",
+    "dropped",
+    "crushed",
+    "internal_force_max",
+    "internal_force_rms",
 )
 """Keys of every episode dict returned by :func:`run_episode` (plus ``trajectory`` with ``save_trajectory``)."""
+GRASP_EPISODE_KEYS: tuple[str, ...] = EPISODE_KEYS[-5:]
+"""The friction grasp's keys of :data:`EPISODE_KEYS` (``None`` on a rigid-grasp environment). Episodes computed
+before they existed lack them: readers take a missing key as ``None`` (:func:`summarize`, the leaderboard)."""
 
 CIRCLE_SUCCESS_RMSE = 0.03
 """Circle tracking succeeds with no contact and ``rmse_pos`` at most this (m)."""
@@ -189,6 +203,9 @@ class EpisodeTracker:
         self.terminated = False
         self.physics_error: str | None = None
         self.last_info: Mapping[str, Any] = reset_info
+        self.grasp = GraspRecord() if has_friction_grasp(env) else None
+        if self.grasp is not None:
+            self.grasp.add(reset_info)
 
     def step(self, info: Mapping[str, Any], terminated: bool) -> Mapping[str, Any]:
         """Record the sample and counts of one ``env.step`` (its ``info`` and ``terminated`` flag).
@@ -206,12 +223,15 @@ class EpisodeTracker:
             self.physics_error = str(info["physics_error"])
         self.terminated = bool(terminated)
         self.last_info = info
+        if self.grasp is not None:
+            self.grasp.add(info)
         return info
 
     def outcome(self) -> dict[str, Any]:
-        """``rmse_pos``, ``rmse_ori``, ``success``, ``contacts``, ``steps``, ``terminated``, ``physics_error``.
+        """``rmse_pos``, ``rmse_ori``, ``success``, ``contacts``, ``steps``, ``terminated``, ``physics_error``, ...
 
-        Definitions in the module docstring (``rmse_pos`` is ``nan`` when no sample lies past the transient).
+        ... and the friction grasp's :data:`GRASP_EPISODE_KEYS` (``None`` each with the rigid grasp). Definitions
+        in the module docstring (``rmse_pos`` is ``nan`` when no sample lies past the transient).
         """
         rmse_pos, rmse_ori = tracking_rmse(
             np.array(self.ts), np.array(self.ys), np.array(self.refs), self.transport, self.transient
@@ -229,6 +249,49 @@ class EpisodeTracker:
             "steps": self.steps,
             "terminated": self.terminated,
             "physics_error": self.physics_error,
+            **(self.grasp.outcome() if self.grasp is not None else dict.fromkeys(GRASP_EPISODE_KEYS)),
+        }
+
+
+def has_friction_grasp(env: Any) -> bool:
+    """Whether the environment holds its object by friction (``grasp="friction"``), not welded to the hands."""
+    return getattr(env.unwrapped, "grasp_config", None) is not None
+
+
+class GraspRecord:
+    """The friction grasp's running episode figures (:data:`GRASP_EPISODE_KEYS`), fed one ``info`` per sample.
+
+    A sample without the grasp's keys (a step that ended in a physics error) adds nothing.
+    """
+
+    def __init__(self) -> None:
+        self.slip_max = 0.0
+        self.dropped = False
+        self.crushed = False
+        self.force_max = 0.0
+        self.force_sq = 0.0
+        self.samples = 0
+
+    def add(self, info: Mapping[str, Any]) -> None:
+        """Record one sample's ``slip_max``, ``dropped``, ``crushed`` and ``internal_force``."""
+        if "internal_force" not in info:
+            return
+        force = abs(float(info["internal_force"]))
+        self.slip_max = max(self.slip_max, float(info["slip_max"]))
+        self.dropped = self.dropped or bool(info["dropped"])
+        self.crushed = self.crushed or bool(info["crushed"])
+        self.force_max = max(self.force_max, force)
+        self.force_sq += force * force
+        self.samples += 1
+
+    def outcome(self) -> dict[str, Any]:
+        """The episode's :data:`GRASP_EPISODE_KEYS` (the force RMS ``nan`` without a sample)."""
+        return {
+            "slip_max": self.slip_max,
+            "dropped": self.dropped,
+            "crushed": self.crushed,
+            "internal_force_max": self.force_max,
+            "internal_force_rms": math.sqrt(self.force_sq / self.samples) if self.samples else math.nan,
         }
 
 
@@ -319,6 +382,7 @@ def run_episode(env: Any, controller: Any, seed: int, *, save_trajectory: bool =
         "terminated": outcome["terminated"],
         "truncated": bool(truncated),
         "physics_error": outcome["physics_error"],
+        **{key: outcome[key] for key in GRASP_EPISODE_KEYS},
     }
     if save_trajectory:
         if not has_nn:

@@ -14,6 +14,7 @@ import uvdms_gym
 from leaderboard.output.plots import write_plots
 from leaderboard.output.webpage import write_index_html
 from leaderboard.stats.metrics import (  # (the table constants live in stats: the page, output.webpage, reads them too)
+    GRASP_METRICS,
     METRICS,
     OVERLOAD_MARK,
     RATE_METRICS,
@@ -24,7 +25,7 @@ from leaderboard.stats.metrics import (  # (the table constants live in stats: t
 from leaderboard.stats.ranking import PRIVILEGED_RANK, RankedRow
 from leaderboard.suite.entries import Entry
 from leaderboard.suite.entry_info import entry_details
-from leaderboard.suite.tasks import CHECK_SPLIT, REALISM_DRAWS, TRACKS, env_version
+from leaderboard.suite.tasks import CHECK_SPLIT, COOP_OBSTACLE_DRAWS, REALISM_DRAWS, TRACKS, env_version
 from uvdms_gym.seeds import PROTOCOL, protocol_record
 from uvdms_gym.utils.io import write_json_atomic
 
@@ -39,23 +40,32 @@ PRIVILEGED_TEXT = (
 )
 
 
-def markdown_tables(result: LeaderboardResult, metrics: Sequence[str] = TABLE_METRICS) -> str:
-    """One markdown table per track (ranked within each task), with the columns ``metrics``."""
+def markdown_tables(
+    result: LeaderboardResult, metrics: Sequence[str] = TABLE_METRICS, grasp_metrics: Sequence[str] = GRASP_METRICS
+) -> str:
+    """One markdown table per track (ranked within each task), with the columns ``metrics``.
+
+    A track with a friction-grasp task (``Task.grasp``) also has the columns ``grasp_metrics`` (``—`` on the rows
+    of the other tasks); the tables of a track without one are as they were before those columns existed.
+    """
     lines: list[str] = []
     for track in TRACKS:
         rows = [r for r in result.rows if r.entry.track == track]
         if not rows:
             continue
+        track_metrics = metrics
+        if any(row.task.grasp == "friction" for row in rows):
+            track_metrics = [*metrics, *(m for m in grasp_metrics if m not in metrics)]
         lines.append(f"### {track.capitalize()} track")
         lines.append("")
-        header = ["Task", "Rank", "Entry", *[METRICS[m]["label"] for m in metrics], "n"]
+        header = ["Task", "Rank", "Entry", *[METRICS[m]["label"] for m in track_metrics], "n"]
         lines.append("| " + " | ".join(header) + " |")
-        lines.append("|" + "|".join(["---"] * 3 + ["--:"] * (len(metrics) + 1)) + "|")
+        lines.append("|" + "|".join(["---"] * 3 + ["--:"] * (len(track_metrics) + 1)) + "|")
         marked = False
         for row in rows:
             label = row.entry.label + (f" {PRIVILEGED_MARK}" if row.entry.privileged else "")
             cells = [row.task.label, row.rank_label, label]
-            for m in metrics:
+            for m in track_metrics:
                 cell = row.stats[m].format(METRICS[m]["fmt"], METRICS[m].get("scale", 1.0))
                 if m in TIMING_METRICS and row.timing["overloaded"]:
                     cell += f" {OVERLOAD_MARK}"
@@ -91,6 +101,16 @@ def episodes_label(row: RankedRow) -> str:
     seeds = len(row.entry.members)
     return f"{seeds} × {len(row.episodes) / seeds:g}"
 
+
+COOP_TEXT = (
+    "The cooperative tasks (`coop`, `coop-random`, `coop-obstacles`) hold the object by friction "
+    '(`grasp="friction"`, `uvdms_gym/envs/cooperative.py`): a disagreement between the hands squeezes or '
+    "stretches it and, beyond the friction limit, slips it; a drop or a crush ends the episode as a failure. Their "
+    "rows add *Max slip (mm)*, the largest movement of either hand's contact over the object in an episode, and "
+    "*Drop rate*, the fraction of episodes that dropped it (`—` on the other tasks). `coop-obstacles` runs "
+    f"{COOP_OBSTACLE_DRAWS} draws; the randomised cooperative tasks run no generalisation check."
+)
+"""The explanation that ``leaderboard.md`` carries when a run has a friction-grasp task."""
 
 MULTI_SEED_TEXT = (
     "Rows of multi-seed entries (`name (k seeds)`) aggregate k training seeds: on a randomised task the draws are "
@@ -207,6 +227,7 @@ def _markdown_document(result: LeaderboardResult, command: str | None, plot_file
         "measurements, late and noisy, through the thrusters and the action delay, and is judged on the truth; "
         f"it runs {REALISM_DRAWS} draws per task and no generalisation check.",
         "",
+        *([COOP_TEXT, ""] if any(task.grasp == "friction" for task in result.tasks) else []),
         timing_text(result),
         "",
     ]

@@ -27,7 +27,7 @@ from typing import Any
 from leaderboard.output.page_assets import CSS, JS
 from leaderboard.output.page_data import PageData, plot_data_uri, read_page_data
 from leaderboard.output.page_data import PageError as PageError  # re-exported: raised by write_index_html
-from leaderboard.stats.metrics import METRICS, OVERLOAD_MARK, TABLE_METRICS, TIMING_METRICS
+from leaderboard.stats.metrics import GRASP_METRICS, METRICS, OVERLOAD_MARK, TABLE_METRICS, TIMING_METRICS
 from leaderboard.suite.entries import FILTER_SUFFIX, slugify
 from leaderboard.suite.entry_info import KINDS, entry_kind
 from leaderboard.suite.tasks import TASKS, TRACKS
@@ -103,6 +103,18 @@ def _task_label(name: str) -> str:
     return next((t.label for t in TASKS if t.name == name), name)
 
 
+def _shown(task: str, rows: Iterable[Mapping[str, str]]) -> frozenset[str]:
+    """The metrics ``task``'s table shows by default (the others only with "all columns").
+
+    :data:`TABLE_METRICS` everywhere; also :data:`GRASP_METRICS` in the tables of the friction-grasp tasks: those of
+    the suite (``Task.grasp``) and any whose rows (``rows``, the task's) have a value of one of them.
+    """
+    friction = any(t.grasp == "friction" for t in TASKS if t.name == task) or any(
+        row.get(f"{m}_mean") for row in rows for m in GRASP_METRICS
+    )
+    return frozenset(TABLE_METRICS) | (frozenset(GRASP_METRICS) if friction else frozenset())
+
+
 def _metrics(columns: Sequence[str]) -> list[str]:
     """The metrics of the CSV (those with a ``<metric>_mean`` column), in :data:`METRICS` order."""
     known = [m for m in METRICS if f"{m}_mean" in columns]
@@ -125,25 +137,25 @@ def _steps(value: Any) -> str:
 # ------------------------------------------------------------------------------------------------------
 # The tables
 # ------------------------------------------------------------------------------------------------------
-def _header(metrics: Sequence[str]) -> str:
-    """The header row of a ranking table (``data-type``: how the column sorts)."""
+def _header(metrics: Sequence[str], shown: frozenset[str]) -> str:
+    """The header row of a ranking table (``data-type``: how the column sorts; ``shown``: :func:`_shown`)."""
     cells = ['<th data-type="number">Rank</th>', '<th data-type="text">Entry</th>', '<th data-type="text">Kind</th>']
     for metric in metrics:
         label = METRICS.get(metric, {}).get("label", metric)
-        extra = "" if metric in TABLE_METRICS else ' class="extra"'
+        extra = "" if metric in shown else ' class="extra"'
         cells.append(f'<th data-type="number" data-metric="{esc(metric)}"{extra}>{esc(label)}</th>')
     cells.append('<th data-type="number">n</th>')
     cells += [f'<th data-type="text" class="extra" data-column="{esc(c)}">{esc(h)}</th>' for c, h in EXTRA_COLUMNS]
     return "<tr>" + "".join(cells) + "</tr>"
 
 
-def _metric_cell(row: Mapping[str, str], metric: str) -> str:
+def _metric_cell(row: Mapping[str, str], metric: str, shown: frozenset[str]) -> str:
     """One metric's ``<td>``: sorts by the CSV's mean, shows ``mean [low, high]``, exact bounds in its title."""
     mean, low, high = (row.get(f"{metric}_{p}", "") for p in ("mean", "ci_low", "ci_high"))
     text = metric_cell_text(row, metric)
     if metric in TIMING_METRICS and (_number(row.get("timing_episodes_overloaded")) or 0) > 0:
         text += f" {OVERLOAD_MARK}"
-    classes = "num" + ("" if metric in TABLE_METRICS else " extra") + (" empty" if not mean else "")
+    classes = "num" + ("" if metric in shown else " extra") + (" empty" if not mean else "")
     title = f"{metric}: mean {mean or '-'}, 95 % CI [{low or '-'}, {high or '-'}] (leaderboard.csv)"
     attributes = f'class="{classes}" data-metric="{esc(metric)}" data-value="{esc(mean)}" title="{esc(title)}"'
     return f"<td {attributes}>{esc(text)}</td>"
@@ -166,7 +178,9 @@ def _entry_label(row: Mapping[str, str]) -> str:
     return f"{row['entry']} ({seeds} seeds)" if seeds else row["entry"]
 
 
-def _table_row(row: Mapping[str, str], document: Mapping[str, Any], metrics: Sequence[str]) -> str:
+def _table_row(
+    row: Mapping[str, str], document: Mapping[str, Any], metrics: Sequence[str], shown: frozenset[str]
+) -> str:
     """One ``<tr>`` of a ranking table, with the attributes the filters read."""
     kind = entry_kind(document) if document else "agent"
     safety = "yes" if _safety_filter(row, document) else "no"
@@ -177,7 +191,7 @@ def _table_row(row: Mapping[str, str], document: Mapping[str, Any], metrics: Seq
         f'<td class="entry" data-value="{esc(row["entry"])}"><button type="button" class="entry-link" '
         f'data-slug="{esc(slugify(row["entry"]))}">{esc(_entry_label(row))}</button></td>',
         f'<td class="kind" data-value="{esc(kind_text)}">{esc(kind_text)}</td>',
-        *[_metric_cell(row, m) for m in metrics],
+        *[_metric_cell(row, m, shown) for m in metrics],
         f'<td class="num" data-value="{esc(row["episodes"])}">{esc(_episodes_text(row))}</td>',
         *[f'<td class="extra" data-value="{esc(row.get(c))}">{esc(row.get(c))}</td>' for c, _h in EXTRA_COLUMNS],
     ]
@@ -190,11 +204,12 @@ def _table_row(row: Mapping[str, str], document: Mapping[str, Any], metrics: Seq
 
 def _board(track: str, task: str, rows: Sequence[Mapping[str, str]], data: PageData, metrics: Sequence[str]) -> str:
     """The section of one track and task: heading and ranking table (rows in the CSV's order, i.e. by rank)."""
-    body = "\n".join(_table_row(row, data.documents.get(row["entry"], {}), metrics) for row in rows)
+    shown = _shown(task, rows)
+    body = "\n".join(_table_row(row, data.documents.get(row["entry"], {}), metrics, shown) for row in rows)
     return (
         f'<section class="board" data-track="{esc(track)}" data-task="{esc(task)}">\n'
         f"<h2>{esc(track.capitalize())} track · {esc(_task_label(task))} <small>({esc(task)})</small></h2>\n"
-        f'<div class="table-wrap"><table class="ranking">\n<thead>{_header(metrics)}</thead>\n'
+        f'<div class="table-wrap"><table class="ranking">\n<thead>{_header(metrics, shown)}</thead>\n'
         f"<tbody>\n{body}\n</tbody></table></div>\n</section>"
     )
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from leaderboard.stats.intervals import BOOTSTRAP_SEED, Stat, bootstrap_ci, hierarchical_bootstrap_ci
 
-RATE_METRICS: tuple[str, ...] = ("contact_free_success", "success", "contact_free")
+RATE_METRICS: tuple[str, ...] = ("contact_free_success", "success", "contact_free", "dropped", "crushed")
 """The 0/1 indicators: a multi-seed row reports their rate (the mean), not an IQM (see :func:`aggregate_runs`)."""
 
 METRICS: dict[str, dict[str, Any]] = {
@@ -35,9 +35,19 @@ METRICS: dict[str, dict[str, Any]] = {
     "steps": {"label": "Steps", "fmt": ".0f", "better": "high"},
     "controller_ms_median": {"label": "Ctrl ms", "fmt": ".2f", "better": "low"},
     "qp_slack_max": {"label": "QP slack max", "fmt": ".3g", "better": "low"},
+    "slip_max": {"label": "Max slip (mm)", "fmt": ".1f", "scale": 1e3, "better": "low"},
+    "dropped": {"label": "Drop rate", "fmt": ".2f", "better": "low"},
+    "crushed": {"label": "Crush rate", "fmt": ".2f", "better": "low"},
+    "internal_force_max": {"label": "Max internal force (N)", "fmt": ".1f", "better": "low"},
 }
 """Aggregated metrics (per-episode keys of ``run_episode`` plus the derived 0/1 indicators). Values are SI
-(m, rad) everywhere but in the tables and plots, which multiply by ``scale`` (mm, degrees)."""
+(m, rad) everywhere but in the tables and plots, which multiply by ``scale`` (mm, degrees). The friction grasp's
+(:data:`GRASP_METRICS` and the two after them) come last, so every other metric keeps its bootstrap seed
+(``BOOTSTRAP_SEED + index``); they have no value (``—``, empty CSV cells) on the rigid-grasp tasks, whose episodes
+record ``None`` or (computed before the keys existed) nothing."""
+GRASP_METRICS: tuple[str, ...] = ("slip_max", "dropped")
+"""The columns the tables add for the friction-grasp tasks (``Task.grasp == "friction"``): in ``leaderboard.md``
+for a track with such a task (``—`` on the other tasks' rows), on the page in those tasks' tables."""
 TABLE_METRICS: tuple[str, ...] = (
     "contact_free_success",
     "success",

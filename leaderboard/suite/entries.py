@@ -41,6 +41,8 @@ from leaderboard.suite.agent_files import (
 from leaderboard.suite.registry import (
     BASELINE_ENV,
     DEFAULT_BASELINES,
+    GRASP_OF,
+    GRASP_ONLY,
     PRIVILEGED,
     REALISM_ONLY,
     TRACK_OF,
@@ -56,10 +58,11 @@ BASELINES: dict[str, str] = TRACK_OF
 """Named baselines and their tracks (:data:`leaderboard.suite.registry.TRACK_OF`)."""
 FILTER_SUFFIX = "+filter"
 """Entry-token suffix: the entry's actions go through the safety filter (:mod:`baselines.safety.filter`)."""
-DEFAULT_ENTRIES: tuple[str, ...] = ("baselines", "realism", "agents")
+DEFAULT_ENTRIES: tuple[str, ...] = ("baselines", "realism", "coop", "agents")
 """``baselines`` stands for the four named baselines, ``realism`` for the realism track's own baselines
-(``campc-raw``, ``campc-privileged``: they run only on its tasks), ``agents`` for every agent folder in
-``agents_dir``."""
+(``campc-raw``, ``campc-privileged``: they run only on its tasks), ``coop`` for the baselines restricted to the
+friction-grasp tasks (:data:`leaderboard.suite.registry.GRASP_ONLY`: ``campc-coop``), ``agents`` for every agent
+folder in ``agents_dir``."""
 SEED_FOLDER_PREFIX = "seed_"
 """Sub-folders of a multi-seed entry: ``seed_<k>``, ``k`` the training seed (``--seed``) of the run inside."""
 _SEED_FOLDER = re.compile(rf"^{SEED_FOLDER_PREFIX}(\d+)$")
@@ -89,6 +92,8 @@ class Entry:
         training_seed: A member's training seed (the ``k`` of its ``seed_<k>`` folder; ``None`` otherwise).
         realism_only: A baseline of the realism track only (runs on tasks with ``realism > 0``).
         privileged: A reference row that reads the true state at ``realism > 0`` (marked, not a competitor).
+        grasp: A baseline of the tasks of this grasp only (``"friction"``: the cooperative tasks; ``None``: every
+            task), from its spec's :data:`leaderboard.suite.registry.GRASP_KEY`.
     """
 
     name: str
@@ -105,6 +110,7 @@ class Entry:
     training_seed: int | None = None
     realism_only: bool = False
     privileged: bool = False
+    grasp: str | None = None
 
     @property
     def label(self) -> str:
@@ -141,9 +147,12 @@ class Entry:
         """Whether the entry is evaluated on ``task`` (agents: only tasks of the environment they were trained on).
 
         Any version of the task's environment counts (:func:`leaderboard.suite.tasks.env_family`): an agent trained
-        on ``uvdms/CircleTrack-v1`` runs the circle tasks, on ``-v1`` (:meth:`task_spec`).
+        on ``uvdms/CircleTrack-v1`` runs the circle tasks, on ``-v1`` (:meth:`task_spec`). A baseline of the
+        realism track runs only at ``realism > 0``, one restricted to a grasp (:attr:`grasp`) only on its tasks.
         """
         if self.realism_only and task.realism == 0:
+            return False
+        if self.grasp is not None and task.grasp != self.grasp:
             return False
         return self.env_id is None or env_family(self.env_id) == env_family(task.env_id)
 
@@ -175,7 +184,8 @@ def resolve_entries(
     """Turn command-line entry tokens into :class:`Entry` objects (and check that loading them is safe).
 
     Args:
-        tokens: Baseline names, agent paths (a folder or an SB3 zip), ``baselines`` (the four baselines) or
+        tokens: Baseline names, agent paths (a folder or an SB3 zip), ``baselines`` (the four baselines),
+            ``realism`` and ``coop`` (the baselines of the realism track and of the friction-grasp tasks only) or
             ``agents`` (every agent folder in ``agents_dir``). Default :data:`DEFAULT_ENTRIES`. A token ending in
             :data:`FILTER_SUFFIX` (``mpc+filter``, ``trained_agents/x+filter``, ``agents+filter``) stands for the
             same entries with the safety filter (velocity track only).
@@ -219,6 +229,8 @@ def _token_specs(token: str, agents_dir: str | Path) -> list[str]:
         return list(DEFAULT_BASELINES)
     if token == "realism":
         return sorted(REALISM_ONLY)
+    if token == "coop":
+        return sorted(GRASP_ONLY)
     if token == "agents":
         return [str(p) for p in find_agent_folders(agents_dir)]
     return [token]
@@ -236,6 +248,7 @@ def _token_entry(spec: str, raw_token: str, token: str, filtered: bool, trust: b
             env_id=BASELINE_ENV[spec],
             realism_only=spec in REALISM_ONLY,
             privileged=spec in PRIVILEGED,
+            grasp=GRASP_OF[spec],
         )
     else:
         path = Path(resolve_controller(spec))  # a shipped name from any directory, a former name

@@ -41,8 +41,20 @@ TRACK_OF: dict[str, str] = {name: spec["action_mode"] for name, spec in BASELINE
 """The action mode (leaderboard track) each named controller needs."""
 BASELINE_ENV: dict[str, str | None] = {name: spec.get("env_id") for name, spec in BASELINES.items()}
 """The environment a named baseline's leaderboard entry runs on (``None``: every task)."""
+GRASP_KEY = "grasp"
+"""The key of a :data:`baselines.controllers.BASELINES` spec that restricts a baseline to the tasks of one grasp:
+``{"grasp": "friction", ...}`` (``campc-coop``) runs only on the friction-grasp tasks (``Task.grasp``,
+:data:`leaderboard.suite.tasks.COOP_TASKS`), is left out of the ``baselines`` token and stands in the ``coop`` token
+instead (:data:`GRASP_ONLY`). Without the key a baseline runs on every task of its track (on a friction-grasp
+environment with a constant grip, which :func:`baselines.controllers.make_baseline` appends)."""
+GRASP_OF: dict[str, str | None] = {name: spec.get(GRASP_KEY) for name, spec in BASELINES.items()}
+"""The grasp each named baseline is restricted to (``None``: every task)."""
+GRASP_ONLY: frozenset[str] = frozenset(name for name, grasp in GRASP_OF.items() if grasp is not None)
+"""Baselines restricted to one grasp (:data:`GRASP_KEY`): the leaderboard's ``coop`` token."""
 DEFAULT_BASELINES: tuple[str, ...] = tuple(
-    name for name, spec in BASELINES.items() if spec.get("env_id") is None and spec.get("default", True)
+    name
+    for name, spec in BASELINES.items()
+    if spec.get("env_id") is None and spec.get("default", True) and name not in GRASP_ONLY
 )
 """The baselines the leaderboard's ``baselines`` token stands for: those of every task but ``hold`` (named)."""
 REALISM_ONLY: frozenset[str] = frozenset(name for name, spec in BASELINES.items() if spec.get("realism_only"))

@@ -1,8 +1,8 @@
-"""The task suite (the paper's three tasks and their held-out randomised variants), tracks and each task's draws.
+"""The task suite (paper tasks, randomised variants, realism track, cooperative group), tracks and draws.
 
 The draws are the seeds of the protocol of :mod:`uvdms_gym.seeds`: draw ``i`` of a split is its seed ``start + i``;
-a deterministic task (the paper's: a fixed start, no randomisation) has one draw, a randomised task
-:data:`DEFAULT_EPISODES`.
+a deterministic task (the paper's and ``coop``: a fixed start, no randomisation) has one draw, a randomised task
+:data:`DEFAULT_EPISODES` (fewer where :attr:`Task.max_draws` caps them).
 """
 
 from __future__ import annotations
@@ -45,6 +45,10 @@ class Task:
         realism: The sensing and actuation realism level of the task (0: the oracle; its ``env_kwargs`` hold it).
         check: A randomised task that also runs the generalisation check on the second test set.
         max_draws: At most this many draws, whatever the run's ``episodes`` (``None``: no cap).
+        grasp: How the task's environment holds the object: ``"rigid"`` (welded; also the circle tasks, which
+            hold none) or ``"friction"`` (the cooperative tasks, :data:`COOP_TASKS`). A baseline restricted to a
+            grasp (``BASELINES[name]["grasp"]``, :data:`leaderboard.suite.registry.GRASP_OF`) runs only on the
+            tasks of that grasp; the friction tasks' tables add :data:`leaderboard.stats.metrics.GRASP_METRICS`.
     """
 
     name: str
@@ -58,6 +62,7 @@ class Task:
     realism: int = 0
     check: bool = True
     max_draws: int | None = None
+    grasp: str = "rigid"
 
     def draws(self, split: str, episodes: int) -> list[int]:
         """The task's draws on ``split``: one for a deterministic task, else ``episodes`` (``split_seeds``)."""
@@ -152,9 +157,51 @@ def _realism_tasks(tasks: Sequence[Task]) -> tuple[Task, ...]:
     return tuple(out)
 
 
-TASKS = TASKS + _realism_tasks(TASKS)
+COOP_ID, COOP_OBSTACLES_ID = "uvdms/CooperativeTransport-v1", "uvdms/CooperativeTransportObstacles-v1"
+COOP_OBSTACLE_DRAWS = 30
+"""Draws of ``coop-obstacles`` (fewer than :data:`DEFAULT_EPISODES`, as the realism track's
+:data:`REALISM_DRAWS`: the MPC's outer-obstacle rows make its episodes dearer than
+those of ``coop-random``; intervals about ±0.18 at rates near 0.5). The randomised cooperative tasks run no
+generalisation check: it would double their cost (as many ``test2`` draws again), and the friction grasp changes
+the object's hold, not the draw distributions the check is about, which ``transport-random`` and
+``transport-obstacles`` check already; ``coop-random`` keeps the default :data:`DEFAULT_EPISODES` draws."""
+COOP_TASKS: tuple[Task, ...] = (
+    Task(
+        "coop", "Cooperative transport", COOP_ID, {"goal": "paper"}, paper=False, deterministic=True, grasp="friction"
+    ),
+    Task(
+        "coop-random",
+        "Cooperative, random goal, hydro ±30 %",
+        COOP_ID,
+        {"goal": "random", "hydro_randomization": HYDRO_RANDOMIZATION},
+        paper=False,
+        check=False,
+        grasp="friction",
+    ),
+    Task(
+        "coop-obstacles",
+        "Cooperative, moving obstacles, current",
+        COOP_OBSTACLES_ID,
+        {"obstacles": "random", "current": "random"},
+        paper=False,
+        check=False,
+        max_draws=COOP_OBSTACLE_DRAWS,
+        grasp="friction",
+    ),
+)
+"""The cooperative group: the transports with the object held by friction (``grasp="friction"``,
+:mod:`uvdms_gym.envs.cooperative`): the paper's goal (deterministic, one draw), random goals with hydrodynamic
+randomisation, and moving obstacles in a current (:data:`COOP_OBSTACLE_DRAWS` draws)."""
+
+TASKS = TASKS + _realism_tasks(TASKS) + COOP_TASKS
 """The task suite: the paper's three tasks, then the held-out randomised variants and the obstacle task (the paper's
-stated future work: moving outer obstacles in a current), then the realism track (:data:`REALISM_LEVELS`)."""
+stated future work: moving outer obstacles in a current), then the realism track (:data:`REALISM_LEVELS`), then the
+cooperative group (:data:`COOP_TASKS`)."""
+
+
+def friction_tasks(tasks: Sequence[Task]) -> tuple[Task, ...]:
+    """The tasks of ``tasks`` whose environment holds the object by friction (``grasp == "friction"``)."""
+    return tuple(t for t in tasks if t.grasp == "friction")
 
 
 def select_tasks(names: Sequence[str] | None = None, *, quick: bool = False) -> tuple[Task, ...]:

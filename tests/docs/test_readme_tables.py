@@ -56,3 +56,38 @@ def test_the_realism_table_shows_each_realism_tasks_first_row_and_the_reference_
         expected += [(r[0], r[2]) for i, r in enumerate(task_rows) if i == 0 or r[2] in tables.REALISM_ROWS]
     assert shown == expected
     assert {"campc", "campc-raw"} <= {entry for _, entry in shown}
+
+
+def test_the_cooperative_table_shows_each_cooperative_tasks_first_rows_with_slip_and_drop_rate():
+    header = "| Task | Rank | Entry | Contact-free success | RMSE pos (mm) | Min distance (m) | Ctrl ms | n |"
+    coop_header = header.replace("| n |", "| Max slip (mm) | Drop rate | n |")
+    board = "\n".join(
+        [
+            "### Velocity track",
+            "",
+            coop_header,
+            "|---|---|---|--:|--:|--:|--:|--:|--:|--:|",
+            "| Case 1 | 1 | campc | 1.00 (n=1) | 0.5 (n=1) | 0.070 (n=1) | 1.0 (n=1) | — | — | 1 |",
+            *(
+                f"| Cooperative transport | {k} | e{k} | 1.00 (n=1) | 0.5 (n=1) | 0.070 (n=1) | 1.0 (n=1) | "
+                f"{k}.0 (n=1) | 0.00 (n=1) | 1 |"
+                for k in range(1, 6)
+            ),
+            "",
+            "### Torque track",
+            "",
+            header,
+            "|---|---|---|--:|--:|--:|--:|--:|",
+            "",
+        ]
+    )
+    table = tables.coop_table(board)
+    rows = [tables._cells(line) for line in table.splitlines()]
+    assert tuple(rows[0]) == tables.COOP_COLUMNS
+    assert [r[2] for r in rows[2:]] == ["e1", "e2", "e3"][: tables.COOP_TOP_ROWS]
+    assert rows[2][tables.COOP_COLUMNS.index("Max slip (mm)")] == "1.0 (n=1)"
+    assert "Cooperative" not in tables.readme_table(board, "Velocity track")  # not among the oracle tasks' rows
+    readme = "#### Velocity track\n\n| x |\n\n#### Torque track\n\n| x |\n\n#### Cooperative transport\n\n| x |\n"
+    assert tables.update_readme(readme, board).endswith(table)
+    with pytest.raises(ValueError, match="Drop rate"):
+        tables.coop_table(board.replace("| Drop rate |", "| Drops |"))

@@ -271,13 +271,53 @@ def test_agent_track_and_tasks_follow_its_config(tmp_path):
 
 def test_quick_selects_the_paper_tasks():
     assert [t.name for t in lb.select_tasks(quick=True)] == ["case1", "case2", "transport"]
-    randomised = [t for t in lb.TASKS if not t.paper and t.env_id != "uvdms/TransportObstacles-v1"]
+    rigid = [t for t in lb.TASKS if t.grasp == "rigid"]
+    randomised = [t for t in rigid if not t.paper and t.env_id != "uvdms/TransportObstacles-v1"]
     assert {t.env_kwargs.get("hydro_randomization") for t in randomised} == {0.3}
     obstacles = [t for t in lb.TASKS if t.env_id == "uvdms/TransportObstacles-v1"]
     assert [dict(t.env_kwargs) for t in obstacles] == [
         {"obstacles": "random", "current": "random", **({"realism": level} if level else {})} for level in (0, 1, 2, 3)
     ]
-    assert [t.realism for t in lb.TASKS if not t.check] == [1, 1, 1, 2, 2, 2, 3, 3, 3]
+    assert [t.realism for t in rigid if not t.check] == [1, 1, 1, 2, 2, 2, 3, 3, 3]
+
+
+def test_the_cooperative_group_holds_the_object_by_friction_with_its_draws():
+    from leaderboard.suite.tasks import COOP_OBSTACLE_DRAWS, DEFAULT_EPISODES, friction_tasks
+
+    coop = friction_tasks(lb.TASKS)
+    assert [t.name for t in coop] == ["coop", "coop-random", "coop-obstacles"]
+    ids = ["uvdms/CooperativeTransport-v1"] * 2 + ["uvdms/CooperativeTransportObstacles-v1"]
+    assert [t.env_id for t in coop] == ids
+    assert [dict(t.env_kwargs) for t in coop] == [
+        {"goal": "paper"},
+        {"goal": "random", "hydro_randomization": 0.3},
+        {"obstacles": "random", "current": "random"},
+    ]
+    assert coop[0].deterministic and not any(t.paper or t.realism for t in coop)
+    assert [len(t.draws("test", DEFAULT_EPISODES)) for t in coop] == [1, DEFAULT_EPISODES, COOP_OBSTACLE_DRAWS]
+    assert not any(t.check for t in coop[1:])  # no generalisation check: it would double their cost
+    assert lb.select_tasks(quick=True) == tuple(t for t in lb.TASKS if t.paper)
+
+
+def test_a_baseline_restricted_to_the_friction_grasp_runs_only_on_the_cooperative_tasks(monkeypatch):
+    from leaderboard.suite import entries as entries_module
+    from leaderboard.suite.entries import Entry
+    from leaderboard.suite.registry import GRASP_KEY
+
+    assert GRASP_KEY == "grasp"
+    coop = Entry("coop-mpc", "baseline", "coop-mpc", "velocity", grasp="friction")
+    assert [t.name for t in lb.TASKS if coop.runs_on(t)] == ["coop", "coop-random", "coop-obstacles"]
+    plain = lb.resolve_entries(["campc", "campc-inner"])
+    assert [t.name for t in lb.TASKS if plain[0].runs_on(t)][-3:] == ["coop", "coop-random", "coop-obstacles"]
+    assert not any(plain[1].runs_on(t) for t in lb.TASKS if t.grasp == "friction")  # TransportObstacles only
+    # a BASELINES spec with the key: named by the coop token, not by the baselines token, and restricted
+    monkeypatch.setattr(entries_module, "BASELINES", {**entries_module.BASELINES, "coop-mpc": "velocity"})
+    monkeypatch.setattr(entries_module, "BASELINE_ENV", {**entries_module.BASELINE_ENV, "coop-mpc": None})
+    monkeypatch.setattr(entries_module, "GRASP_OF", {**entries_module.GRASP_OF, "coop-mpc": "friction"})
+    monkeypatch.setattr(entries_module, "GRASP_ONLY", frozenset({"coop-mpc"}))
+    (entry,) = lb.resolve_entries(["coop"])
+    assert entry == coop
+    assert "coop-mpc" not in [e.name for e in lb.resolve_entries(["baselines"])]
     with pytest.raises(ValueError, match="unknown task"):
         lb.select_tasks(["nope"])
 

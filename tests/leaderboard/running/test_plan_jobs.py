@@ -30,8 +30,8 @@ def entries(tmp_path):
 
 def test_the_suite_defaults():
     assert (DEFAULT_EPISODES, DEFAULT_SPLIT, CHECK_SPLIT) == (100, "test", "test2")
-    assert [t.name for t in TASKS if t.deterministic] == ["case1", "case2", "transport"]
-    assert all(t.paper == t.deterministic for t in TASKS)
+    assert [t.name for t in TASKS if t.deterministic] == ["case1", "case2", "transport", "coop"]
+    assert all(t.paper == (t.deterministic and t.grasp == "rigid") for t in TASKS)  # coop: no paper task
     for task in TASKS:
         assert task.draws("test", 5) == ([TEST.start] if task.deterministic else split_seeds("test", 5))
         assert task.draws("validation", 3) == split_seeds("validation", 1 if task.deterministic else 3)
