@@ -21,6 +21,13 @@ from uvdms_gym.envs.transport import TransportV1Env
 class CooperativeTransportV1Env(TransportV1Env):
     """``uvdms/CooperativeTransport-v1``: the v1 transport with the object held by friction.
 
+    ## Description
+    The UVDMS carries the cylinder of ``uvdms/Transport-v1`` (0.6 m x 0.05 m, 1100 kg/m^3) along the same reference,
+    but each hand holds it by friction instead of a weld (:mod:`uvdms_gym.physics.friction_grasp`): the jaws hold it
+    against every motion but sliding along its axis and turning about it, which friction resists within the ellipse
+    ``(f / mu F)^2 + (m / mu r_t F)^2 <= 1`` of the hand's grip force ``F``. The two hands must cooperate: what their
+    motions disagree on becomes an internal force along the object, and beyond the friction limit, slip.
+
     ## Action Space
     ``Box(-1, 1, (20,), float32)``: the 18 values of ``uvdms/Transport-v1`` (velocity or torque mode), then the grip
     command of the left and the right hand, ``F = (a + 1) / 2 * grip_max`` (default ``grip_max`` 300 N).
@@ -51,6 +58,10 @@ class CooperativeTransportV1Env(TransportV1Env):
 
 class CooperativeTransportObstaclesV1Env(TransportObstaclesV1Env):
     """``uvdms/CooperativeTransportObstacles-v1``: the obstacle task with the object held by friction.
+
+    ## Description
+    The transport among moving outer obstacles in a current of ``uvdms/TransportObstacles-v1``, with the friction
+    grasp of :class:`CooperativeTransportV1Env`.
 
     As :class:`CooperativeTransportV1Env` over ``uvdms/TransportObstacles-v1``: the action gains the two grip
     commands, the observation the four gripper readings after the obstacle slots, ``info`` the grasp's keys and

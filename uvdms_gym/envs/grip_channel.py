@@ -21,10 +21,12 @@ force-torque sensor; slip itself is not measured). :class:`GripChannel` does tha
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
+from uvdms_gym.envs.tracking import OBS_CLIP
 from uvdms_gym.physics.friction_grasp import FrictionGrasp
 from uvdms_gym.physics.grip import FrictionGraspConfig
 
@@ -47,13 +49,12 @@ class GripChannel:
 
     def __init__(self, config: FrictionGraspConfig) -> None:
         self.config = config
-        self._slip_prev = np.zeros(2)
+        self._slip_prev = (0.0, 0.0)
         self._slip_max = 0.0
-        self._block = np.zeros(GRASP_OBS_DIM, np.float32)
 
     def reset(self) -> None:
         """Start an episode (the grasp was attached with ``grip_initial``)."""
-        self._slip_prev = np.zeros(2)
+        self._slip_prev = (0.0, 0.0)
         self._slip_max = 0.0
 
     def grip_command(self, a: np.ndarray) -> tuple[float, float]:
@@ -65,40 +66,49 @@ class GripChannel:
         """Fill ``info`` with the grasp's readings and costs (module docstring); return the observation block."""
         cfg = self.config
         forces = grasp.forces()
-        axis = rot_object[:, 1]  # the object's axis (its y) in NED
-        axial = forces[:, :3] @ axis
-        net = forces[0, :3] + forces[1, :3]
-        nn = float(net @ net)
-        share_left = float(forces[0, :3] @ net) / nn if nn > 1e-18 else 0.5
+        axis = rot_object[:, 1].tolist()  # the object's axis (its y) in NED
+        f = forces[:, :3].tolist()
+        axial = [sum(a * b for a, b in zip(row, axis, strict=True)) for row in f]
+        net = [f[0][i] + f[1][i] for i in range(3)]
+        nn = net[0] * net[0] + net[1] * net[1] + net[2] * net[2]
+        share_left = (f[0][0] * net[0] + f[0][1] * net[1] + f[0][2] * net[2]) / nn if nn > 1e-18 else 0.5
         slip = grasp.slip()
-        dist = grasp.slip_distance()
-        grip = np.array(grasp.grip)
-        moved = float(np.max(np.abs(dist - self._slip_prev)))
-        self._slip_prev = dist
-        self._slip_max = max(self._slip_max, float(dist.max()))
-        dropped = bool(np.abs(slip[:, 0]).max() >= cfg.drop_slip)
-        crushed = bool(grip.max() > cfg.crush_force)
+        (xl, tl), (xr, tr) = slip.tolist()
+        rl, rr = cfg.torsion_radius
+        dl, dr = math.hypot(xl, rl * tl), math.hypot(xr, rr * tr)
+        moved = max(abs(dl - self._slip_prev[0]), abs(dr - self._slip_prev[1]))
+        self._slip_prev = (dl, dr)
+        self._slip_max = max(self._slip_max, dl, dr)
+        gl, gr = grasp.grip
+        dropped = max(abs(xl), abs(xr)) >= cfg.drop_slip
+        crushed = max(gl, gr) > cfg.crush_force
         costs = {
             "cost_slip": 1.0 if moved > SLIP_STEP_TOLERANCE else 0.0,
             "cost_drop": 1.0 if dropped else 0.0,
             "cost_crush": 1.0 if crushed else 0.0,
         }
         info.update(
-            grip=grip,
+            grip=np.array([gl, gr]),
             hand_forces=forces,
             slip=slip,
-            slip_distance=dist,
+            slip_distance=np.array([dl, dr]),
             slip_max=self._slip_max,
-            internal_force=0.5 * float(axial[1] - axial[0]),
+            internal_force=0.5 * (axial[1] - axial[0]),
             load_share=np.array([share_left, 1.0 - share_left]),
             dropped=dropped,
             crushed=crushed,
             **costs,
         )
-        info["cost"] = info["cost"] + sum(costs.values())
+        info["cost"] = info["cost"] + costs["cost_slip"] + costs["cost_drop"] + costs["cost_crush"]
         if dropped or crushed:
             info["is_success"] = False
-        block = self._block
-        block[:2] = grip / cfg.grip_max
-        block[2:] = np.clip(axial / AXIAL_FORCE_SCALE, -10.0, 10.0)
-        return block.copy()
+        lim = OBS_CLIP
+        return np.array(
+            [
+                gl / cfg.grip_max,
+                gr / cfg.grip_max,
+                min(max(axial[0] / AXIAL_FORCE_SCALE, -lim), lim),
+                min(max(axial[1] / AXIAL_FORCE_SCALE, -lim), lim),
+            ],
+            np.float32,
+        )

@@ -40,7 +40,7 @@ _JOINTS = [0, 1, 2, 3]  # left slide, left twist, right slide, right twist (mode
 _SLEEVE_LINK = {"left": 1, "right": 3}
 _VELOCITY = pb.VELOCITY_CONTROL
 _ZEROS = [0.0, 0.0, 0.0, 0.0]
-_WORLD_TO_NED = np.array([1.0, -1.0, -1.0])  # frames.S, as a row scale
+_STICK_SPEED2 = STICK_SPEED * STICK_SPEED
 _constraint_state = pb.getConstraintState
 _joint_states = pb.getJointStates
 _motor_array = pb.setJointMotorControlArray
@@ -174,9 +174,15 @@ class FrictionGrasp(RigidGrasp):
             (x, v, _, f), (_, w, _, m) = js[2 * side], js[2 * side + 1]
             f_max, m_max = cfg.capacity(side, self._grip[side])
             r_t = cfg.torsion_radius[side]
-            sliding = math.sqrt(v * v + (r_t * w) ** 2) > STICK_SPEED and f_max > 0.0
+            sliding = v * v + (r_t * w) ** 2 > _STICK_SPEED2 and f_max > 0.0
             self._sliding[side] = sliding
-            bounds.extend(slide_bounds(f_max, m_max, v, w) if sliding else stick_bounds(f_max, m_max, f, m))
+            if sliding:
+                bounds.extend(slide_bounds(f_max, m_max, v, w))
+            elif f_max > 0.0 and (f / f_max) ** 2 + (m / m_max) ** 2 <= 1.0:  # stick_bounds' first case, inlined
+                bounds.append(f_max)
+                bounds.append(m_max)
+            else:
+                bounds.extend(stick_bounds(f_max, m_max, f, m))
             if abs(x) >= cfg.drop_slip:
                 self.dropped = True
         if bounds != self._bounds:  # sticking at a steady grip (the usual case) keeps last step's bounds
@@ -220,17 +226,20 @@ class FrictionGrasp(RigidGrasp):
         if self.object_id is None:
             return np.zeros((2, 6))
         _, quat, _, _ = self.read()
-        r_obj = frames.quat_xyzw_to_rot(np.array(quat))
+        r = frames.quat_xyzw_to_rot(np.array(quat)).tolist()
         js = self._joint_read()
-        raw = np.array([_constraint_state(cid, self._cid) for cid in self._constraints]) * _GRASP_SIGN
-        out = np.empty((2, 6))
-        out[:, :3] = raw[:, :3] * _WORLD_TO_NED
-        for k in (0, 1):
+        rows = []
+        for k, cid in enumerate(self._constraints):
+            fx, fy, fz, mx, my, mz = _constraint_state(cid, self._cid)
             th = js[2 * k + 1][0]
             c, s = math.cos(th), math.sin(th)
-            m = raw[k, 3:]  # about the sleeve's axes: the object's turned by the twist about y
-            out[k, 3:] = (r_obj @ (c * m[0] + s * m[2], m[1], c * m[2] - s * m[0])) * _WORLD_TO_NED
-        return out
+            ax, ay, az = c * mx + s * mz, my, c * mz - s * mx  # about the sleeve's axes: the object's turned about y
+            wx = r[0][0] * ax + r[0][1] * ay + r[0][2] * az
+            wy = r[1][0] * ax + r[1][1] * ay + r[1][2] * az
+            wz = r[2][0] * ax + r[2][1] * ay + r[2][2] * az
+            g = _GRASP_SIGN
+            rows.append((g * fx, -g * fy, -g * fz, g * wx, -g * wy, -g * wz))  # z-up world -> NED
+        return np.array(rows)
 
     def friction_efforts(self) -> np.ndarray:
         """Last physics step's friction ``(2, 2)``: rows ``[left; right]``, axial force (N) and twisting moment (N m).
