@@ -14,8 +14,9 @@ MPCVelocityController`) in the cooperative task space, plus three loops:
 * **relative motion** (internal-force loop): the closed-chain rows ``(J_o,left - J_o,right) zeta_j = v_rel`` keep
   the hands' relative twist at an admittance command, ``v_rel = K_F f_int a`` and ``w_rel = K_M m_int a``
   (:func:`relative_twist`: ``a`` the object's axis, ``f_int`` and ``m_int`` the measured internal force and
-  twisting moment, positive stretching/twisting the right end forward); the hands give way to the internal wrench
-  their tracking errors build, before it reaches the friction limit;
+  twisting moment, positive stretching/twisting the right end forward); the hands would give way to the internal
+  wrench their tracking errors build. Measured, it slipped more than the plain rigid rows (:data:`K_FORCE`), so its
+  gains are zero by default: the rows then hold the relative twist at zero, as CAMPC's;
 * **grip**: :func:`grip_law` sizes each hand's grip force from the friction ellipse for the wrench that hand must
   transmit (its measured axial wrist force and moment, and the axial load of the object's model along the
   reference), with a safety factor, a floor, a cap below the crush force, and a slow release.
@@ -59,10 +60,15 @@ this lag, so a wrench that oscillates faster keeps the grip at its peaks."""
 FORCE_FILTER_TIME = 0.08
 """[D] Time constant of the low-pass on the wrist wrenches, s (two control steps): the weld impulses of one physics
 step are noisy; the filter keeps the admittance loop from feeding that noise back."""
-K_FORCE = 2.0e-3
-"""[D] Admittance gain of the internal force, m/s per N: 10 N of stretch brings the hands 2 cm/s closer."""
-K_MOMENT = 0.1
-"""[D] Admittance gain of the internal twisting moment, rad/s per N m (the torsional capacity at 40 N is 1 N m)."""
+K_FORCE = 0.0
+"""[D] Admittance gain of the internal force, m/s per N: off by default. Measured (random goals, hydro 30 %, 20
+validation draws, contact-free successes / largest slip): 0 -> 20/20, 11.3 mm; 2e-4 -> 20/20, 15.1 mm; 2e-3 -> one
+draw of 43.8 mm, and on single draws a negative gain slipped as much: the velocity loops already keep the hands'
+relative motion consistent, and a velocity admittance integrates any bias of the wrist reading into relative motion,
+which the friction contact turns into slip. The loop stays available (set the gain) for a force-controlled inner loop
+where it would pay."""
+K_MOMENT = 0.0
+"""[D] Admittance gain of the internal twisting moment, rad/s per N m: off by default, as :data:`K_FORCE`."""
 V_REL_MAX = 0.03
 """[D] Largest relative speed of the hands along the axis commanded by the admittance, m/s."""
 W_REL_MAX = 0.15
