@@ -18,7 +18,15 @@ name            action_mode   what
 ``campc-nndi``  torque        CAMPC + dynamic inversion with the RBF network: the paper's full stack
 ``campc-inner`` velocity      CAMPC without outer-obstacle rows (the ablation on ``TransportObstacles-v1``)
 ``hold``        velocity      the zero command: vehicle and arms hold still (the floor a controller must beat)
+``campc-coop``  velocity      cooperative CAMPC for the friction grasp (:mod:`baselines.cooperative`): internal-force
+                              admittance, grip law, integral action; 20 values (18 velocities, 2 grip commands)
 ==============  ============  ===========================================================================
+
+On an environment with the friction grasp (``env.unwrapped.grasp_config`` set, e.g.
+``uvdms/CooperativeTransport-v1``) every other baseline runs unchanged and is wrapped by
+:class:`baselines.cooperative.ConstantGrip`, which appends a constant grip command of the grasp's ``grip_initial``
+(40 N by default) to its 18 values: the ablation of ``campc-coop``. ``campc-coop`` refuses a rigid-grasp
+environment (a one-line ``ValueError``).
 
 In an environment with outer obstacles (``uvdms/TransportObstacles-v1``) the CAMPC baselines add
 :data:`OUTER_ROWS` velocity-damper rows for them, built from ``info["obstacles"]`` (the measured obstacle
@@ -67,6 +75,12 @@ BASELINES: dict[str, dict[str, Any]] = {
         "env_id": "uvdms/TransportObstacles-v1",
     },
     "hold": {"action_mode": "velocity", "collision": False, "hold": True, "default": False},
+    "campc-coop": {
+        "action_mode": "velocity",
+        "collision": True,
+        "cooperative": True,
+        "env_id": "uvdms/CooperativeTransport-v1",
+    },
     "campc-raw": {**_REALISM_ROW, "state": "raw"},
     "campc-privileged": {**_REALISM_ROW, "state": "truth"},
 }
@@ -396,10 +410,11 @@ def make_baseline(name: str, env: Any, **kwargs: Any) -> Controller:
     Args:
         name: one of :data:`BASELINES`.
         env: the environment.
-        **kwargs: ``mpc_overrides`` / ``di_overrides`` dictionaries.
+        **kwargs: ``mpc_overrides`` / ``di_overrides`` dictionaries (``campc-coop``: also ``integral``).
 
     Returns:
-        The controller.
+        The controller (on a friction-grasp environment, a baseline other than ``campc-coop`` wrapped in
+        :class:`baselines.cooperative.ConstantGrip`).
 
     Raises:
         ValueError: unknown name, or the environment's action mode is not the one the baseline needs.
@@ -408,15 +423,22 @@ def make_baseline(name: str, env: Any, **kwargs: Any) -> Controller:
         raise ValueError(f"unknown baseline {name!r}; choose one of {sorted(BASELINES)} or give a path to an agent")
     spec = BASELINES[name]
     check_action_mode(name, env, spec["action_mode"])
-    if spec.get("hold", False):
-        return HoldStill(env)
+    from baselines import cooperative  # here: the module builds on this one
+
     outer = spec.get("outer", True)
     state = spec.get("state", "filter")
-    if spec["action_mode"] == "velocity":
-        return MPCVelocityController(env, collision=spec["collision"], outer=outer, state=state, **kwargs)
-    return CascadeTorqueController(
-        env, use_nn=spec["use_nn"], collision=spec["collision"], outer=outer, state=state, **kwargs
-    )
+    if spec.get("cooperative", False):
+        return cooperative.CooperativeCAMPC(env, outer=outer, state=state, **kwargs)
+    grasp = getattr(env.unwrapped, "grasp_config", None)
+    if spec.get("hold", False):
+        ctrl: Controller = HoldStill(env)
+    elif spec["action_mode"] == "velocity":
+        ctrl = MPCVelocityController(env, collision=spec["collision"], outer=outer, state=state, **kwargs)
+    else:
+        ctrl = CascadeTorqueController(
+            env, use_nn=spec["use_nn"], collision=spec["collision"], outer=outer, state=state, **kwargs
+        )
+    return ctrl if grasp is None else cooperative.ConstantGrip(ctrl, grasp)
 
 
 def baseline_action_mode(name: str) -> str | None:

@@ -174,6 +174,9 @@ class MPCProblem:
         outer_d: their surface gaps, m (inactive rows: ``inf``).
         outer_rate: ``n^T v_obs`` per row, m/s (the gap's growth from the obstacle's own motion).
         outer_v: measured approach ``J zeta_measured - n^T v_obs`` per row (optional; lookahead).
+        eq_rhs: right-hand side of the closed-chain rows, ``(J_o,left - J_o,right) zeta_j = eq_rhs`` for every
+            ``j`` (n_eq_rows; ``None``: zero, the rigid chain). The cooperative CAMPC
+            (:mod:`baselines.cooperative`) commands a relative twist of the hands through it.
     """
 
     e0: np.ndarray
@@ -187,6 +190,7 @@ class MPCProblem:
     outer_d: np.ndarray | None = None
     outer_rate: np.ndarray | None = None
     outer_v: np.ndarray | None = None
+    eq_rhs: np.ndarray | None = None
 
 
 @dataclass

@@ -27,7 +27,8 @@ is split into four parts, each usable on its own:
     penalty: ``s = 0`` whenever the hard rows are feasible and ``rho_1`` exceeds their multipliers). The
     frozen ``S(d_k)`` is used at every step ``j``; only ``zeta_0`` is applied, and its row is exact under the
     linearisation. ``k_esc`` is the optional escape velocity gain inside the collision zone (docs/MODEL.md section 4).
-  - transport: the closed-chain equality ``(J_o,left - J_o,right) zeta_j = 0`` for every ``j``.
+  - transport: the closed-chain equality ``(J_o,left - J_o,right) zeta_j = 0`` for every ``j`` (right-hand side
+    ``MPCProblem.eq_rhs`` when given: a commanded relative twist of the hands).
 
 * **solver** — one ProxSuite dense QP per controller, allocated once with fixed dimensions (the mode fixes
   them: plain MPC has no collision rows and no slacks, CAMPC has both), initialised on the first step and
@@ -338,6 +339,10 @@ class KinematicMPC:
             je = np.asarray(p.j_eq, dtype=float)
             for block in self._eq_blocks:
                 block[:] = je
+            if p.eq_rhs is None:
+                self._b[:] = 0.0
+            else:
+                self._b.reshape(-1, cfg.n_eq_rows)[:] = np.asarray(p.eq_rhs, dtype=float)
         return self._H, g, self._lo_box, self._hi_box
 
     def _build_collision(self, p: MPCProblem) -> None:
