@@ -294,11 +294,12 @@ class CooperativeCAMPC(MPCVelocityController):
         self.mpc.bias = self._pose_bias(info, float(info["t"]))
         self.mpc.eq_rhs = relative_twist(f_int, m_int, axis)
         rec = self._mpc_step(info, state)
-        vel = np.clip(rec.zeta_cmd / self.zeta_max, -1.0, 1.0)
+        raw = rec.zeta_cmd / self.zeta_max
+        vel = np.clip(raw, -1.0, 1.0)
         grip = self._grip_command(info, axis, f_raw, fa, ma, t)
         self._record(
-            rec, (time.perf_counter() - t0) * 1e6, zeta_cmd=rec.zeta_cmd, grip=self._grip.copy(), f_int=f_int,
-            m_int=m_int,
+            rec, (time.perf_counter() - t0) * 1e6, clipped=bool(np.max(np.abs(vel - raw)) > 1e-9),
+            zeta_cmd=rec.zeta_cmd, grip=self._grip.copy(), f_int=f_int, m_int=m_int,
         )  # fmt: skip
         return np.concatenate([vel, np.clip(grip, -1.0, 1.0)]).astype(np.float32)
 
