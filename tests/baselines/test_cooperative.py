@@ -71,6 +71,27 @@ def test_a_stretch_gets_a_relative_velocity_that_closes_the_hands(monkeypatch) -
     assert squeeze[1] == pytest.approx(-coop.V_REL_MAX)
 
 
+def test_a_measured_relative_motion_is_driven_back(coop_env) -> None:
+    ctrl = make_baseline("campc-coop", coop_env)
+    obs, info = coop_env.reset(seed=0)
+    ctrl.reset(0)
+    ctrl.predict(obs, info)  # a problem with its closed-chain matrix
+    axis = np.array([0.0, 1.0, 0.0])
+    j_eq = np.zeros((6, 18))
+    j_eq[1, 6] = 1.0  # joint 0's velocity moves the left hand along +y relative to the right one
+    j_eq[4, 7] = 1.0  # joint 1's turns it about +y
+    ctrl.mpc.last_problem.j_eq = j_eq
+    zeta = np.zeros(18)
+    zeta[6], zeta[7] = 0.01, 0.1
+    rhs = ctrl._relative_correction(zeta, axis)
+    # the hands moved apart along +y and turned: the command moves them back, in proportion
+    assert rhs[1] == pytest.approx(-coop.K_REL * 0.01 * ctrl.control_dt)
+    assert rhs[4] == pytest.approx(-coop.K_REL_TWIST * 0.1 * ctrl.control_dt)
+    assert np.allclose(rhs[[0, 2, 3, 5]], 0.0)
+    ctrl.reset(0)
+    assert np.allclose(ctrl._rel, 0.0)
+
+
 def test_make_baseline_campc_on_a_friction_env_appends_the_constant_grip(coop_env) -> None:
     ctrl = make_baseline("campc", coop_env)
     assert isinstance(ctrl, coop.ConstantGrip)
