@@ -92,15 +92,16 @@ REST_STEP = 1.0e-5
 integrating the lag of the move itself wound the integrator up and overshot the goal (paper goal: 27 mm at the
 end against 3 mm without it)."""
 K_REL = 10.0
-"""[D] Gain of the hands' relative-displacement loop along the axis, 1/s (module docstring; 0 = off). Why: once a
-hand starts to slide (the internal force reaching the friction limit for one physics step), the friction model lets
-the contact keep sliding at wrenches well inside the ellipse (the sliding hand's bound along one of the two
-directions is zero at alternate physics steps) until the relative speed of the hands returns to zero, so the slip
-grows with the velocity loops' tracking error (joints 0.1-0.5 rad/s behind their commands), not with the grip:
-a constant 160 N grip slipped as much (23.4 mm). Measured (random goals, hydro 30 %, 20 validation draws, contact-free
-successes / largest slip / draws above 5 mm; paper goal): 0 -> 20/20, 11.3 mm, 7; 3 -> 18/20, 5.4 mm, 1;
-8 -> 20/20, 3.0 mm, 0; 10 -> 20/20, 2.1 mm, 0 (paper 0.8 mm); 15 -> 19/20 (one final position error of 21 mm),
-2.1 mm, 0; axial only (8, twist 0) -> 20/20, 2.7 mm."""
+"""[D] Gain of the hands' relative-displacement loop along the axis, 1/s (module docstring; 0 = off). Why: the
+velocity loops of the two arms track their joints 0.1-0.5 rad/s behind their commands, and a single-step internal
+force spike (up to the friction limit, whatever the grip: a constant 160 N grip slipped 23.4 mm with the first
+friction model) starts a hand sliding; without the loop the contact slides on with the hands' relative tracking
+error. Measured (random goals, hydro 30 %, 20 validation draws: contact-free successes, largest slip, draws above
+5 mm; the paper goal's slip), with the friction model of the release (the damped slide direction,
+:func:`uvdms_gym.physics.grip.slide_direction`): 0 -> 20/20, 7.6 mm, 1, 0.8 mm; 5 -> 19/20, 2.3 mm, 0, 0.2 mm;
+10 -> 19/20 (one final position error of 20.6 mm, no slip), 1.5 mm, 0, 0.07 mm. With the first model (the slide
+direction of the last step alone, whose bounds alternated between the two joints): 0 -> 20/20, 11.3 mm, 7;
+3 -> 18/20, 5.4 mm, 1; 8 -> 20/20, 3.0 mm, 0; 10 -> 20/20, 2.1 mm, 0; 15 -> 19/20, 2.1 mm, 0."""
 K_REL_TWIST = 10.0
 """[D] Gain of the hands' relative-turn loop about the axis, 1/s, as :data:`K_REL` (measured together)."""
 REL_LIMIT = (0.05, 0.5)

@@ -11,9 +11,11 @@ zero on each of those joints, whose force bound is the hand's friction limit: Py
 the joint exactly while the demand fits within the bound (no creep: a held joint's speed is zero to the solver's
 precision) and applies the bound while it slides. Before every physics step (:meth:`FrictionGrasp.apply_hydro`) the
 bounds are set from the last step: sticking, the full capacities, or the demand scaled onto the ellipse if it left
-it (:func:`~uvdms_gym.physics.grip.stick_bounds`); sliding, the friction of maximum dissipation along the slip
-(:func:`~uvdms_gym.physics.grip.slide_bounds`). ``docs/cooperative.md`` compares this with Bullet contacts between
-finger shapes and the object (the other way the issue names) and gives the measurements behind the choice.
+it (:func:`~uvdms_gym.physics.grip.stick_bounds`); sliding, a point of the ellipse whose direction tends to the
+friction of maximum dissipation along the slip (:func:`~uvdms_gym.physics.grip.slide_direction`: the mean of the last
+direction and the slip's, which damps the one-step lag of the bounds). ``docs/cooperative.md`` compares this with
+Bullet contacts between finger shapes and the object (the other way the issue names) and gives the measurements behind
+the choice.
 
 The joints' positions are the slip: the displacement of each hand's contact along the object (m) and its turn about
 the axis (rad); a hand whose axial slip reaches ``drop_slip`` has lost the object (:attr:`FrictionGrasp.dropped`).
@@ -30,7 +32,7 @@ from pybullet_utils.bullet_client import BulletClient
 
 from uvdms_gym.physics import frames, model
 from uvdms_gym.physics.grasp import _GRASP_SIGN, GRASP_MAX_FORCE, Current, RigidGrasp
-from uvdms_gym.physics.grip import STICK_SPEED, FrictionGraspConfig, slide_bounds, stick_bounds
+from uvdms_gym.physics.grip import STICK_SPEED, FrictionGraspConfig, slide_direction, stick_bounds
 from uvdms_gym.physics.hydro import HydroCoefficients
 from uvdms_gym.physics.model import TINY_INERTIA, TINY_MASS
 from uvdms_gym.physics.obstacle_bodies import OBJECT_GROUP, OBSTACLE_GROUP
@@ -44,6 +46,18 @@ _STICK_SPEED2 = STICK_SPEED * STICK_SPEED
 _constraint_state = pb.getConstraintState
 _joint_states = pb.getJointStates
 _motor_array = pb.setJointMotorControlArray
+
+
+_DIAGONAL = (math.sqrt(0.5), math.sqrt(0.5))
+
+
+def _demand_direction(f_max: float, m_max: float, f: float, m: float) -> tuple[float, float]:
+    """The unit direction of a sticking hand's demand ``(|f| / f_max, |m| / m_max)`` (the diagonal for none)."""
+    if f_max <= 0.0:
+        return _DIAGONAL
+    a, b = abs(f) / f_max, abs(m) / m_max
+    n = math.sqrt(a * a + b * b)
+    return (a / n, b / n) if n > 0.0 else _DIAGONAL
 
 
 class FrictionGrasp(RigidGrasp):
@@ -74,6 +88,7 @@ class FrictionGrasp(RigidGrasp):
         self.config = config
         self._grip = [config.grip_initial, config.grip_initial]
         self._sliding = [False, False]
+        self._direction = [_DIAGONAL, _DIAGONAL]  # each hand's friction direction while sliding (slide_direction)
         self._js: tuple | None = None
         self._bounds: list[float] = []
         self.dropped = False
@@ -126,6 +141,7 @@ class FrictionGrasp(RigidGrasp):
             self._constraints.append(cid)
         self._grip = [self.config.grip_initial, self.config.grip_initial]
         self._sliding = [False, False]
+        self._direction = [_DIAGONAL, _DIAGONAL]
         self.dropped = False
         self._js = None
         self._set_bounds(self._stick_all())
@@ -177,12 +193,16 @@ class FrictionGrasp(RigidGrasp):
             sliding = v * v + (r_t * w) ** 2 > _STICK_SPEED2 and f_max > 0.0
             self._sliding[side] = sliding
             if sliding:
-                bounds.extend(slide_bounds(f_max, m_max, v, w))
-            elif f_max > 0.0 and (f / f_max) ** 2 + (m / m_max) ** 2 <= 1.0:  # stick_bounds' first case, inlined
-                bounds.append(f_max)
-                bounds.append(m_max)
+                cf, cm = self._direction[side] = slide_direction(self._direction[side], f_max, m_max, v, w)
+                bounds.append(cf * f_max)
+                bounds.append(cm * m_max)
             else:
-                bounds.extend(stick_bounds(f_max, m_max, f, m))
+                if f_max > 0.0 and (f / f_max) ** 2 + (m / m_max) ** 2 <= 1.0:  # stick_bounds' first case, inlined
+                    bounds.append(f_max)
+                    bounds.append(m_max)
+                else:
+                    bounds.extend(stick_bounds(f_max, m_max, f, m))
+                self._direction[side] = _demand_direction(f_max, m_max, f, m)
             if abs(x) >= cfg.drop_slip:
                 self.dropped = True
         if bounds != self._bounds:  # sticking at a steady grip (the usual case) keeps last step's bounds

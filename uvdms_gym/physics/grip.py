@@ -159,3 +159,28 @@ def slide_bounds(f_max: float, m_max: float, v: float, w: float) -> tuple[float,
     if lam == 0.0:
         return f_max, m_max
     return f_max * f_max * abs(v) / lam, m_max * m_max * abs(w) / lam
+
+
+def slide_direction(prev: tuple[float, float], f_max: float, m_max: float, v: float, w: float) -> tuple[float, float]:
+    """The direction ``(c_f, c_m)`` (a unit vector of ``(|f| / f_max, |m| / m_max)``) of a sliding hand's friction.
+
+    The mean of the last direction ``prev`` and that of :func:`slide_bounds` for the last step's slip ``(v, w)``,
+    normalised; the hand's bounds are then ``(c_f f_max, c_m m_max)``, a point of the ellipse. The slip is the
+    velocity that *resulted* from the last step's bounds, so taking its direction alone is a fixed-point iteration
+    that oscillates: a direction held still (speed exactly zero) gets no friction the next step, slides, and takes
+    the friction from the other. Averaging damps that iteration; its fixed point is the same direction, where the
+    friction opposes the slip (maximum dissipation).
+
+    Args:
+        prev: the last physics step's direction (unit vector).
+        f_max: axial capacity, N.
+        m_max: torsional capacity, N m.
+        v: axial slip speed, m/s.
+        w: twist rate, rad/s.
+    """
+    lam = math.sqrt((f_max * v) ** 2 + (m_max * w) ** 2)
+    if lam == 0.0:
+        return prev
+    cf, cm = prev[0] + f_max * abs(v) / lam, prev[1] + m_max * abs(w) / lam
+    n = math.sqrt(cf * cf + cm * cm)
+    return cf / n, cm / n

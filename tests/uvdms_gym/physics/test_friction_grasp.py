@@ -27,7 +27,7 @@ from uvdms_gym.envs.transport import vehicle_pose_for_object
 from uvdms_gym.physics import frames
 from uvdms_gym.physics.friction_grasp import FrictionGrasp
 from uvdms_gym.physics.grasp import RigidGrasp
-from uvdms_gym.physics.grip import FrictionGraspConfig, parse_grasp, slide_bounds, stick_bounds
+from uvdms_gym.physics.grip import FrictionGraspConfig, parse_grasp, slide_bounds, slide_direction, stick_bounds
 from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.params import GRAVITY, UVDMSParams
 from uvdms_gym.physics.sim import UVDMSSim
@@ -219,6 +219,27 @@ def test_slide_bounds_lie_on_the_ellipse_and_maximise_dissipation():
     assert slide_bounds(3.0, 0.5, 0.0, 0.0) == (3.0, 0.5)
     assert slide_bounds(3.0, 0.5, 0.2, 0.0) == pytest.approx((3.0, 0.0), rel=1e-12)  # axial capacity, no torsion
     assert slide_bounds(3.0, 0.5, 0.0, -1.0) == pytest.approx((0.0, 0.5), rel=1e-12)
+
+
+def test_slide_direction_keeps_the_fixed_point_of_maximum_dissipation_and_damps_the_alternation():
+    rng = np.random.default_rng(SEEDS[2])
+    for _ in range(200):
+        f_max, m_max = rng.uniform(0.1, 100.0), rng.uniform(0.01, 5.0)
+        v, w = rng.normal(size=2) * rng.uniform(1e-5, 1.0)
+        fb, mb = slide_bounds(f_max, m_max, v, w)
+        target = (fb / f_max, mb / m_max)  # the unit direction of maximum dissipation
+        # its fixed point: a hand already at the direction of maximum dissipation keeps it
+        assert slide_direction(target, f_max, m_max, v, w) == pytest.approx(target, rel=1e-12, abs=1e-12)
+        # from any direction it moves towards it (strictly closer) and stays a unit vector (a point of the ellipse)
+        prev = tuple(np.abs(rng.normal(size=2)) / 1.0)
+        prev = (prev[0] / math.hypot(*prev), prev[1] / math.hypot(*prev))
+        new = slide_direction(prev, f_max, m_max, v, w)
+        assert math.isclose(math.hypot(*new), 1.0, rel_tol=1e-12)
+        assert math.dist(new, target) <= math.dist(prev, target) + 1e-12
+    # the alternation of the first model: axial friction only, then a purely twisting slip -> both, not twist only
+    cf, cm = slide_direction((1.0, 0.0), 10.0, 0.5, 0.0, 1.0)
+    assert cf == pytest.approx(math.sqrt(0.5)) and cm == pytest.approx(math.sqrt(0.5))
+    assert slide_direction((0.6, 0.8), 10.0, 0.5, 0.0, 0.0) == (0.6, 0.8)  # no slip: unchanged
 
 
 # ---------------------------------------------------------------------------------------------- the environment
