@@ -76,6 +76,10 @@ RESIDUAL_DAGGER_OBSTACLES="--residual mpc --residual-scale 0.5 --hyperparams tea
 DISTILLED="--residual none --hyperparams learning_rate=lin_1e-3"
 DISTILLED_CIRCLE="$DISTILLED teacher=campc teacher_margin=0.02"
 DISTILLED_TRANSPORT="$DISTILLED teacher=residual-mpc-sac-transport-v1/seed_0"
+# The cooperative transport (uvdms/CooperativeTransport-v1, the friction grasp, docs/cooperative.md): the cooperative
+# CAMPC as the teacher of all 20 values (18 velocities and the 2 grip commands); 60k steps (the student met its
+# evaluation episodes from 10k in a pilot).
+DISTILLED_COOP="$DISTILLED teacher=campc-coop"
 # Fine-tuning a distilled controller with RL (agents/algos/td3_prior.py, prior_policy): TD3-prior starts its actor at
 # the distilled network of the same seed ({seed} below) and holds it near that network's action instead of zero,
 # on the v1 reward (default track_scale 5 cm). The actor waits 10k steps while the critic learns (a critic that has
@@ -105,6 +109,7 @@ ENTRIES=(
   "residual-mpc-sac-transport-v1|sac|uvdms/Transport-v1|$TRANSPORT|$RESIDUAL_TRANSPORT|150000"
   "distilled-dagger-campc-circle-v1|dagger|uvdms/CircleTrack-v1|$CIRCLE_MIX|$DISTILLED_CIRCLE|150000"
   "distilled-dagger-residual-transport-v1|dagger|uvdms/Transport-v1|$TRANSPORT|$DISTILLED_TRANSPORT|150000"
+  "distilled-dagger-coop-transport-v1|dagger|uvdms/CooperativeTransport-v1|$TRANSPORT|$DISTILLED_COOP|60000"
   "finetuned-td3prior-distilled-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE_MIX|$FINETUNE_CIRCLE|40000"
   "ppo-circle-v1|ppo|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PURE_RL|300000"
   "ppo-transport-v1|ppo|uvdms/Transport-v1|$TRANSPORT $E2E|$PURE_RL|300000"
