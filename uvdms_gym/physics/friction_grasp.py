@@ -30,8 +30,8 @@ import numpy as np
 import pybullet as pb
 from pybullet_utils.bullet_client import BulletClient
 
-from uvdms_gym.physics import frames, model
-from uvdms_gym.physics.grasp import _GRASP_SIGN, GRASP_MAX_FORCE, Current, RigidGrasp
+from uvdms_gym.physics import frames
+from uvdms_gym.physics.grasp import _GRASP_SIGN, Current, RigidGrasp
 from uvdms_gym.physics.grip import STICK_SPEED, FrictionGraspConfig, slide_direction, stick_bounds
 from uvdms_gym.physics.hydro import HydroCoefficients
 from uvdms_gym.physics.model import TINY_INERTIA, TINY_MASS
@@ -102,18 +102,8 @@ class FrictionGrasp(RigidGrasp):
             ValueError: the two grasp frames differ by more than :data:`~uvdms_gym.physics.grasp.GRASP_TOLERANCE`.
         """
         c = self._client
-        grasp = {
-            side: c.getLinkState(
-                self._body, self._link_index[f"{side}_grasp"], computeLinkVelocity=1, computeForwardKinematics=1
-            )
-            for side in ARM_SIDES
-        }
-        self._check_frames(grasp["left"][4:6], grasp["right"][4:6])
-        pr, orr = grasp["right"][4:6]
-        path = model.write_urdf(model.build_object_urdf(self._params, collision=self._collision, sleeves=True))
-        self.object_id = obj = c.loadURDF(
-            str(path), basePosition=pr, baseOrientation=orr, flags=pb.URDF_USE_INERTIA_FROM_FILE
-        )
+        right = self._load_object(sleeves=True)
+        obj = self.object_id
         for link in range(-1, len(_JOINTS)):
             if self._collision and link == -1:  # the object collides with outer obstacles only, never the arms
                 c.setCollisionFilterGroupMask(obj, link, OBJECT_GROUP, OBSTACLE_GROUP)
@@ -123,22 +113,9 @@ class FrictionGrasp(RigidGrasp):
         for link in _JOINTS:
             c.changeDynamics(obj, link, mass=TINY_MASS, localInertiaDiagonal=[TINY_INERTIA] * 3)
         self.set_dynamics(hydro)
-        c.resetBaseVelocity(obj, grasp["right"][6], grasp["right"][7])
+        c.resetBaseVelocity(obj, right[6], right[7])
         for side in ARM_SIDES:
-            cid = c.createConstraint(
-                self._body,
-                self._link_index[f"{side}_grasp"],
-                obj,
-                _SLEEVE_LINK[side],
-                pb.JOINT_FIXED,
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0, 1.0],
-                [0.0, 0.0, 0.0, 1.0],
-            )
-            c.changeConstraint(cid, maxForce=GRASP_MAX_FORCE)
-            self._constraints.append(cid)
+            self._weld(side, _SLEEVE_LINK[side])
         self._grip = [self.config.grip_initial, self.config.grip_initial]
         self._sliding = [False, False]
         self._direction = [_DIAGONAL, _DIAGONAL]

@@ -151,6 +151,21 @@ class RigidGrasp:
             ValueError: the two grasp frames differ by more than :data:`GRASP_TOLERANCE`.
         """
         c = self._client
+        right = self._load_object(sleeves=False)
+        obj = self.object_id
+        if self._collision:  # the object collides with outer obstacles only, never with the arms holding it
+            c.setCollisionFilterGroupMask(obj, -1, OBJECT_GROUP, OBSTACLE_GROUP)
+        else:
+            c.setCollisionFilterGroupMask(obj, -1, 0, 0)
+        self.set_dynamics(hydro)
+        c.resetBaseVelocity(obj, right[6], right[7])
+        for side in ARM_SIDES:
+            self._weld(side, -1)
+        self._p_prev = self._axial_momentum(hydro, current)
+
+    def _load_object(self, *, sleeves: bool) -> tuple:
+        """Load the object at ``right_grasp`` (both grasp frames checked to coincide); the right frame's link state."""
+        c = self._client
         grasp = {
             side: c.getLinkState(
                 self._body, self._link_index[f"{side}_grasp"], computeLinkVelocity=1, computeForwardKinematics=1
@@ -159,32 +174,28 @@ class RigidGrasp:
         }
         self._check_frames(grasp["left"][4:6], grasp["right"][4:6])
         pr, orr = grasp["right"][4:6]
-        path = model.write_urdf(model.build_object_urdf(self._params, collision=self._collision))
-        self.object_id = obj = c.loadURDF(
+        path = model.write_urdf(model.build_object_urdf(self._params, collision=self._collision, sleeves=sleeves))
+        self.object_id = c.loadURDF(
             str(path), basePosition=pr, baseOrientation=orr, flags=pb.URDF_USE_INERTIA_FROM_FILE
         )
-        if self._collision:  # the object collides with outer obstacles only, never with the arms holding it
-            c.setCollisionFilterGroupMask(obj, -1, OBJECT_GROUP, OBSTACLE_GROUP)
-        else:
-            c.setCollisionFilterGroupMask(obj, -1, 0, 0)
-        self.set_dynamics(hydro)
-        c.resetBaseVelocity(obj, grasp["right"][6], grasp["right"][7])
-        for side in ARM_SIDES:
-            cid = c.createConstraint(
-                self._body,
-                self._link_index[f"{side}_grasp"],
-                obj,
-                -1,
-                pb.JOINT_FIXED,
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0, 1.0],
-                [0.0, 0.0, 0.0, 1.0],
-            )
-            c.changeConstraint(cid, maxForce=GRASP_MAX_FORCE)
-            self._constraints.append(cid)
-        self._p_prev = self._axial_momentum(hydro, current)
+        return grasp["right"]
+
+    def _weld(self, side: str, object_link: int) -> None:
+        """Weld link ``object_link`` of the object (``-1``: its base) to the grasp frame of ``side``."""
+        cid = self._client.createConstraint(
+            self._body,
+            self._link_index[f"{side}_grasp"],
+            self.object_id,
+            object_link,
+            pb.JOINT_FIXED,
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [0.0, 0.0, 0.0, 1.0],
+        )
+        self._client.changeConstraint(cid, maxForce=GRASP_MAX_FORCE)
+        self._constraints.append(cid)
 
     @staticmethod
     def _check_frames(left: tuple, right: tuple) -> None:
