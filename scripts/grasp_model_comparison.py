@@ -134,6 +134,36 @@ class ContactScene:
 
 
 # ---------------------------------------------------------------------------------------------- motor model
+
+
+def held_plant(
+    roll: float, grasp: FrictionGraspConfig | None, *, physics_dt: float = 0.01, current: list[float] | None = None
+) -> UVDMSSim:
+    """The simulator holding the object at ``roll`` (``pi / 2``: its axis vertical), held still.
+
+    The vehicle's base is welded to the world and the arm joints are locked by velocity motors of 1e4 N m (the
+    simulator's torque control applies zero torques and leaves them in place), so the grasp carries the object's
+    loads alone.
+
+    Args:
+        roll: the vehicle's (and object's) roll, rad.
+        grasp: the friction grasp's knobs (``None``: the rigid grasp).
+        physics_dt: the physics step, s.
+        current: a constant current (NED, m/s), or ``None``.
+    """
+    sim = UVDMSSim(P, physics_dt=physics_dt, grasp=grasp)
+    eta = vehicle_pose_for_object(KinematicModel(P), np.array([2.0, 1.0, 30.0, roll, 0.0, 0.0]))
+    sim.reset(eta, with_object=True)
+    c, body = sim.client, sim.body_id
+    pos, orn = c.getBasePositionAndOrientation(body)
+    c.createConstraint(body, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0], pos, [0, 0, 0, 1], orn)
+    joints = list(sim.joint_indices)
+    c.setJointMotorControlArray(body, joints, pb.VELOCITY_CONTROL, targetVelocities=[0.0] * 12, forces=[1e4] * 12)
+    if current is not None:
+        sim.set_current(current)
+    return sim
+
+
 class MotorScene:
     """:class:`FrictionGrasp` (or the rigid grasp, ``grip=None``) on the held plant, the object's axis vertical.
 
@@ -144,14 +174,7 @@ class MotorScene:
 
     def __init__(self, dt: float, grip: float | None) -> None:
         cfg = None if grip is None else FrictionGraspConfig(mu=(MU, MU), grip_initial=grip)
-        self.sim = sim = UVDMSSim(P, physics_dt=dt, grasp=cfg)
-        eta = vehicle_pose_for_object(KinematicModel(P), np.array([2.0, 1.0, 30.0, math.pi / 2, 0.0, 0.0]))
-        sim.reset(eta, with_object=True)
-        c, body = sim.client, sim.body_id
-        pos, orn = c.getBasePositionAndOrientation(body)
-        c.createConstraint(body, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0], pos, [0, 0, 0, 1], orn)
-        joints = list(sim.joint_indices)
-        c.setJointMotorControlArray(body, joints, pb.VELOCITY_CONTROL, targetVelocities=[0.0] * 12, forces=[1e4] * 12)
+        self.sim = held_plant(math.pi / 2, cfg, physics_dt=dt)
         self._zero = np.zeros(18)
 
     def set_grip(self, grip: float) -> None:

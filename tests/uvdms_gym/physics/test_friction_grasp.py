@@ -23,12 +23,11 @@ import pybullet as pb
 import pytest
 
 import uvdms_gym  # noqa: F401  (registers the ids)
-from uvdms_gym.envs.transport import vehicle_pose_for_object
+from scripts.grasp_model_comparison import held_plant
 from uvdms_gym.physics import frames
 from uvdms_gym.physics.friction_grasp import FrictionGrasp
 from uvdms_gym.physics.grasp import RigidGrasp
 from uvdms_gym.physics.grip import FrictionGraspConfig, parse_grasp, slide_bounds, slide_direction, stick_bounds
-from uvdms_gym.physics.kinematics import KinematicModel
 from uvdms_gym.physics.params import GRAVITY, UVDMSParams
 from uvdms_gym.physics.sim import UVDMSSim
 from uvdms_gym.seeds import split_seeds
@@ -44,17 +43,7 @@ SEEDS = split_seeds("validation", 4)
 
 def _held_plant(roll: float, grasp: dict, current: list[float] | None = None) -> UVDMSSim:
     """The plant holding the object at ``roll`` with its base welded to the world and its arm joints locked."""
-    sim = UVDMSSim(P, grasp=parse_grasp(grasp))
-    eta = vehicle_pose_for_object(KinematicModel(P), np.array([2.0, 1.0, 30.0, roll, 0.0, 0.0]))
-    sim.reset(eta, with_object=True)
-    c, body = sim.client, sim.body_id
-    pos, orn = c.getBasePositionAndOrientation(body)
-    c.createConstraint(body, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0], pos, [0, 0, 0, 1], orn)
-    joints = list(sim.joint_indices)
-    c.setJointMotorControlArray(body, joints, pb.VELOCITY_CONTROL, targetVelocities=[0.0] * 12, forces=[1e4] * 12)
-    if current is not None:
-        sim.set_current(current)
-    return sim
+    return held_plant(roll, parse_grasp(grasp), current=current)
 
 
 def _run(sim: UVDMSSim, steps: int) -> None:
