@@ -11,8 +11,11 @@ force-torque sensor; slip itself is not measured). :class:`GripChannel` does tha
   ``slip_max`` (the largest ``slip_distance`` of either hand so far in the episode);
 * ``internal_force`` (N): the squeeze (< 0) or stretch (> 0) along the object, half the difference of the hands'
   axial forces (the component of their wrenches that moves nothing: Erhart & Hirche 2015);
-* ``load_share`` (2): each hand's part of the net force the hands exert, ``F_k . F / |F|^2`` (0.5 each when
-  ``F = 0``);
+* ``load_share`` (2): each hand's part of the load it carries, ``|g_k| / (|g_left| + |g_right|)`` with ``g_k`` the
+  hand's force less its internal part (``f_int`` along the axis, pulling the hands apart: ``g_left = F_left + f_int
+  a``, ``g_right = F_right - f_int a``; 0.5 each when neither carries anything). The two ``g`` add up to the net force
+  the hands exert and share its axial component equally: the split of an axial load between two sticking hands is
+  statically indeterminate, and the internal force holds what differs.
 * ``dropped`` (a hand's axial slip reached ``drop_slip``), ``crushed`` (a grip force above ``crush_force``): either
   ends the episode as a failure;
 * the costs ``cost_slip`` (1 while a contact moves more than :data:`SLIP_STEP_TOLERANCE` in a step),
@@ -69,9 +72,11 @@ class GripChannel:
         axis = rot_object[:, 1].tolist()  # the object's axis (its y) in NED
         f = forces[:, :3].tolist()
         axial = [sum(a * b for a, b in zip(row, axis, strict=True)) for row in f]
-        net = [f[0][i] + f[1][i] for i in range(3)]
-        nn = net[0] * net[0] + net[1] * net[1] + net[2] * net[2]
-        share_left = (f[0][0] * net[0] + f[0][1] * net[1] + f[0][2] * net[2]) / nn if nn > 1e-18 else 0.5
+        f_int = 0.5 * (axial[1] - axial[0])
+        carried_l = math.dist([f[0][i] + f_int * axis[i] for i in range(3)], (0.0, 0.0, 0.0))  # internal part removed
+        carried_r = math.dist([f[1][i] - f_int * axis[i] for i in range(3)], (0.0, 0.0, 0.0))
+        carried = carried_l + carried_r
+        share_left = carried_l / carried if carried > 1e-12 else 0.5
         slip = grasp.slip()
         (xl, tl), (xr, tr) = slip.tolist()
         rl, rr = cfg.torsion_radius
@@ -93,7 +98,7 @@ class GripChannel:
             slip=slip,
             slip_distance=np.array([dl, dr]),
             slip_max=self._slip_max,
-            internal_force=0.5 * (axial[1] - axial[0]),
+            internal_force=f_int,
             load_share=np.array([share_left, 1.0 - share_left]),
             dropped=dropped,
             crushed=crushed,

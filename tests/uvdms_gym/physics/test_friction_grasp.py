@@ -292,9 +292,14 @@ def test_info_keys_against_the_hand_forces():
         axial = forces[:, :3] @ axis
         assert info["internal_force"] == pytest.approx(0.5 * (axial[1] - axial[0]), rel=1e-9, abs=1e-9)
         assert float(np.sum(info["load_share"])) == pytest.approx(1.0, abs=1e-12)
-        net = forces[0, :3] + forces[1, :3]
-        share = float(forces[0, :3] @ net / (net @ net))
-        assert info["load_share"][0] == pytest.approx(share, rel=1e-9, abs=1e-12)
+        f_int = info["internal_force"]
+        carried = np.linalg.norm([forces[0, :3] + f_int * axis, forces[1, :3] - f_int * axis], axis=1)
+        assert info["load_share"][0] == pytest.approx(carried[0] / carried.sum(), rel=1e-9, abs=1e-12)
+        assert 0.0 <= info["load_share"][0] <= 1.0
+        # what the hands carry adds up to the net force, with its axial component shared equally
+        carried_l, carried_r = forces[0, :3] + f_int * axis, forces[1, :3] - f_int * axis
+        np.testing.assert_allclose(carried_l + carried_r, forces[0, :3] + forces[1, :3], atol=1e-9)
+        assert carried_l @ axis == pytest.approx(carried_r @ axis, abs=1e-9)
         np.testing.assert_allclose(info["grip"], [0.1 * FrictionGraspConfig().grip_max] * 2, rtol=1e-6)  # a = -0.8
     env.close()
 
