@@ -9,7 +9,8 @@ rows of the tables under "### Velocity track" and "### Torque track" of ``leader
 produce. The realism track's tasks (labels with ", realism ") go to the README's "#### Realism track" table instead:
 per task, the first ranked row and the rows of :data:`REALISM_ROWS`, from the velocity track. The cooperative
 tasks (labels starting with "Cooperative") go to the README's "#### Cooperative transport" table: per task, the first
-:data:`COOP_TOP_ROWS` rows of the velocity track with :data:`COOP_COLUMNS` (the slip and the drop rate added). Run it
+:data:`COOP_TOP_ROWS` rows of the velocity track and the rows of :data:`COOP_ROWS`, with :data:`COOP_COLUMNS` (the slip
+and the drop rate added). Run it
 after regenerating the leaderboard.
 """
 
@@ -37,6 +38,9 @@ COOP_COLUMNS = (*COLUMNS[:-1], "Max slip (mm)", "Drop rate", "n")
 """The columns of the README's cooperative table."""
 COOP_TOP_ROWS = 3
 """Rows shown per cooperative task (the velocity track's ranking order)."""
+COOP_ROWS: tuple[str, ...] = ("campc",)
+"""Entries the README's cooperative table keeps besides each task's first rows: ``campc``, the ablation (a constant
+grip)."""
 
 
 def _cells(line: str) -> list[str]:
@@ -100,7 +104,7 @@ def coop_table(leaderboard_md: str) -> str:
         task = cells[header.index("Task")]
         if task.startswith(COOP_MARK):
             shown[task] = shown.get(task, 0) + 1
-            if shown[task] <= COOP_TOP_ROWS:
+            if shown[task] <= COOP_TOP_ROWS or cells[header.index("Entry")] in COOP_ROWS:
                 out.append("| " + " | ".join(cells[i] for i in index) + " |")
     return "\n".join(out) + "\n"
 
