@@ -2,7 +2,7 @@
 
 On ``uvdms/CooperativeTransport-v1`` (``grasp="friction"``) each hand holds the cylinder by friction along and about
 its axis (:mod:`uvdms_gym.physics.grip`); a disagreement of the hands' motions is an internal wrench, and beyond the
-friction ellipse the object slips. :class:`CooperativeCAMPC` is CAMPC (:class:`~baselines.controllers.
+friction ellipse the object slips. :class:`CooperativeCAMPC` is CAMPC (:class:`~baselines.mpc_baselines.
 MPCVelocityController`) in the cooperative task space, plus three loops:
 
 * **absolute motion**: the MPC tracks the object's reference through the right arm's object frame, as CAMPC does,
@@ -38,16 +38,16 @@ from typing import Any
 
 import numpy as np
 
-from baselines.controllers import OBSTACLE_Q_WEIGHT, OBSTACLE_R_WEIGHT, MPCVelocityController
 from baselines.mpc.campc import MPCController
 from baselines.mpc.config import MPCProblem
+from baselines.mpc_baselines import OBSTACLE_Q_WEIGHT, OBSTACLE_R_WEIGHT, MPCVelocityController
 from uvdms_gym.physics.frames import euler_to_rot, rot_error
 from uvdms_gym.physics.grip import FrictionGraspConfig
 from uvdms_gym.physics.params import GRAVITY, UVDMSParams
 
 COOP_MPC_SETTINGS: dict[str, Any] = {"q_weight": OBSTACLE_Q_WEIGHT, "r_weight": OBSTACLE_R_WEIGHT}
 """[D] MPC weights of ``campc-coop`` (before any ``mpc_overrides``): the obstacle task's ``Q = 50`` and joints five
-times cheaper than the transport default (:data:`~baselines.controllers.OBSTACLE_R_WEIGHT`). With the transport's
+times cheaper than the transport default (:data:`~baselines.mpc_baselines.OBSTACLE_R_WEIGHT`). With the transport's
 weights the friction grasp let a slow pitch oscillation of the vehicle grow (60-90 mm, period ~3 s) on random goals
 with hydro +-30 %: 13 of 20 validation draws; with these, 20 of 20 (the arms take the fine correction)."""
 GRIP_SAFETY = 2.0
@@ -229,7 +229,7 @@ class CooperativeCAMPC(MPCVelocityController):
     Args:
         env: an environment with the friction grasp (``env.unwrapped.grasp_config`` set) in velocity mode.
         integral: with the integrator on the measured pose error (``False``: the offset correction only).
-        **kwargs: as :class:`~baselines.controllers.MPCVelocityController` (``mpc_overrides``, ``outer``,
+        **kwargs: as :class:`~baselines.mpc_baselines.MPCVelocityController` (``mpc_overrides``, ``outer``,
             ``state``).
 
     Raises:

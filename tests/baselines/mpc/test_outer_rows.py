@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 import uvdms_gym  # noqa: F401
-from baselines.controllers import OUTER_ROWS, make_baseline
+from baselines.controllers import make_baseline
 from baselines.mpc.campc import make_mpc_controller
+from baselines.mpc_baselines import OUTER_ROWS
 from baselines.paper.obstacle_figure import obstacle_checks, run_obstacle_experiment
 from uvdms_gym.distances.outer import compute_outer_distances, outer_distance_jacobian
 from uvdms_gym.envs.references import make_transport_task

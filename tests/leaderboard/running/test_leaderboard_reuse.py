@@ -226,6 +226,7 @@ def test_the_committed_leaderboard_is_reused_after_a_version_bump(tmp_path, rele
     other = "test" if split == "validation" else "validation"
     tokens = ["baselines", "agents", "campc-inner", "hold"]
     tokens += ["realism"] if any(doc["name"] == "campc-privileged" for doc in documents) else []
+    tokens += ["coop"] if any(doc["name"] == "campc-coop" for doc in documents) else []
     shipped = COMMITTED.parents[1] / "trained_agents"
     tokens += [f"{shipped / doc['spec']}+filter" for doc in documents if doc["name"].endswith("+filter")]
     release("0.4.0")

@@ -101,13 +101,16 @@ def test_a_copy_made_during_an_episode_steps_on_from_the_originals_state(env_id,
             original.step(a)
         with _closing(COPIES[how](original)) as duplicate:
             assert duplicate.unwrapped.t == original.unwrapped.t
-            truncated = []
+            truncated, terminated = [], []
             for a in actions[STEPS:]:
                 got, want = duplicate.step(a), original.step(a)
                 np.testing.assert_array_equal(got[0], want[0])
                 assert got[1:4] == want[1:4]  # reward, terminated, truncated
                 truncated.append(got[3])
-            assert truncated == [False, True]
+                terminated.append(got[2])
+                if got[2]:  # a friction-grasp episode may end by a drop (its unseeded task varies): both did
+                    break
+            assert truncated == [False, True] or terminated[-1]
 
 
 @pytest.mark.parametrize("env_id", uvdms_gym.ENV_IDS)
