@@ -94,7 +94,8 @@ def draw(results: dict[str, dict[str, Any]], path: Path) -> None:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="best")
     axes[-1].set_xlabel("t (s)")
-    fig.suptitle("Paper transport, friction grasp: campc-coop (solid), campc with a constant grip (dashed)", fontsize=10)
+    title = "Paper transport, friction grasp: campc-coop (solid), campc with a constant grip (dashed)"
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
