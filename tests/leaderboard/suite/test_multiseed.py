@@ -426,6 +426,15 @@ def test_a_leaderboard_of_the_seed_protocol_is_reproduced_from_its_episodes(tmp_
     assert_reproduced_from_its_episodes(out, TINY_TASKS)
 
 
+def _assert_stats_reproduced(stats: dict, committed: dict, where: tuple) -> None:
+    """Recomputed statistics equal the committed ones to rounding (the bootstrap's sums may round differently on
+    another CPU: 1e-15 seen); a cell written before the friction grasp's metrics lacks them, and its episodes have
+    no value of them."""
+    newer = {m for m in stats if m not in committed}
+    assert all(stats[m].n == 0 for m in newer), (*where, newer)
+    assert _close({m: s.to_json() for m, s in stats.items() if m not in newer}, committed), where
+
+
 def assert_reproduced_from_its_episodes(root: Path, task_list) -> None:
     """Every cell's statistics from its episodes, then the tables from the committed statistics.
 
@@ -478,12 +487,7 @@ def assert_reproduced_from_its_episodes(root: Path, task_list) -> None:
             else:  # 0.4.0: every training seed on the same evaluation seeds
                 assert all(len(run) == len(runs[0]) > 0 for run in runs), (doc["name"], name)
                 stats = _aggregate_runs_0_4(runs) if seeds else aggregate(cell["episodes"])
-            # equal to rounding: the bootstrap's sums may round differently on another CPU (1e-15 seen); a cell
-            # written before the friction grasp's metrics lacks them (and its episodes have no value of them)
-            newer = {m for m in stats if m not in cell["stats"]}
-            assert all(stats[m].n == 0 for m in newer), (doc["name"], name, newer)
-            recomputed = {m: s.to_json() for m, s in stats.items() if m not in newer}
-            assert _close(recomputed, cell["stats"]), (doc["name"], name)
+            _assert_stats_reproduced(stats, cell["stats"], (doc["name"], name))
             # the tables from the committed statistics: the same bits on any CPU (a last-bit difference of the
             # recomputed ones could move a rounded digit or an interval's overlap)
             row = RankedRow(entry, task, _committed_stats(cell["stats"]), cell["episodes"])
