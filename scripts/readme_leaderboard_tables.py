@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 COLUMNS = ("Task", "Rank", "Entry", "Contact-free success", "RMSE pos (mm)", "Min distance (m)", "Ctrl ms", "n")
@@ -68,22 +69,43 @@ def _track_rows(leaderboard_md: str, track: str) -> tuple[list[str], list[list[s
     return _cells(lines[0]), [_cells(line) for line in lines[2:]]
 
 
-def realism_table(leaderboard_md: str) -> str:
-    """The README's realism table: per realism task, its first ranked row and the rows of :data:`REALISM_ROWS`."""
-    header, rows = _track_rows(leaderboard_md, TRACKS[0])
-    index = [header.index(c) for c in COLUMNS]
+def _selected_rows(
+    leaderboard_md: str,
+    track: str,
+    columns: tuple[str, ...],
+    in_table: Callable[[str], bool],
+    top: int,
+    always: tuple[str, ...] = (),
+) -> str:
+    """A README table: ``columns`` of one track's rows whose task passes ``in_table``.
+
+    Per task, the first ``top`` rows (the leaderboard's ranking order) and every row of an entry in ``always``.
+
+    Raises:
+        ValueError: The track's table lacks one of ``columns``.
+    """
+    header, rows = _track_rows(leaderboard_md, track)
+    missing = [c for c in columns if c not in header]
+    if missing:
+        raise ValueError(f"the {track} table of the leaderboard has no column(s) {missing}")
+    index = [header.index(c) for c in columns]
     task_col, entry_col = header.index("Task"), header.index("Entry")
-    align = ["---" if c in ("Task", "Rank", "Entry") else "--:" for c in COLUMNS]
-    out = ["| " + " | ".join(COLUMNS) + " |", "|" + "|".join(align) + "|"]
-    first: set[str] = set()
+    align = ["---" if c in ("Task", "Rank", "Entry") else "--:" for c in columns]
+    out = ["| " + " | ".join(columns) + " |", "|" + "|".join(align) + "|"]
+    shown: dict[str, int] = {}
     for cells in rows:
         task = cells[task_col]
-        if REALISM_MARK not in task:
+        if not in_table(task):
             continue
-        if task not in first or cells[entry_col] in REALISM_ROWS:
-            first.add(task)
+        shown[task] = shown.get(task, 0) + 1
+        if shown[task] <= top or cells[entry_col] in always:
             out.append("| " + " | ".join(cells[i] for i in index) + " |")
     return "\n".join(out) + "\n"
+
+
+def realism_table(leaderboard_md: str) -> str:
+    """The README's realism table: per realism task, its first ranked row and the rows of :data:`REALISM_ROWS`."""
+    return _selected_rows(leaderboard_md, TRACKS[0], COLUMNS, lambda task: REALISM_MARK in task, 1, REALISM_ROWS)
 
 
 def coop_table(leaderboard_md: str) -> str:
@@ -92,44 +114,23 @@ def coop_table(leaderboard_md: str) -> str:
     Raises:
         ValueError: The velocity track's table lacks one of :data:`COOP_COLUMNS`.
     """
-    header, rows = _track_rows(leaderboard_md, TRACKS[0])
-    missing = [c for c in COOP_COLUMNS if c not in header]
-    if missing:
-        raise ValueError(f"the {TRACKS[0]} table of the leaderboard has no column(s) {missing}")
-    index = [header.index(c) for c in COOP_COLUMNS]
-    align = ["---" if c in ("Task", "Rank", "Entry") else "--:" for c in COOP_COLUMNS]
-    out = ["| " + " | ".join(COOP_COLUMNS) + " |", "|" + "|".join(align) + "|"]
-    shown: dict[str, int] = {}
-    for cells in rows:
-        task = cells[header.index("Task")]
-        if task.startswith(COOP_MARK):
-            shown[task] = shown.get(task, 0) + 1
-            if shown[task] <= COOP_TOP_ROWS or cells[header.index("Entry")] in COOP_ROWS:
-                out.append("| " + " | ".join(cells[i] for i in index) + " |")
-    return "\n".join(out) + "\n"
+    return _selected_rows(
+        leaderboard_md, TRACKS[0], COOP_COLUMNS, lambda task: task.startswith(COOP_MARK), COOP_TOP_ROWS, COOP_ROWS
+    )
 
 
 def readme_table(leaderboard_md: str, track: str) -> str:
-    """The README form of one track's table: :data:`COLUMNS` and each oracle task's first :data:`TOP_ROWS` rows."""
-    start, end = _table_after(leaderboard_md, f"### {track}")
-    lines = leaderboard_md[start:end].splitlines()
-    header = _cells(lines[0])
-    missing = [c for c in COLUMNS if c not in header]
-    if missing:
-        raise ValueError(f"the {track} table of the leaderboard has no column(s) {missing}")
-    index = [header.index(c) for c in COLUMNS]
-    align = ["---" if c in ("Task", "Rank", "Entry") else "--:" for c in COLUMNS]
-    out = ["| " + " | ".join(COLUMNS) + " |", "|" + "|".join(align) + "|"]
-    shown: dict[str, int] = {}
-    for line in lines[2:]:
-        cells = _cells(line)
-        task = cells[header.index("Task")]
-        if REALISM_MARK in task or task.startswith(COOP_MARK):  # the realism and cooperative tables' (below)
-            continue
-        shown[task] = shown.get(task, 0) + 1
-        if shown[task] <= TOP_ROWS[track]:
-            out.append("| " + " | ".join(cells[i] for i in index) + " |")
-    return "\n".join(out) + "\n"
+    """The README form of one track's table: :data:`COLUMNS` and each oracle task's first :data:`TOP_ROWS` rows.
+
+    The realism and cooperative tasks have tables of their own (:func:`realism_table`, :func:`coop_table`).
+    """
+    return _selected_rows(
+        leaderboard_md,
+        track,
+        COLUMNS,
+        lambda task: REALISM_MARK not in task and not task.startswith(COOP_MARK),
+        TOP_ROWS[track],
+    )
 
 
 def update_readme(readme: str, leaderboard_md: str) -> str:
