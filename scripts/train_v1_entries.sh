@@ -80,6 +80,10 @@ DISTILLED_TRANSPORT="$DISTILLED teacher=residual-mpc-sac-transport-v1/seed_0"
 # CAMPC as the teacher of all 20 values (18 velocities and the 2 grip commands); 60k steps (the student met its
 # evaluation episodes from 10k in a pilot).
 DISTILLED_COOP="$DISTILLED teacher=campc-coop"
+# The obstacle task as a network alone (docs/LEARNED_CONTROLLERS.md): CAMPC with its outer-obstacle rows as the
+# teacher, its thresholds 2 cm farther out (the student's imitation error may use them); the observation's obstacle
+# slots are the student's only view of the obstacles.
+DISTILLED_OBSTACLES="$DISTILLED teacher=campc teacher_margin=0.02"
 # Fine-tuning a distilled controller with RL (agents/algos/td3_prior.py, prior_policy): TD3-prior starts its actor at
 # the distilled network of the same seed ({seed} below) and holds it near that network's action instead of zero,
 # on the v1 reward (default track_scale 5 cm). The actor waits 10k steps while the critic learns (a critic that has
@@ -110,6 +114,7 @@ ENTRIES=(
   "distilled-dagger-campc-circle-v1|dagger|uvdms/CircleTrack-v1|$CIRCLE_MIX|$DISTILLED_CIRCLE|150000"
   "distilled-dagger-residual-transport-v1|dagger|uvdms/Transport-v1|$TRANSPORT|$DISTILLED_TRANSPORT|150000"
   "distilled-dagger-coop-transport-v1|dagger|uvdms/CooperativeTransport-v1|$TRANSPORT|$DISTILLED_COOP|60000"
+  "distilled-dagger-campc-obstacles-v1|dagger|uvdms/TransportObstacles-v1|$OBSTACLES|$DISTILLED_OBSTACLES|150000"
   "finetuned-td3prior-distilled-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE_MIX|$FINETUNE_CIRCLE|40000"
   "ppo-circle-v1|ppo|uvdms/CircleTrack-v1|$CIRCLE $E2E|$PURE_RL|300000"
   "ppo-transport-v1|ppo|uvdms/Transport-v1|$TRANSPORT $E2E|$PURE_RL|300000"
