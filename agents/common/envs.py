@@ -29,6 +29,7 @@ import torch
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
+from agents.common.history import FrameStack
 from agents.common.learning_curve import EpisodeMetrics, has_tracking_metrics
 from agents.common.names import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
 from agents.common.rollouts import RolloutVecEnv
@@ -153,6 +154,11 @@ class EnvFactory:
         teacher_factory: A teacher that labels every step, for :mod:`agents.algos.dagger` (``None``: none): with
             ``base_factory`` its correction of the base (:class:`ResidualAction`'s ``teacher_factory``), without
             one its own command (:class:`TeacherLabel`).
+        navigation_filter: The state in the observation and ``info`` is the navigation filter's estimate
+            (:class:`uvdms_gym.realism.navigation.NavigationFilterWrapper`, innermost: every controller composed with
+            the policy sees it too; no effect at ``realism=0``).
+        frame_stack: The policy observes its last ``frame_stack`` observations (:class:`FrameStack`, outermost
+            but for the ``Monitor``; 1: no wrapper).
     """
 
     env_id: str
@@ -171,15 +177,16 @@ class EnvFactory:
     filter_factory: FilterFactory | None = None
     episode_metrics: bool = False
     teacher_factory: ControllerFactory | None = None
+    navigation_filter: bool = False
+    frame_stack: int = 1
 
     def __call__(self) -> gym.Env:
         """Create the environment wrapped in a ``Monitor`` (filter, residual, action scaling and alive bonus inside).
 
         From the inside out: ``gymnasium.make``, :class:`agents.common.learning_curve.EpisodeMetrics` (evaluation envs),
-        :class:`FilteredAction`, :class:`ResidualAction` or :class:`TeacherLabel` (both see the full ``info``),
-        ``ScaledAction``,
-        ``AliveBonus``, ``ScalarInfo``, ``Monitor``; so the policy's
-        ``action_scale * a`` is the residual, and the filter gets the composed command.
+        ``NavigationFilterWrapper``, :class:`FilteredAction`, :class:`ResidualAction` or :class:`TeacherLabel` (both
+        see the full ``info``), ``ScaledAction``, ``AliveBonus``, ``ScalarInfo``, :class:`FrameStack`, ``Monitor``;
+        so the policy's ``action_scale * a`` is the residual, and the filter gets the composed command.
 
         Also sets ``torch.set_num_threads(1)`` in the calling process: in a ``SubprocVecEnv`` worker (which
         imports torch with this module but never uses it) as in the trainer (see :func:`agents.training.train.train`).
@@ -192,12 +199,29 @@ class EnvFactory:
         env = gym.make(self.env_id, **make_kwargs)
         if self.episode_metrics and has_tracking_metrics(env):
             env = EpisodeMetrics(env)
+        if self.navigation_filter and env.unwrapped.realism is not None:
+            from uvdms_gym.realism.navigation import NavigationFilterWrapper
+
+            env = NavigationFilterWrapper(env)
+        env = self._compose(env)
+        if self.action_scale != 1.0:
+            env = ScaledAction(env, self.action_scale)
+        if self.alive_bonus:
+            env = AliveBonus(env, self.alive_bonus)
+        if self.scalar_info:
+            env = ScalarInfo(env)
+        if self.frame_stack > 1:
+            env = FrameStack(env, self.frame_stack)
+        return Monitor(env, filename=self.monitor_file)
+
+    def _compose(self, env: gym.Env) -> gym.Env:
+        """The safety filter, then the residual base or the teacher's label, around ``env``."""
         if self.filter_factory is not None:
             env = FilteredAction(env, self.filter_factory)
         if self.base_factory is not None:
             if self.residual_scale is None:
                 raise ValueError("a residual base needs residual_scale")
-            env = ResidualAction(
+            return ResidualAction(
                 env,
                 self.base_factory,
                 self.residual_scale,
@@ -206,15 +230,7 @@ class EnvFactory:
                 self.residual_space,
                 self.teacher_factory,
             )
-        elif self.teacher_factory is not None:
-            env = TeacherLabel(env, self.teacher_factory)
-        if self.action_scale != 1.0:
-            env = ScaledAction(env, self.action_scale)
-        if self.alive_bonus:
-            env = AliveBonus(env, self.alive_bonus)
-        if self.scalar_info:
-            env = ScalarInfo(env)
-        return Monitor(env, filename=self.monitor_file)
+        return env if self.teacher_factory is None else TeacherLabel(env, self.teacher_factory)
 
 
 def make_vec_env(factories: list[Callable[[], gym.Env]], vec_env: str) -> VecEnv:

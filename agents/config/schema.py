@@ -158,6 +158,16 @@ class TrainConfig:
         residual_space: Where a residual acts (only with ``residual_base``): ``"full"`` (default), the whole
             command; ``"nullspace"``, the policy's output projected onto the null space of the two end-effector
             positions first (:class:`uvdms_gym.residual.NullspaceProjection`). Recorded in the export.
+        navigation_filter: The policy observes the navigation filter's estimate where the measured state was
+            (``realism > 0``; :class:`uvdms_gym.realism.navigation.NavigationFilterWrapper` in training,
+            ``FilteredController`` at evaluation). Recorded in the export.
+        frame_stack: The policy observes its last ``frame_stack`` observations, oldest first, concatenated: a
+            policy with memory (:class:`agents.common.history.FrameStack`; 1: none). Recorded in the export,
+            whose controller keeps the history and clears it in ``reset(seed)``.
+        env_variants: Keyword overrides of ``env_kwargs`` cycled over the training envs: training env ``i`` is
+            made with ``{**env_kwargs, **env_variants[i % len(env_variants)]}`` and the evaluation envs with the
+            first variant (empty: every env alike). Domain randomisation over settings that are fixed for an
+            environment's lifetime, e.g. ``[{realism: 2}, {realism: 3}]`` trains one policy on two realism levels.
     """
 
     algo: str
@@ -187,6 +197,9 @@ class TrainConfig:
     safety_filter: bool = False
     residual_observation: str = "base"
     residual_space: str = "full"
+    navigation_filter: bool = False
+    frame_stack: int = 1
+    env_variants: list[dict[str, Any]] = field(default_factory=list)
 
     # ----------------------------------------------------------------------------------------------
     def to_entry(self) -> dict[str, Any]:
@@ -208,7 +221,15 @@ class TrainConfig:
             self.safety_filter,
             residual_observation=self.residual_observation,
             residual_space=self.residual_space,
+            navigation_filter=self.navigation_filter,
+            frame_stack=self.frame_stack,
         )
+
+    def variant_kwargs(self, rank: int) -> dict[str, Any]:
+        """``env_kwargs`` with the :attr:`env_variants` override of env ``rank`` (``env_kwargs`` without variants)."""
+        if not self.env_variants:
+            return dict(self.env_kwargs)
+        return {**self.env_kwargs, **self.env_variants[rank % len(self.env_variants)]}
 
     def normalize_kwargs(self) -> dict[str, Any] | None:
         """Keyword arguments for ``VecNormalize`` or ``None`` when normalisation is off.

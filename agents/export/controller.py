@@ -18,6 +18,7 @@ import torch
 from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
 
+from agents.common.history import ObservationHistory, stacked_space
 from agents.common.wrappers import is_unit_scale
 from agents.export.fast_actor import FastActor
 from uvdms_gym.evaluation import check_action_mode
@@ -96,7 +97,10 @@ class AgentController:
         composition: The residual base and safety filter the agent was trained with
             (:class:`uvdms_gym.residual.ActionComposition`). A residual agent observes ``[obs; a_base]`` and its
             output is a residual: evaluate it through ``leaderboard.suite.registry.make_controller``, which composes the
-            base (and the filter) from this record.
+            base (and the filter) from this record. With ``frame_stack > 1`` the controller keeps the policy's
+            observation history (:class:`agents.common.history.ObservationHistory`), cleared by :meth:`reset`; with
+            ``navigation_filter`` the composition layer feeds it the filter's estimate.
+        history: The observation history of a policy with memory (``None``: ``frame_stack`` 1).
     """
 
     def __init__(
@@ -126,6 +130,8 @@ class AgentController:
         self.composition = composition or ActionComposition()
         self.seed: int | None = None
         self.fast_actor = FastActor.from_policy(policy)
+        k = self.composition.frame_stack
+        self.history = ObservationHistory(k) if k > 1 else None
 
     @property
     def observation_space(self) -> spaces.Space:
@@ -169,8 +175,10 @@ class AgentController:
         return False
 
     def reset(self, seed: int | None = None) -> None:
-        """Start an episode. The MLP policies are stateless and deterministic; the seed is only recorded."""
+        """Start an episode: clear the observation history (if any); the seed is only recorded (deterministic)."""
         self.seed = seed
+        if self.history is not None:
+            self.history.reset()
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """The observation as the network sees it (normalised if the agent was trained with VecNormalize)."""
@@ -181,12 +189,14 @@ class AgentController:
         """Deterministic action for one observation (or a batch with a leading dimension).
 
         Args:
-            obs: Raw environment observation.
+            obs: Raw environment observation (one, not a batch, for a policy with memory: it joins the history).
             info: The environment's info dict (unused; for interface parity with other controllers).
 
         Returns:
             The action (``action_scale`` times the network's), within the action space bounds.
         """
+        if self.history is not None:
+            obs = self.history.push(obs)
         if self.fast_actor is not None:
             action = self.fast_actor(self.normalize(obs))
         else:
@@ -213,6 +223,8 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
     expected = env.observation_space
     if composition.is_residual:
         expected = residual_observation_space(env.observation_space, env.action_space, composition.residual_observation)
+    if composition.frame_stack > 1:
+        expected = stacked_space(expected, composition.frame_stack)
     if tuple(agent.observation_space.shape) != tuple(expected.shape):
         what = ""
         if composition.is_residual:
@@ -220,6 +232,8 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
             if composition.residual_observation != "base":
                 what += f" and the {composition.residual_observation} features"
             what += ")"
+        if composition.frame_stack > 1:
+            what += f" (its last {composition.frame_stack} observations)"
         raise ValueError(
             f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "
             f"{expected.shape}{what}"

@@ -47,13 +47,17 @@ _SPACE_ARGS = ("observation_space", "action_space", "lr_schedule")
 def run_time_record(composition: ActionComposition) -> dict[str, Any]:
     """What runs besides the network when the agent acts: ``network_only`` says nothing does.
 
-    A residual agent's base (an MPC: a QP every step) and the safety filter (a QP) run with it; an agent with
-    neither is the network alone (a distilled controller: no QP, no distance query beyond its observation).
+    A residual agent's base (an MPC: a QP every step) and the safety filter (a QP) run with it, and the navigation
+    filter (an extended Kalman filter) when the agent observes its estimate; an agent with none of them is the
+    network alone (a distilled controller: no QP, no distance query beyond its observation). ``memory`` is how
+    many observations the network sees (``frame_stack``; 1: none).
     """
     return {
-        "network_only": composition.is_plain,
+        "network_only": composition.is_plain and not composition.navigation_filter,
         "base": composition.residual_base,
         "safety_filter": composition.safety_filter,
+        "navigation_filter": composition.navigation_filter,
+        "memory": composition.frame_stack,
     }
 
 

@@ -176,21 +176,27 @@ class TrainingSegment:
             "residual_observation": cfg.residual_observation if base_factory is not None else "base",
             "residual_space": cfg.residual_space if base_factory is not None else "full",
             "filter_factory": filter_factory,
+            "navigation_filter": cfg.navigation_filter,
+            "frame_stack": cfg.frame_stack,
         }
         # the teacher labels training states only: the evaluation callback needs no labels
         train = self._factories(
-            "train", cfg.env_kwargs, cfg.n_envs, scalar_info=True, **composed, teacher_factory=teacher_factory
+            "train",
+            [cfg.variant_kwargs(i) for i in range(cfg.n_envs)],
+            scalar_info=True,
+            **composed,
+            teacher_factory=teacher_factory,
         )
-        evaluation = self._factories("eval", self.eval_kwargs, cfg.n_eval_envs, **composed, episode_metrics=True)
+        evaluation = self._factories("eval", [self.eval_kwargs] * cfg.n_eval_envs, **composed, episode_metrics=True)
         return train, evaluation
 
-    def _factories(self, kind: str, env_kwargs: dict[str, Any], n: int, **options: Any) -> list[EnvFactory]:
-        """``n`` env factories of one kind (``train`` or ``eval``), each with its own monitor file."""
+    def _factories(self, kind: str, env_kwargs: list[dict[str, Any]], **options: Any) -> list[EnvFactory]:
+        """One env factory of a kind (``train`` or ``eval``) per ``env_kwargs``, each with its own monitor file."""
         cfg, monitor = self.cfg, self.run_dir / "monitor"
         return [
             EnvFactory(
                 self.env_id,
-                env_kwargs,
+                kwargs,
                 self.gym_packages,
                 str(monitor / f"seg{self.index}_{kind}_{i}"),
                 cfg.max_episode_steps,
@@ -198,13 +204,13 @@ class TrainingSegment:
                 cfg.action_scale,
                 **options,
             )
-            for i in range(n)
+            for i, kwargs in enumerate(env_kwargs)
         ]
 
     @property
     def eval_kwargs(self) -> dict[str, Any]:
-        """The evaluation envs' ``gymnasium.make`` keyword arguments."""
-        return {**self.cfg.env_kwargs, **self.cfg.eval_env_kwargs}
+        """The evaluation envs' ``gymnasium.make`` keyword arguments (the first of ``env_variants``, if any)."""
+        return {**self.cfg.variant_kwargs(0), **self.cfg.eval_env_kwargs}
 
     def make_envs(self) -> None:
         """The training vector env and the evaluation env; a bad ``env_kwargs`` value is a :class:`ConfigError`."""

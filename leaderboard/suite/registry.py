@@ -250,7 +250,11 @@ def with_safety_filter(controller: Any, env: Any) -> Any:
 
 
 def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
-    """An agent as it was trained: its residual base added, then the safety filter if it was trained with one.
+    """An agent as it was trained: its residual base, safety filter and navigation filter, as recorded.
+
+    The residual base is added, then the safety filter if the agent was trained with one; an agent that observed
+    the navigation filter's estimate gets it as its input (``FilteredController``, outermost: the base and the
+    safety filter see the estimate too, as in training).
 
     Args:
         agent: A loaded agent (:class:`agents.export.AgentController`; its ``composition`` says what to add).
@@ -259,7 +263,8 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
 
     Returns:
         The agent itself when there is nothing to compose, else a
-        :class:`uvdms_gym.residual.ResidualController` and/or a :class:`baselines.safety.filter.SafetyFilter`.
+        :class:`uvdms_gym.residual.ResidualController` and/or a :class:`baselines.safety.filter.SafetyFilter`,
+        in a :class:`uvdms_gym.realism.navigation.FilteredController` for an agent that observed the filter.
 
     Raises:
         ValueError: The recorded base is not a velocity-mode baseline, or an action-mode mismatch.
@@ -279,6 +284,10 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
         )
     if composition.safety_filter or safety_filter:
         controller = with_safety_filter(controller, env)
+    if composition.navigation_filter:
+        from uvdms_gym.realism.navigation import FilteredController
+
+        controller = FilteredController(controller, env)
     return controller
 
 

@@ -31,8 +31,13 @@ RECORD_KEYS: tuple[str, ...] = (
     "residual_observation",
     "residual_space",
     "safety_filter",
+    "navigation_filter",
+    "frame_stack",
 )
 """The keys of an :class:`ActionComposition` in a run's config entry and in an export's ``agent.json``."""
+MAX_FRAME_STACK = 64
+"""The most observations a policy's history may hold (``frame_stack``): far beyond the delays it stands for (a few
+control steps); a bound that keeps a typo from building a network of a million inputs."""
 RESIDUAL_OBSERVATIONS: tuple[str, ...] = ("base", "clearance")
 """What a residual policy observes besides the environment's observation: ``"base"``, the base's action;
 ``"clearance"``, the base's action and the :class:`ClearanceFeatures`."""
@@ -68,11 +73,19 @@ class ActionComposition:
             this key existed are ``"base"``.
         residual_space: Where the residual acts (one of :data:`RESIDUAL_SPACES`; ``"nullspace"`` needs a residual
             base). Records written before this key existed are ``"full"``.
+        navigation_filter: The policy observes the navigation filter's estimate where the measured state was
+            (:class:`uvdms_gym.realism.navigation.NavigationFilterWrapper` in training, ``FilteredController`` at
+            evaluation; at ``realism=0`` nothing changes). The filter is the vehicle's software, so the agent
+            still sees only measurements. Records written before this key existed are ``False``.
+        frame_stack: The policy observes its last ``frame_stack`` observations, oldest first, concatenated (1: the
+            current one only; a policy with memory otherwise). At an episode's start the history holds copies of
+            its first observation. Records written before this key existed are ``1``.
 
     Raises:
         ValueError: A scale outside (0, 1], a scale without a base or a base without a scale, a base that is
-            not a non-empty string, or an unknown residual observation or space (or one other than ``"base"`` /
-            ``"full"`` without a base).
+            not a non-empty string, an unknown residual observation or space (or one other than ``"base"`` /
+            ``"full"`` without a base), a ``navigation_filter`` that is not a bool, or a ``frame_stack`` that is
+            not an integer in [1, :data:`MAX_FRAME_STACK`].
     """
 
     residual_base: str | None = None
@@ -80,6 +93,8 @@ class ActionComposition:
     safety_filter: bool = False
     residual_observation: str = "base"
     residual_space: str = "full"
+    navigation_filter: bool = False
+    frame_stack: int = 1
 
     def __post_init__(self) -> None:
         if self.residual_base is not None and (not isinstance(self.residual_base, str) or not self.residual_base):
@@ -108,6 +123,9 @@ class ActionComposition:
             raise ValueError(
                 f"residual_space={self.residual_space!r} is where a residual acts, but there is no residual_base"
             )
+        if not isinstance(self.navigation_filter, bool):
+            raise ValueError(f"navigation_filter must be true or false, got {self.navigation_filter!r}")
+        check_frame_stack(self.frame_stack)
 
     @property
     def is_residual(self) -> bool:
@@ -128,6 +146,8 @@ class ActionComposition:
             "residual_observation": self.residual_observation,
             "residual_space": self.residual_space,
             "safety_filter": self.safety_filter,
+            "navigation_filter": self.navigation_filter,
+            "frame_stack": self.frame_stack,
         }
 
     @classmethod
@@ -142,12 +162,16 @@ class ActionComposition:
         safety_filter = record.get("safety_filter")
         observation = record.get("residual_observation")
         space = record.get("residual_space")
+        navigation_filter = record.get("navigation_filter")
+        frame_stack = record.get("frame_stack")
         return cls(
             residual_base=record.get("residual_base"),
             residual_scale=float(scale) if is_residual_scale(scale) else scale,
             safety_filter=False if safety_filter is None else safety_filter,
             residual_observation="base" if observation is None else observation,
             residual_space="full" if space is None else space,
+            navigation_filter=False if navigation_filter is None else navigation_filter,
+            frame_stack=1 if frame_stack is None else frame_stack,
         )
 
     def describe(self, name: str) -> str:
@@ -156,6 +180,17 @@ class ActionComposition:
             return name
         prefix = f"residual-{self.residual_base}-"
         return name if name.startswith(prefix) else prefix + name
+
+
+def check_frame_stack(value: Any) -> int:
+    """``value`` if it is a valid ``frame_stack`` (an integer in [1, :data:`MAX_FRAME_STACK`]).
+
+    Raises:
+        ValueError: Anything else (the message names ``frame_stack`` and the value).
+    """
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_FRAME_STACK:
+        raise ValueError(f"frame_stack must be an integer in [1, {MAX_FRAME_STACK}] (observations), got {value!r}")
+    return value
 
 
 def compose_residual(base_action: np.ndarray, policy_action: np.ndarray, scale: float) -> tuple[np.ndarray, bool]:
