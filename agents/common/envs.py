@@ -158,7 +158,8 @@ class EnvFactory:
             (:class:`uvdms_gym.realism.navigation.NavigationFilterWrapper`, innermost: every controller composed with
             the policy sees it too; no effect at ``realism=0``).
         frame_stack: The policy observes its last ``frame_stack`` observations (:class:`FrameStack`, outermost
-            but for the ``Monitor``; 1: no wrapper).
+            but for the ``Monitor``; 1 and no ``action_history``: no wrapper).
+        action_history: ... and its own last ``action_history`` actions (the same wrapper; 0: none).
     """
 
     env_id: str
@@ -179,6 +180,7 @@ class EnvFactory:
     teacher_factory: ControllerFactory | None = None
     navigation_filter: bool = False
     frame_stack: int = 1
+    action_history: int = 0
 
     def __call__(self) -> gym.Env:
         """Create the environment wrapped in a ``Monitor`` (filter, residual, action scaling and alive bonus inside).
@@ -210,8 +212,8 @@ class EnvFactory:
             env = AliveBonus(env, self.alive_bonus)
         if self.scalar_info:
             env = ScalarInfo(env)
-        if self.frame_stack > 1:
-            env = FrameStack(env, self.frame_stack)
+        if self.frame_stack > 1 or self.action_history:
+            env = FrameStack(env, self.frame_stack, self.action_history)
         return Monitor(env, filename=self.monitor_file)
 
     def _compose(self, env: gym.Env) -> gym.Env:

@@ -164,6 +164,8 @@ class TrainConfig:
         frame_stack: The policy observes its last ``frame_stack`` observations, oldest first, concatenated: a
             policy with memory (:class:`agents.common.history.FrameStack`; 1: none). Recorded in the export,
             whose controller keeps the history and clears it in ``reset(seed)``.
+        action_history: The policy also observes its own last ``action_history`` actions (0: none; the same
+            wrapper and record): under an action delay, the commands still on their way.
         env_variants: Keyword overrides of ``env_kwargs`` cycled over the training envs: training env ``i`` is
             made with ``{**env_kwargs, **env_variants[i % len(env_variants)]}`` and the evaluation envs with the
             first variant (empty: every env alike). Domain randomisation over settings that are fixed for an
@@ -199,6 +201,7 @@ class TrainConfig:
     residual_space: str = "full"
     navigation_filter: bool = False
     frame_stack: int = 1
+    action_history: int = 0
     env_variants: list[dict[str, Any]] = field(default_factory=list)
 
     # ----------------------------------------------------------------------------------------------
@@ -223,6 +226,7 @@ class TrainConfig:
             residual_space=self.residual_space,
             navigation_filter=self.navigation_filter,
             frame_stack=self.frame_stack,
+            action_history=self.action_history,
         )
 
     def variant_kwargs(self, rank: int) -> dict[str, Any]:

@@ -18,7 +18,7 @@ import torch
 from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
 
-from agents.common.history import ObservationHistory, stacked_space
+from agents.common.history import PolicyMemory, stacked_space
 from agents.common.wrappers import is_unit_scale
 from agents.export.fast_actor import FastActor
 from uvdms_gym.evaluation import check_action_mode
@@ -97,10 +97,10 @@ class AgentController:
         composition: The residual base and safety filter the agent was trained with
             (:class:`uvdms_gym.residual.ActionComposition`). A residual agent observes ``[obs; a_base]`` and its
             output is a residual: evaluate it through ``leaderboard.suite.registry.make_controller``, which composes the
-            base (and the filter) from this record. With ``frame_stack > 1`` the controller keeps the policy's
-            observation history (:class:`agents.common.history.ObservationHistory`), cleared by :meth:`reset`; with
+            base (and the filter) from this record. With ``frame_stack > 1`` or ``action_history`` the controller
+            keeps the policy's memory (:class:`agents.common.history.PolicyMemory`), cleared by :meth:`reset`; with
             ``navigation_filter`` the composition layer feeds it the filter's estimate.
-        history: The observation history of a policy with memory (``None``: ``frame_stack`` 1).
+        memory: The memory of a policy with memory (``None``: ``frame_stack`` 1 and no ``action_history``).
     """
 
     def __init__(
@@ -130,8 +130,9 @@ class AgentController:
         self.composition = composition or ActionComposition()
         self.seed: int | None = None
         self.fast_actor = FastActor.from_policy(policy)
-        k = self.composition.frame_stack
-        self.history = ObservationHistory(k) if k > 1 else None
+        k, m = self.composition.frame_stack, self.composition.action_history
+        size = int(np.prod(policy.action_space.shape))
+        self.memory = PolicyMemory(k, m, size) if k > 1 or m else None
 
     @property
     def observation_space(self) -> spaces.Space:
@@ -175,10 +176,10 @@ class AgentController:
         return False
 
     def reset(self, seed: int | None = None) -> None:
-        """Start an episode: clear the observation history (if any); the seed is only recorded (deterministic)."""
+        """Start an episode: clear the policy's memory (if any); the seed is only recorded (deterministic)."""
         self.seed = seed
-        if self.history is not None:
-            self.history.reset()
+        if self.memory is not None:
+            self.memory.reset()
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """The observation as the network sees it (normalised if the agent was trained with VecNormalize)."""
@@ -189,19 +190,22 @@ class AgentController:
         """Deterministic action for one observation (or a batch with a leading dimension).
 
         Args:
-            obs: Raw environment observation (one, not a batch, for a policy with memory: it joins the history).
+            obs: Raw environment observation (one, not a batch, for a policy with memory: it joins the memory,
+                and so does the action returned).
             info: The environment's info dict (unused; for interface parity with other controllers).
 
         Returns:
             The action (``action_scale`` times the network's), within the action space bounds.
         """
-        if self.history is not None:
-            obs = self.history.push(obs)
+        if self.memory is not None:
+            obs = self.memory.observe(obs)
         if self.fast_actor is not None:
             action = self.fast_actor(self.normalize(obs))
         else:
             with torch.no_grad():
                 action, _ = self.policy.predict(self.normalize(obs), deterministic=True)
+        if self.memory is not None:
+            self.memory.actions.push(action)  # the network's output, as the training wrapper records it
         return action if self.action_scale == 1.0 else (self.action_scale * action).astype(action.dtype)
 
 
@@ -223,8 +227,8 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
     expected = env.observation_space
     if composition.is_residual:
         expected = residual_observation_space(env.observation_space, env.action_space, composition.residual_observation)
-    if composition.frame_stack > 1:
-        expected = stacked_space(expected, composition.frame_stack)
+    if composition.frame_stack > 1 or composition.action_history:
+        expected = stacked_space(expected, composition.frame_stack, composition.action_history, env.action_space)
     if tuple(agent.observation_space.shape) != tuple(expected.shape):
         what = ""
         if composition.is_residual:
@@ -232,8 +236,8 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
             if composition.residual_observation != "base":
                 what += f" and the {composition.residual_observation} features"
             what += ")"
-        if composition.frame_stack > 1:
-            what += f" (its last {composition.frame_stack} observations)"
+        if composition.frame_stack > 1 or composition.action_history:
+            what += f" (its last {composition.frame_stack} observations and {composition.action_history} actions)"
         raise ValueError(
             f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "
             f"{expected.shape}{what}"

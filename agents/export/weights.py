@@ -50,14 +50,14 @@ def run_time_record(composition: ActionComposition) -> dict[str, Any]:
     A residual agent's base (an MPC: a QP every step) and the safety filter (a QP) run with it, and the navigation
     filter (an extended Kalman filter) when the agent observes its estimate; an agent with none of them is the
     network alone (a distilled controller: no QP, no distance query beyond its observation). ``memory`` is how
-    many observations the network sees (``frame_stack``; 1: none).
+    many observations and own past actions the network sees (``frame_stack``, ``action_history``).
     """
     return {
         "network_only": composition.is_plain and not composition.navigation_filter,
         "base": composition.residual_base,
         "safety_filter": composition.safety_filter,
         "navigation_filter": composition.navigation_filter,
-        "memory": composition.frame_stack,
+        "memory": {"observations": composition.frame_stack, "actions": composition.action_history},
     }
 
 

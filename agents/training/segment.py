@@ -178,6 +178,7 @@ class TrainingSegment:
             "filter_factory": filter_factory,
             "navigation_filter": cfg.navigation_filter,
             "frame_stack": cfg.frame_stack,
+            "action_history": cfg.action_history,
         }
         # the teacher labels training states only: the evaluation callback needs no labels
         train = self._factories(

@@ -33,6 +33,7 @@ RECORD_KEYS: tuple[str, ...] = (
     "safety_filter",
     "navigation_filter",
     "frame_stack",
+    "action_history",
 )
 """The keys of an :class:`ActionComposition` in a run's config entry and in an export's ``agent.json``."""
 MAX_FRAME_STACK = 64
@@ -80,12 +81,15 @@ class ActionComposition:
         frame_stack: The policy observes its last ``frame_stack`` observations, oldest first, concatenated (1: the
             current one only; a policy with memory otherwise). At an episode's start the history holds copies of
             its first observation. Records written before this key existed are ``1``.
+        action_history: The policy also observes its own last ``action_history`` actions, oldest first, zeros
+            before its first (0: none): under an action delay, the commands still on their way. Records written
+            before this key existed are ``0``.
 
     Raises:
         ValueError: A scale outside (0, 1], a scale without a base or a base without a scale, a base that is
             not a non-empty string, an unknown residual observation or space (or one other than ``"base"`` /
-            ``"full"`` without a base), a ``navigation_filter`` that is not a bool, or a ``frame_stack`` that is
-            not an integer in [1, :data:`MAX_FRAME_STACK`].
+            ``"full"`` without a base), a ``navigation_filter`` that is not a bool, a ``frame_stack`` that is
+            not an integer in [1, :data:`MAX_FRAME_STACK`], or an ``action_history`` not in [0, it].
     """
 
     residual_base: str | None = None
@@ -95,6 +99,7 @@ class ActionComposition:
     residual_space: str = "full"
     navigation_filter: bool = False
     frame_stack: int = 1
+    action_history: int = 0
 
     def __post_init__(self) -> None:
         if self.residual_base is not None and (not isinstance(self.residual_base, str) or not self.residual_base):
@@ -123,9 +128,15 @@ class ActionComposition:
             raise ValueError(
                 f"residual_space={self.residual_space!r} is where a residual acts, but there is no residual_base"
             )
+        self._check_memory()
+
+    def _check_memory(self) -> None:
+        """The navigation filter's flag and the history lengths (see the class)."""
         if not isinstance(self.navigation_filter, bool):
             raise ValueError(f"navigation_filter must be true or false, got {self.navigation_filter!r}")
         check_frame_stack(self.frame_stack)
+        if self.action_history != 0:
+            check_frame_stack(self.action_history, "action_history")
 
     @property
     def is_residual(self) -> bool:
@@ -148,6 +159,7 @@ class ActionComposition:
             "safety_filter": self.safety_filter,
             "navigation_filter": self.navigation_filter,
             "frame_stack": self.frame_stack,
+            "action_history": self.action_history,
         }
 
     @classmethod
@@ -164,6 +176,7 @@ class ActionComposition:
         space = record.get("residual_space")
         navigation_filter = record.get("navigation_filter")
         frame_stack = record.get("frame_stack")
+        action_history = record.get("action_history")
         return cls(
             residual_base=record.get("residual_base"),
             residual_scale=float(scale) if is_residual_scale(scale) else scale,
@@ -172,6 +185,7 @@ class ActionComposition:
             residual_space="full" if space is None else space,
             navigation_filter=False if navigation_filter is None else navigation_filter,
             frame_stack=1 if frame_stack is None else frame_stack,
+            action_history=0 if action_history is None else action_history,
         )
 
     def describe(self, name: str) -> str:
@@ -182,14 +196,14 @@ class ActionComposition:
         return name if name.startswith(prefix) else prefix + name
 
 
-def check_frame_stack(value: Any) -> int:
-    """``value`` if it is a valid ``frame_stack`` (an integer in [1, :data:`MAX_FRAME_STACK`]).
+def check_frame_stack(value: Any, key: str = "frame_stack") -> int:
+    """``value`` if it is a valid history length ``key`` (an integer in [1, :data:`MAX_FRAME_STACK`]).
 
     Raises:
-        ValueError: Anything else (the message names ``frame_stack`` and the value).
+        ValueError: Anything else (the message names ``key`` and the value).
     """
     if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_FRAME_STACK:
-        raise ValueError(f"frame_stack must be an integer in [1, {MAX_FRAME_STACK}] (observations), got {value!r}")
+        raise ValueError(f"{key} must be an integer in [1, {MAX_FRAME_STACK}], got {value!r}")
     return value
 
 
