@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from leaderboard.output.comparison import success_cell
 from leaderboard.suite.tasks import REALISM_BASES, REALISM_LEVELS
 from uvdms_gym.seeds import split_seeds
 
@@ -75,9 +76,7 @@ def _fmt(cell: dict[str, Any] | None) -> str:
     if cell is None:
         return ""
     s = cell["success"]
-    interval = "" if s["low"] is None else f" [{s['low']:.2f}, {s['high']:.2f}]"
-    rmse = cell["rmse"]
-    return f"{s['mean']:.2f}{interval}, {rmse * 1000:.1f} mm" if rmse is not None else f"{s['mean']:.2f}{interval}"
+    return success_cell(s["mean"], s["low"], s["high"], cell["rmse"])
 
 
 PLOTTED_BASELINES: tuple[str, ...] = ("campc", "campc-raw", "campc-privileged", "campc-nndi", "mpc")
