@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+import pytest
 from stable_baselines3.common.monitor import Monitor
 
+from agents.common.envs import EnvFactory
 from agents.common.history import FrameStack
 from agents.common.names import DEFAULT_GYM_PACKAGES
-from agents.config import parse_entry
+from agents.config import ConfigError, parse_entry
 from agents.training.segment import TrainingSegment
 from uvdms_gym.realism.navigation import NavigationFilterWrapper
 
@@ -74,3 +76,17 @@ def test_without_the_keys_every_env_is_alike_and_unwrapped_by_them(tmp_path):
         assert env.observation_space.shape == env.unwrapped.observation_space.shape
     finally:
         env.close()
+
+
+def test_a_variant_the_env_rejects_is_a_config_error_naming_the_variants(tmp_path):
+    segment = _segment(tmp_path, n_envs=2, env_variants=[{"realism": 2}, {"realism": 9}])
+    with pytest.raises(ConfigError, match=r"and env_variants \[\{'realism': 2\}, \{'realism': 9\}\]") as info:
+        segment.make_envs()
+    assert "ValueError: realism must be 0, 1, 2 or 3" in str(info.value)
+
+
+def test_the_navigation_filter_needs_a_uvdms_env():
+    factory = EnvFactory("Pendulum-v1", {}, DEFAULT_GYM_PACKAGES, None, 10, navigation_filter=True)
+    with pytest.raises(ValueError, match="navigation_filter needs a UVDMS environment .*, not Pendulum-v1"):
+        factory()
+    assert FrameStack in _layers(EnvFactory("Pendulum-v1", {}, DEFAULT_GYM_PACKAGES, None, 10, frame_stack=2)())
