@@ -87,6 +87,6 @@ def test_a_variant_the_env_rejects_is_a_config_error_naming_the_variants(tmp_pat
 
 def test_the_navigation_filter_needs_a_uvdms_env():
     factory = EnvFactory("Pendulum-v1", {}, DEFAULT_GYM_PACKAGES, None, 10, navigation_filter=True)
-    with pytest.raises(ValueError, match="navigation_filter needs a UVDMS environment .*, not Pendulum-v1"):
+    with pytest.raises(ValueError, match=r"navigation_filter needs a UVDMS environment .*, not Pendulum-v1"):
         factory()
     assert FrameStack in _layers(EnvFactory("Pendulum-v1", {}, DEFAULT_GYM_PACKAGES, None, 10, frame_stack=2)())
