@@ -156,7 +156,8 @@ class EnvFactory:
             one its own command (:class:`TeacherLabel`).
         navigation_filter: The state in the observation and ``info`` is the navigation filter's estimate
             (:class:`uvdms_gym.realism.navigation.NavigationFilterWrapper`, innermost: every controller composed with
-            the policy sees it too; no effect at ``realism=0``).
+            the policy sees it too; no effect at ``realism=0``; an error on an env that is not UVDMS's:
+            :func:`with_navigation_filter`).
         frame_stack: The policy observes its last ``frame_stack`` observations (:class:`FrameStack`, outermost
             but for the ``Monitor``; 1 and no ``action_history``: no wrapper).
         action_history: ... and its own last ``action_history`` actions (the same wrapper; 0: none).
@@ -201,10 +202,8 @@ class EnvFactory:
         env = gym.make(self.env_id, **make_kwargs)
         if self.episode_metrics and has_tracking_metrics(env):
             env = EpisodeMetrics(env)
-        if self.navigation_filter and env.unwrapped.realism is not None:
-            from uvdms_gym.realism.navigation import NavigationFilterWrapper
-
-            env = NavigationFilterWrapper(env)
+        if self.navigation_filter:
+            env = with_navigation_filter(env)
         env = self._compose(env)
         if self.action_scale != 1.0:
             env = ScaledAction(env, self.action_scale)
@@ -233,6 +232,22 @@ class EnvFactory:
                 self.teacher_factory,
             )
         return env if self.teacher_factory is None else TeacherLabel(env, self.teacher_factory)
+
+
+def with_navigation_filter(env: gym.Env) -> gym.Env:
+    """``env`` in the navigation filter's wrapper at a realism level; unchanged at ``realism=0``.
+
+    Raises:
+        ValueError: ``env`` is not a UVDMS environment (it has no ``realism`` attribute).
+    """
+    if not hasattr(env.unwrapped, "realism"):
+        name = env.spec.id if env.spec is not None else type(env.unwrapped).__name__
+        raise ValueError(f"navigation_filter needs a UVDMS environment (one with a realism level), not {name}")
+    if env.unwrapped.realism is None:
+        return env
+    from uvdms_gym.realism.navigation import NavigationFilterWrapper
+
+    return NavigationFilterWrapper(env)
 
 
 def make_vec_env(factories: list[Callable[[], gym.Env]], vec_env: str) -> VecEnv:

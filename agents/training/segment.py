@@ -220,9 +220,10 @@ class TrainingSegment:
             self.venv = make_vec_env(train, self.vec_env)
             self.eval_venv = DummyVecEnv(evaluation)
         except Exception as exc:  # a bad --env-kwargs value surfaces here: report it as a config error
+            variants = f" and env_variants {self.cfg.env_variants}" if self.cfg.env_variants else ""
             raise ConfigError(
-                f"cannot create {self.env_id} with env_kwargs {dict(self.cfg.env_kwargs)} (eval: {self.eval_kwargs}): "
-                f"{type(exc).__name__}: {exc}"
+                f"cannot create {self.env_id} with env_kwargs {dict(self.cfg.env_kwargs)}{variants} "
+                f"(eval: {self.eval_kwargs}): {type(exc).__name__}: {exc}"
             ) from exc
 
     def make_model(self) -> None:

@@ -118,7 +118,14 @@ def test_uvdms_train_dagger_with_no_base_export_and_evaluate(tmp_path, capsys):
     assert uvdms(["export-agent", str(run_dir), str(export), "--trust"]) == 0
     doc = json.loads((export / "agent.json").read_text())
     assert (doc["algo"], doc["residual_base"], doc["safety_filter"]) == ("dagger", None, False)
-    assert doc["run_time"] == {"network_only": True, "base": None, "safety_filter": False}
+    assert doc["run_time"] == {
+        "network_only": True,
+        "base": None,
+        "safety_filter": False,
+        "navigation_filter": False,
+        "memory": 1,
+    }
+    assert (doc["navigation_filter"], doc["frame_stack"]) == (False, 1)
     out = tmp_path / "eval.json"
     argv = ["evaluate", "--controller", str(export), "--env", CIRCLE, "--env-kwargs", "case=2", "max_episode_steps=20"]
     assert uvdms([*argv, "--episodes", "1", "--out", str(out), "--no-progress"]) == 0, capsys.readouterr().err
