@@ -123,7 +123,7 @@ def test_uvdms_train_dagger_with_no_base_export_and_evaluate(tmp_path, capsys):
         "base": None,
         "safety_filter": False,
         "navigation_filter": False,
-        "memory": 1,
+        "memory": {"observations": 1, "actions": 0},
     }
     assert (doc["navigation_filter"], doc["frame_stack"]) == (False, 1)
     out = tmp_path / "eval.json"

@@ -101,3 +101,26 @@ def test_only_1d_observations_are_stacked():
         stacked_space(spaces.Box(-1.0, 1.0, (2, 3)), 2)
     with pytest.raises(ValueError, match="frame_stack stacks 1-D Box observations"):
         stacked_space(spaces.Discrete(3), 2)
+
+
+def test_the_action_history_is_the_last_actions_taken_oldest_first_zeros_before_the_first():
+    m, k = 3, 2
+    env = FrameStack(gym.make(CIRCLE, case=2, max_episode_steps=8), k, actions=m)
+    size, n_act = gym.make(CIRCLE).observation_space.shape[0], env.action_space.shape[0]
+    assert env.observation_space.shape == (k * size + m * n_act,)
+    rng = np.random.default_rng(0)
+    for _ in range(2):  # a second episode starts again from zeros
+        obs, _ = env.reset(seed=1)
+        np.testing.assert_array_equal(obs[k * size :], np.zeros(m * n_act, dtype=np.float32))
+        taken: list[np.ndarray] = [np.zeros(n_act, dtype=np.float32)] * m
+        for _ in range(5):
+            action = rng.uniform(-1, 1, n_act).astype(np.float32)
+            obs, *_ = env.step(action)
+            taken.append(action)
+            np.testing.assert_array_equal(obs[k * size :], np.concatenate(taken[-m:]))
+            assert env.observation_space.contains(obs)
+
+
+def test_a_bad_action_history_is_refused_naming_it():
+    with pytest.raises(ValueError, match="action_history must be an integer"):
+        FrameStack(gym.make(CIRCLE), 2, actions=-1)

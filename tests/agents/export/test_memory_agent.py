@@ -25,6 +25,7 @@ from uvdms_gym.realism.navigation import FilteredController, NavigationFilterWra
 
 CIRCLE = "uvdms/CircleTrack-v1"
 K = 3
+M = 2  # the policy's own last actions (action_history)
 STEPS = 25
 
 
@@ -34,7 +35,8 @@ def memory_export(tmp_path_factory) -> tuple:
     tmp = tmp_path_factory.mktemp("memory")
     argv = ["train", "--algo", "dagger", "--env", CIRCLE, "--env-kwargs", "case=random", "hydro_randomization=0.3"]
     argv += ["max_episode_steps=30", "--residual", "none", "--total-timesteps", "120", "--seed", "0"]
-    argv += ["--hyperparams", "teacher=campc-privileged", f"frame_stack={K}", "navigation_filter=true"]
+    argv += ["--hyperparams", "teacher=campc-privileged", f"frame_stack={K}", f"action_history={M}"]
+    argv += ["navigation_filter=true"]
     argv += ["env_variants=[{realism: 2}, {realism: 3}]", "eval_freq=0", "checkpoint_freq=0", "batch_size=32"]
     argv += ["save_replay_buffer=false", "policy_kwargs={net_arch: [16]}", "--out", str(tmp / "runs"), "--no-progress"]
     assert uvdms(argv) == 0
@@ -60,12 +62,16 @@ def test_the_export_records_the_memory_and_the_filter(memory_export):
         "base": None,
         "safety_filter": False,
         "navigation_filter": True,
-        "memory": K,
+        "memory": {"observations": K, "actions": M},
     }
     agent = load_agent(export)
-    assert (agent.composition.frame_stack, agent.composition.navigation_filter) == (K, True)
+    assert (agent.composition.frame_stack, agent.composition.action_history, agent.composition.navigation_filter) == (
+        K,
+        M,
+        True,
+    )
     size = gym.make(CIRCLE).observation_space.shape[0]
-    assert agent.observation_space.shape == (K * size,)
+    assert agent.observation_space.shape == (K * size + M * 18,)
     run_agent = load_agent(run_dir, trust=True)  # the run itself records the same composition
     assert run_agent.composition == agent.composition
 
@@ -73,7 +79,7 @@ def test_the_export_records_the_memory_and_the_filter(memory_export):
 def test_the_controller_acts_as_the_policy_on_frame_stacked_observations(memory_export):
     agent = load_agent(memory_export[1])
     env = gym.make(CIRCLE, case=2, max_episode_steps=STEPS)
-    stacked_env = FrameStack(gym.make(CIRCLE, case=2, max_episode_steps=STEPS), K)
+    stacked_env = FrameStack(gym.make(CIRCLE, case=2, max_episode_steps=STEPS), K, M)
     firsts = []
     for _ in range(2):  # the same seed twice: reset(seed) restarts the history
         agent.reset(seed=7)
@@ -101,7 +107,8 @@ def test_make_controller_feeds_the_filters_estimate_to_the_memory_as_in_training
     controller = make_controller(str(memory_export[1]), env)
     assert isinstance(controller, FilteredController) and isinstance(controller.controller, AgentController)
     agent = controller.controller
-    training_env = FrameStack(NavigationFilterWrapper(gym.make(CIRCLE, case=2, realism=2, max_episode_steps=STEPS)), K)
+    measured = gym.make(CIRCLE, case=2, realism=2, max_episode_steps=STEPS)
+    training_env = FrameStack(NavigationFilterWrapper(measured), K, M)
     controller.reset(seed=3)
     obs, info = env.reset(seed=3)
     stacked, _ = training_env.reset(seed=3)
@@ -121,11 +128,12 @@ def test_make_controller_feeds_the_filters_estimate_to_the_memory_as_in_training
 def test_a_stacked_agent_on_an_env_of_another_observation_size_is_refused_saying_so(memory_export):
     agent = load_agent(memory_export[1])
     env = gym.make("uvdms/CooperativeTransport-v1")
-    size = env.observation_space.shape[0]
-    message = rf"expects observations of shape \({K * 80},\), the environment gives \({K * size},\) \(its last {K} "
+    size, actions = env.observation_space.shape[0], env.action_space.shape[0]
+    message = rf"expects observations of shape \({K * 80 + M * 18},\), the environment gives "
+    message += rf"\({K * size + M * actions},\) \(its last {K} observations and {M} actions\)"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EnvMismatchWarning)
-        with pytest.raises(ValueError, match=message + "observations"):
+        with pytest.raises(ValueError, match=message):
             check_agent(agent, env, "memory")
     check_agent(agent, gym.make(CIRCLE, realism=3))  # the stacked shape of its own env fits
 
