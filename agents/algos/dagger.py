@@ -57,9 +57,35 @@ def teacher_margin(hyperparams: Mapping[str, Any]) -> float:
     Raises:
         ValueError: ``teacher_margin`` is not a finite number >= 0.
     """
-    value = hyperparams.get("teacher_margin", 0.0)
+    return _metres(hyperparams, "teacher_margin")
+
+
+def teacher_outer_margin(hyperparams: Mapping[str, Any]) -> float:
+    """The teacher's outer-obstacle margin a DAgger configuration names (``teacher_outer_margin``, m, default 0).
+
+    Raises:
+        ValueError: ``teacher_outer_margin`` is not a finite number >= 0.
+    """
+    return _metres(hyperparams, "teacher_outer_margin")
+
+
+def hard_fraction(hyperparams: Mapping[str, Any]) -> float:
+    """The share of each batch's hardest samples whose loss counts twice (``hard_fraction``, default 0).
+
+    Raises:
+        ValueError: ``hard_fraction`` is not a number in [0, 1].
+    """
+    value = hyperparams.get("hard_fraction", 0.0)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 <= value <= 1.0:
+        raise ValueError(f"hard_fraction must be a number in [0, 1], got {value!r}")
+    return float(value)
+
+
+def _metres(hyperparams: Mapping[str, Any], key: str) -> float:
+    """``hyperparams[key]`` (default 0) as a finite number of metres >= 0."""
+    value = hyperparams.get(key, 0.0)
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
-        raise ValueError(f"teacher_margin must be a finite number >= 0 (metres), got {value!r}")
+        raise ValueError(f"{key} must be a finite number >= 0 (metres), got {value!r}")
     return float(value)
 
 
@@ -154,10 +180,16 @@ class DAgger(TD3):
         teacher_margin: Metres by which ``uvdms train`` moves the teacher's collision thresholds ``d1`` and ``d2``
             outward (``leaderboard.suite.registry.BaselineFactory``'s ``collision_margin``): the learner imitates a
             teacher that keeps this much clear of the collision zone, which its imitation error then may use.
+        teacher_outer_margin: Metres by which ``uvdms train`` moves the teacher's outer-obstacle thresholds
+            (``outer_d1``, ``outer_d2``) outward in an environment with obstacles: a teacher that evades earlier
+            and wider, so more of the visited states carry an evasion and the learner's lag has room.
+        hard_fraction: Hard-example emphasis of the imitation loss: the mean squared error over the batch plus the
+            mean over its ``hard_fraction`` largest per-sample errors (0: plain least squares). The teacher's
+            evasions are rare, sharp labels among many tracking states; plain least squares fits them last.
 
     Raises:
-        ValueError: ``teacher`` is not a non-empty string, ``teacher_margin`` not a finite number >= 0, or
-            another replay buffer class is requested.
+        ValueError: ``teacher`` is not a non-empty string, ``teacher_margin`` or ``teacher_outer_margin`` not a
+            finite number >= 0, ``hard_fraction`` not in [0, 1], or another replay buffer class is requested.
     """
 
     def __init__(
@@ -182,6 +214,8 @@ class DAgger(TD3):
         target_noise_clip: float = 0.5,
         teacher: str = DEFAULT_TEACHER,
         teacher_margin: float = 0.0,
+        teacher_outer_margin: float = 0.0,
+        hard_fraction: float = 0.0,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
@@ -190,13 +224,22 @@ class DAgger(TD3):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ) -> None:
-        self.check_hyperparams({"teacher": teacher, "teacher_margin": teacher_margin})
+        self.check_hyperparams(
+            {
+                "teacher": teacher,
+                "teacher_margin": teacher_margin,
+                "teacher_outer_margin": teacher_outer_margin,
+                "hard_fraction": hard_fraction,
+            }
+        )
         if replay_buffer_class not in (None, TeacherReplayBuffer):
             raise ValueError(
                 f"DAgger stores its labels in TeacherReplayBuffer, got replay_buffer_class={replay_buffer_class}"
             )
         self.teacher = teacher
         self.teacher_margin = float(teacher_margin)
+        self.teacher_outer_margin = float(teacher_outer_margin)
+        self.hard_fraction = float(hard_fraction)
         super().__init__(
             policy,
             env,
@@ -230,10 +273,13 @@ class DAgger(TD3):
         """Range checks of the keyword arguments of this class (``agents.config.schema`` calls it on a config entry).
 
         Raises:
-            ValueError: ``teacher`` is not a non-empty string, or ``teacher_margin`` not a finite number >= 0.
+            ValueError: ``teacher`` is not a non-empty string, ``teacher_margin`` or ``teacher_outer_margin`` not a
+                finite number >= 0, or ``hard_fraction`` not in [0, 1].
         """
         teacher_name(hyperparams)
         teacher_margin(hyperparams)
+        teacher_outer_margin(hyperparams)
+        hard_fraction(hyperparams)
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         """``gradient_steps`` least-squares steps of the actor toward the teacher's labels (the module's loss)."""
@@ -245,7 +291,7 @@ class DAgger(TD3):
         for _ in range(gradient_steps):
             self._n_updates += 1
             obs, labels = buffer.sample_labelled(batch_size, env=self._vec_normalize_env)
-            loss = F.mse_loss(self.actor(obs), labels)
+            loss = self.imitation_loss(self.actor(obs), labels)
             losses.append(loss.item())
             self.actor.optimizer.zero_grad()
             loss.backward()
@@ -253,3 +299,12 @@ class DAgger(TD3):
         self.policy.set_training_mode(False)
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         self.logger.record("train/imitation_loss", float(np.mean(losses)))
+
+    def imitation_loss(self, actions: th.Tensor, labels: th.Tensor) -> th.Tensor:
+        """The mean squared error, plus that of the batch's ``hard_fraction`` hardest samples (see the class)."""
+        loss = F.mse_loss(actions, labels)
+        n_hard = int(self.hard_fraction * actions.shape[0])
+        if n_hard == 0:
+            return loss
+        per_sample = ((actions - labels) ** 2).mean(dim=1)
+        return loss + th.topk(per_sample, n_hard).values.mean()

@@ -8,7 +8,7 @@ cannot collect parallel rollouts.
 
 from __future__ import annotations
 
-from agents.algos.dagger import teacher_margin, teacher_name
+from agents.algos.dagger import teacher_margin, teacher_name, teacher_outer_margin
 from agents.common.envs import ActionComponents
 from agents.common.rollouts import check_rollout_vec_env
 from agents.config import ConfigError, TrainConfig
@@ -96,9 +96,10 @@ def _teacher(cfg: TrainConfig, components: ActionComponents) -> ControllerFactor
             training environment's.
     """
     name, margin = teacher_name(cfg.hyperparams), teacher_margin(cfg.hyperparams)
+    outer = teacher_outer_margin(cfg.hyperparams)
     if components.teacher_factory is None:
         return components.base_factory(name, collision_margin=margin)
-    factory = components.teacher_factory(name, collision_margin=margin)
+    factory = components.teacher_factory(name, collision_margin=margin, **({"outer_margin": outer} if outer else {}))
     teacher_mode = getattr(factory, "action_mode", None)
     env_mode = cfg.env_kwargs.get("action_mode", DEFAULT_ACTION_MODE)
     if cfg.composition.is_residual and teacher_mode not in (None, "velocity"):

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from baselines.controllers import BASELINES, make_baseline
+from baselines.mpc.config import MPCConfig
 from uvdms_gym.physics.params import D1, D2
 from uvdms_gym.residual import ResidualController
 
@@ -161,11 +162,17 @@ def _check_collision_margin(margin: Any, name: str) -> None:
         raise ValueError(f"collision_margin={margin} widens collision rows, but {name!r} has none (use campc)")
 
 
-def _baseline_with_margin(name: str, env: Any, margin: float) -> Any:
-    """The baseline ``name`` for ``env`` with both collision thresholds ``d1``, ``d2`` moved out by ``margin``."""
-    if not margin:
-        return make_baseline(name, env)
-    return make_baseline(name, env, mpc_overrides={"d1": D1 + margin, "d2": D2 + margin})
+def _baseline_with_margin(name: str, env: Any, margin: float, outer_margin: float = 0.0) -> Any:
+    """The baseline ``name`` for ``env`` with both collision thresholds ``d1``, ``d2`` moved out by ``margin``.
+
+    With ``outer_margin`` also the outer-obstacle rows' ``outer_d1`` and ``outer_d2`` (their defaults of
+    :class:`baselines.mpc.config.MPCConfig`), in an environment with obstacles.
+    """
+    overrides = {"d1": D1 + margin, "d2": D2 + margin} if margin else {}
+    if outer_margin and hasattr(env.unwrapped, "obstacles"):
+        defaults = MPCConfig()
+        overrides |= {"outer_d1": defaults.outer_d1 + outer_margin, "outer_d2": defaults.outer_d2 + outer_margin}
+    return make_baseline(name, env, mpc_overrides=overrides) if overrides else make_baseline(name, env)
 
 
 @dataclass(frozen=True)
@@ -181,6 +188,9 @@ class TeacherFactory:
             as in :func:`resolve_controller`).
         collision_margin: Metres added to both collision thresholds of a baseline with collision rows
             (:class:`BaselineFactory`); 0 for an agent.
+        outer_margin: Metres added to both thresholds of the outer-obstacle rows (``outer_d1``, ``outer_d2``) of a
+            baseline with collision rows, in an environment with obstacles: a teacher that evades earlier and
+            wider, whose evasions a learner imitates with room to spare; 0 for an agent.
 
     Raises:
         ValueError: An unknown name that is no weights-only export, a negative or non-finite margin, or a margin
@@ -189,9 +199,11 @@ class TeacherFactory:
 
     name: str
     collision_margin: float = 0.0
+    outer_margin: float = 0.0
 
     def __post_init__(self) -> None:
         _check_collision_margin(self.collision_margin, self.name)
+        _check_collision_margin(self.outer_margin, self.name)
         if self.name in CONTROLLERS:
             return
         path = Path(resolve_controller(self.name))
@@ -214,7 +226,7 @@ class TeacherFactory:
     def __call__(self, env: Any) -> Any:
         """The teacher for ``env``: the baseline (thresholds moved by the margin) or the composed agent."""
         if self.name in CONTROLLERS:
-            return _baseline_with_margin(self.name, env, self.collision_margin)
+            return _baseline_with_margin(self.name, env, self.collision_margin, self.outer_margin)
         return make_controller(self.name, env)
 
 
