@@ -103,6 +103,33 @@ def test_a_teacher_margin_moves_both_collision_thresholds_of_the_teacher_only():
         BaselineFactory("mpc", collision_margin=0.01)
 
 
+def test_a_teacher_outer_margin_moves_the_outer_obstacle_thresholds_only_where_there_are_obstacles():
+    obstacles = gym.make("uvdms/TransportObstacles-v1", obstacles="random")
+    registered = TeacherFactory("campc")(obstacles).mpc.config
+    shifted = TeacherFactory("campc", collision_margin=0.02, outer_margin=0.05)(obstacles).mpc.config
+    assert (shifted.outer_d1, shifted.outer_d2) == pytest.approx(
+        (registered.outer_d1 + 0.05, registered.outer_d2 + 0.05), abs=1e-15
+    )
+    assert (shifted.d1, shifted.d2) == pytest.approx((D1 + 0.02, D2 + 0.02), abs=1e-15)
+    assert shifted.outer_rows == registered.outer_rows > 0
+    circle = TeacherFactory("campc", outer_margin=0.05)(gym.make(CIRCLE, case=1)).mpc.config
+    assert (circle.d1, circle.d2, circle.outer_rows) == (D1, D2, 0)  # no obstacles: the registered CAMPC
+    with pytest.raises(ValueError, match="'mpc' has none"):
+        TeacherFactory("mpc", outer_margin=0.05)
+
+
+@pytest.mark.parametrize("fraction", [0.0, 0.25, 1.0])
+def test_the_hard_example_loss_adds_the_mean_of_the_hardest_samples(fraction):
+    model = DAgger("MlpPolicy", _ToyTeacherEnv(), seed=0, hard_fraction=fraction, policy_kwargs={"net_arch": [8]})
+    rng = np.random.default_rng(2)
+    actions, labels = rng.normal(size=(40, 2)), rng.normal(size=(40, 2))
+    per_sample = np.mean((actions - labels) ** 2, axis=1)
+    n_hard = int(fraction * 40)
+    expected = per_sample.mean() + (np.sort(per_sample)[::-1][:n_hard].mean() if n_hard else 0.0)
+    loss = model.imitation_loss(torch.as_tensor(actions), torch.as_tensor(labels))
+    assert float(loss) == pytest.approx(expected, rel=1e-12)
+
+
 class _ToyTeacherEnv(gym.Env):
     """2-D states drawn at random each step; the label is a fixed nonlinear map of the state the action saw."""
 
@@ -190,6 +217,8 @@ RESIDUAL = ["--residual", "mpc", "--residual-scale", "0.5"]
         ([*RESIDUAL, "--hyperparams", "teacher=3"], r"key 'teacher': expected str, got int"),
         ([*RESIDUAL, "--hyperparams", "teacher_margin=-0.01"], r"teacher_margin must be a finite number >= 0"),
         ([*RESIDUAL, "--hyperparams", "teacher=mpc", "teacher_margin=0.01"], r"'mpc' has none \(use campc\)"),
+        ([*RESIDUAL, "--hyperparams", "teacher_outer_margin=-1"], r"teacher_outer_margin must be a finite number >= 0"),
+        ([*RESIDUAL, "--hyperparams", "hard_fraction=1.5"], r"hard_fraction must be a number in \[0, 1\], got 1.5"),
         # with no base (a distilled controller, tests/agents/algos/test_dagger_no_base.py)
         (["--residual", "none", "--residual-scale", "0.5"], r"residual_scale 0.5 is given without a residual_base"),
         (
