@@ -270,7 +270,18 @@ def _composition_items(document: Mapping[str, Any]) -> list[tuple[str, str]]:
         else "none: the policy's output is the command"
     )
     trained = "trained with it" if composition.get("trained_with_filter") else "trained without it"
-    return [("Base", base_text), ("Safety filter", f"{with_filter}; {trained}")]
+    return [("Base", base_text), ("Safety filter", f"{with_filter}; {trained}"), *_observation_terms(composition)]
+
+
+def _observation_terms(composition: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """``(term, text)`` of what a policy observes beyond the environment's observation: the filter, its memory."""
+    terms = []
+    if composition.get("navigation_filter"):
+        terms.append(("Navigation filter", "the policy observes the filter's estimate where the measured state was"))
+    k, m = composition.get("frame_stack") or 1, composition.get("action_history") or 0
+    if k > 1 or m:
+        terms.append(("Memory", f"its last {k} observations and its own last {m} actions"))
+    return terms
 
 
 def _network_text(training: Sequence[Mapping[str, Any]]) -> str:

@@ -269,3 +269,14 @@ def test_documents_without_details_take_them_from_the_agent_folder_only_if_it_is
 def test_the_committed_page_holds_the_committed_csv():
     assert_page_holds_the_csv(COMMITTED)
     assert (COMMITTED / PAGE_NAME).stat().st_size < 4_000_000
+
+
+def test_the_composition_names_the_navigation_filter_and_the_memory_of_an_agent_that_has_them():
+    from leaderboard.output.webpage import _composition_items
+
+    plain = {"residual_base": None, "evaluated_with_filter": False, "trained_with_filter": False}
+    memory = {**plain, "navigation_filter": True, "frame_stack": 4, "action_history": 2}
+    terms = dict(_composition_items({"composition": memory}))
+    assert terms["Memory"] == "its last 4 observations and its own last 2 actions"
+    assert "estimate" in terms["Navigation filter"]
+    assert {"Memory", "Navigation filter"}.isdisjoint(dict(_composition_items({"composition": plain})))
