@@ -98,6 +98,19 @@ def stacked_space(
     return spaces.Box(low, high, dtype=space.dtype)
 
 
+def unstacked_space(space: spaces.Space, k: int, actions: int = 0, action_size: int = 0) -> spaces.Box:
+    """One observation's space of a policy input space built by :func:`stacked_space` (its oldest entry's bounds).
+
+    Raises:
+        ValueError: ``space`` is not a 1-D ``Box`` whose size is ``k`` observations and ``actions * action_size``.
+    """
+    size = 0 if not isinstance(space, spaces.Box) or len(space.shape) != 1 else space.shape[0] - actions * action_size
+    if size <= 0 or size % k:
+        raise ValueError(f"{space} is not {k} observations and {actions} actions of size {action_size}")
+    n = size // k
+    return spaces.Box(space.low[:n], space.high[:n], dtype=space.dtype)
+
+
 class PolicyMemory:
     """What a policy with memory observes: its observation history, then its action history.
 

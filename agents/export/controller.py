@@ -18,7 +18,7 @@ import torch
 from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
 
-from agents.common.history import PolicyMemory, stacked_space
+from agents.common.history import PolicyMemory, unstacked_space
 from agents.common.wrappers import is_unit_scale
 from agents.export.fast_actor import FastActor
 from uvdms_gym.evaluation import check_action_mode
@@ -136,8 +136,17 @@ class AgentController:
 
     @property
     def observation_space(self) -> spaces.Space:
-        """Observation space the policy expects (un-normalised observations)."""
-        return self.policy.observation_space
+        """The space of the observation :meth:`predict` takes (un-normalised).
+
+        For a policy with memory, one observation: the policy's own input is the memory's
+        (``policy.observation_space``).
+        """
+        space = self.policy.observation_space
+        if self.memory is None:
+            return space
+        composition = self.composition
+        size = int(np.prod(self.policy.action_space.shape))
+        return unstacked_space(space, composition.frame_stack, composition.action_history, size)
 
     @property
     def action_space(self) -> spaces.Space:
@@ -183,7 +192,7 @@ class AgentController:
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """The observation as the network sees it (normalised if the agent was trained with VecNormalize)."""
-        obs = np.asarray(obs, dtype=self.observation_space.dtype)
+        obs = np.asarray(obs, dtype=self.policy.observation_space.dtype)
         return self.normalizer(obs) if self.normalizer is not None else obs
 
     def predict(self, obs: np.ndarray, info: Mapping[str, Any] | None = None) -> np.ndarray:
@@ -227,8 +236,6 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
     expected = env.observation_space
     if composition.is_residual:
         expected = residual_observation_space(env.observation_space, env.action_space, composition.residual_observation)
-    if composition.frame_stack > 1 or composition.action_history:
-        expected = stacked_space(expected, composition.frame_stack, composition.action_history, env.action_space)
     if tuple(agent.observation_space.shape) != tuple(expected.shape):
         what = ""
         if composition.is_residual:
@@ -237,7 +244,7 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
                 what += f" and the {composition.residual_observation} features"
             what += ")"
         if composition.frame_stack > 1 or composition.action_history:
-            what += f" (its last {composition.frame_stack} observations and {composition.action_history} actions)"
+            what += f" (each of the {composition.frame_stack} observations its memory holds)"
         raise ValueError(
             f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "
             f"{expected.shape}{what}"

@@ -254,6 +254,18 @@ SHRUNK: dict[str, Shrunk] = {
         creates=("runs/uvdms_CircleTrack-v1/dagger_0/final_model.zip",),
         contains=(("runs/uvdms_CircleTrack-v1/dagger_0/config.yml", "teacher_margin: 0.02"),),
     ),
+    # a policy with memory under realism: DAgger from the privileged CAMPC, levels 2 and 3 (docs/training/index.md)
+    "uvdms train --algo dagger --env uvdms/CircleTrack-v1 --env-kwargs case=random --residual none --hyperparams "
+    "teacher=campc-privileged frame_stack=4 action_history=4 navigation_filter=true "
+    "'env_variants=[{realism: 2}, {realism: 3}]'": Shrunk(
+        "memory",
+        "uvdms train --algo dagger --env uvdms/CircleTrack-v1 --env-kwargs case=random max_episode_steps=20 "
+        "--residual none --hyperparams teacher=campc-privileged frame_stack=4 action_history=4 navigation_filter=true "
+        "'env_variants=[{realism: 2}, {realism: 3}]' batch_size=32 eval_freq=0 checkpoint_freq=0 "
+        "--total-timesteps 60 --no-progress",
+        creates=("runs/uvdms_CircleTrack-v1/dagger_0/final_model.zip",),
+        contains=(("runs/uvdms_CircleTrack-v1/dagger_0/config.yml", "action_history: 4"),),
+    ),
 }
 """README command (normalised: see :func:`readme_commands`) -> how it is run."""
 

@@ -14,7 +14,7 @@ import pytest
 from gymnasium import spaces
 from gymnasium.wrappers import FrameStackObservation
 
-from agents.common.history import FrameStack, ObservationHistory, stacked_space
+from agents.common.history import FrameStack, ObservationHistory, stacked_space, unstacked_space
 from uvdms_gym.residual import MAX_FRAME_STACK
 
 CIRCLE = "uvdms/CircleTrack-v1"
@@ -124,3 +124,12 @@ def test_the_action_history_is_the_last_actions_taken_oldest_first_zeros_before_
 def test_a_bad_action_history_is_refused_naming_it():
     with pytest.raises(ValueError, match="action_history must be an integer"):
         FrameStack(gym.make(CIRCLE), 2, actions=-1)
+
+
+def test_unstacked_space_inverts_stacked_space():
+    env = gym.make(CIRCLE)
+    for k, m in [(1, 2), (4, 0), (4, 4)]:
+        stacked = stacked_space(env.observation_space, k, m, env.action_space)
+        assert unstacked_space(stacked, k, m, env.action_space.shape[0]) == env.observation_space
+    with pytest.raises(ValueError, match="is not 3 observations"):
+        unstacked_space(env.observation_space, 3, 0, 18)

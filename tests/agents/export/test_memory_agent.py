@@ -71,7 +71,8 @@ def test_the_export_records_the_memory_and_the_filter(memory_export):
         True,
     )
     size = gym.make(CIRCLE).observation_space.shape[0]
-    assert agent.observation_space.shape == (K * size + M * 18,)
+    assert agent.policy.observation_space.shape == (K * size + M * 18,)  # the memory, the policy's input
+    assert agent.observation_space == gym.make(CIRCLE).observation_space  # one observation, what predict takes
     run_agent = load_agent(run_dir, trust=True)  # the run itself records the same composition
     assert run_agent.composition == agent.composition
 
@@ -128,9 +129,9 @@ def test_make_controller_feeds_the_filters_estimate_to_the_memory_as_in_training
 def test_a_stacked_agent_on_an_env_of_another_observation_size_is_refused_saying_so(memory_export):
     agent = load_agent(memory_export[1])
     env = gym.make("uvdms/CooperativeTransport-v1")
-    size, actions = env.observation_space.shape[0], env.action_space.shape[0]
-    message = rf"expects observations of shape \({K * 80 + M * 18},\), the environment gives "
-    message += rf"\({K * size + M * actions},\) \(its last {K} observations and {M} actions\)"
+    size = env.observation_space.shape[0]
+    message = rf"expects observations of shape \(80,\), the environment gives \({size},\) "
+    message += rf"\(each of the {K} observations its memory holds\)"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EnvMismatchWarning)
         with pytest.raises(ValueError, match=message):
