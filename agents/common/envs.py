@@ -35,7 +35,14 @@ from agents.common.names import DEFAULT_GYM_PACKAGES, VEC_ENV_TYPES
 from agents.common.rollouts import RolloutVecEnv
 from agents.common.vecenv import HybridVecEnv
 from agents.common.wrappers import AliveBonus, ScalarInfo, ScaledAction
-from uvdms_gym.residual import ControllerFactory, FilteredAction, FilterFactory, ResidualAction, TeacherLabel
+from uvdms_gym.residual import (
+    ControllerFactory,
+    FilteredAction,
+    FilterFactory,
+    ObstacleFeatureObservation,
+    ResidualAction,
+    TeacherLabel,
+)
 from uvdms_gym.seeds import check_seeds
 
 SEGMENT_SEED_STRIDE = 1000
@@ -161,6 +168,8 @@ class EnvFactory:
         frame_stack: The policy observes its last ``frame_stack`` observations (:class:`FrameStack`, outermost
             but for the ``Monitor``; 1 and no ``action_history``: no wrapper).
         action_history: ... and its own last ``action_history`` actions (the same wrapper; 0: none).
+        obstacle_features: The policy observes its observation followed by the obstacle features
+            (:class:`uvdms_gym.residual.ObstacleFeatureObservation`, just inside :class:`FrameStack`).
     """
 
     env_id: str
@@ -182,13 +191,15 @@ class EnvFactory:
     navigation_filter: bool = False
     frame_stack: int = 1
     action_history: int = 0
+    obstacle_features: bool = False
 
     def __call__(self) -> gym.Env:
         """Create the environment wrapped in a ``Monitor`` (filter, residual, action scaling and alive bonus inside).
 
         From the inside out: ``gymnasium.make``, :class:`agents.common.learning_curve.EpisodeMetrics` (evaluation envs),
         ``NavigationFilterWrapper``, :class:`FilteredAction`, :class:`ResidualAction` or :class:`TeacherLabel` (both
-        see the full ``info``), ``ScaledAction``, ``AliveBonus``, ``ScalarInfo``, :class:`FrameStack`, ``Monitor``;
+        see the full ``info``), ``ScaledAction``, ``AliveBonus``, ``ScalarInfo``, ``ObstacleFeatureObservation``,
+        :class:`FrameStack`, ``Monitor``;
         so the policy's ``action_scale * a`` is the residual, and the filter gets the composed command.
 
         Also sets ``torch.set_num_threads(1)`` in the calling process: in a ``SubprocVecEnv`` worker (which
@@ -211,6 +222,8 @@ class EnvFactory:
             env = AliveBonus(env, self.alive_bonus)
         if self.scalar_info:
             env = ScalarInfo(env)
+        if self.obstacle_features:
+            env = ObstacleFeatureObservation(env)
         if self.frame_stack > 1 or self.action_history:
             env = FrameStack(env, self.frame_stack, self.action_history)
         return Monitor(env, filename=self.monitor_file)

@@ -166,6 +166,10 @@ class TrainConfig:
             whose controller keeps the history and clears it in ``reset(seed)``.
         action_history: The policy also observes its own last ``action_history`` actions (0: none; the same
             wrapper and record): under an action delay, the commands still on their way.
+        obstacle_features: The policy also observes the obstacle features computed from its observation (each
+            observed obstacle's nearest robot part: the gap, its rates and the action direction that opens it;
+            :class:`uvdms_gym.residual.ObstacleFeatures`): environments with obstacle slots, no residual base.
+            Recorded in the export, whose evaluation computes the same features.
         env_variants: Keyword overrides of ``env_kwargs`` cycled over the training envs: training env ``i`` is
             made with ``{**env_kwargs, **env_variants[i % len(env_variants)]}`` and the evaluation envs with the
             first variant (empty: every env alike). Domain randomisation over settings that are fixed for an
@@ -202,6 +206,7 @@ class TrainConfig:
     navigation_filter: bool = False
     frame_stack: int = 1
     action_history: int = 0
+    obstacle_features: bool = False
     env_variants: list[dict[str, Any]] = field(default_factory=list)
 
     # ----------------------------------------------------------------------------------------------
@@ -227,6 +232,7 @@ class TrainConfig:
             navigation_filter=self.navigation_filter,
             frame_stack=self.frame_stack,
             action_history=self.action_history,
+            obstacle_features=self.obstacle_features,
         )
 
     def variant_kwargs(self, rank: int) -> dict[str, Any]:

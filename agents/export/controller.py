@@ -22,7 +22,7 @@ from agents.common.history import PolicyMemory, unstacked_space
 from agents.common.wrappers import is_unit_scale
 from agents.export.fast_actor import FastActor
 from uvdms_gym.evaluation import check_action_mode
-from uvdms_gym.residual import ActionComposition, residual_observation_space
+from uvdms_gym.residual import ActionComposition, ObstacleFeatures, obstacle_feature_space, residual_observation_space
 from uvdms_gym.utils.kwargs import env_family
 
 SHIPPED_MODEL = "model.zip"
@@ -236,6 +236,8 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
     expected = env.observation_space
     if composition.is_residual:
         expected = residual_observation_space(env.observation_space, env.action_space, composition.residual_observation)
+    if composition.obstacle_features:
+        expected = obstacle_feature_space(env.observation_space, ObstacleFeatures.for_env(env))
     if tuple(agent.observation_space.shape) != tuple(expected.shape):
         what = ""
         if composition.is_residual:
@@ -243,6 +245,8 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
             if composition.residual_observation != "base":
                 what += f" and the {composition.residual_observation} features"
             what += ")"
+        if composition.obstacle_features:
+            what += " (with the obstacle features)"
         if composition.frame_stack > 1 or composition.action_history:
             what += f" (each of the {composition.frame_stack} observations its memory holds)"
         raise ValueError(

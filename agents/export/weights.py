@@ -50,7 +50,9 @@ def run_time_record(composition: ActionComposition) -> dict[str, Any]:
     A residual agent's base (an MPC: a QP every step) and the safety filter (a QP) run with it, and the navigation
     filter (an extended Kalman filter) when the agent observes its estimate; an agent with none of them is the
     network alone (a distilled controller: no QP, no distance query beyond its observation). ``memory`` is how
-    many observations and own past actions the network sees (``frame_stack``, ``action_history``).
+    many observations and own past actions the network sees (``frame_stack``, ``action_history``);
+    ``obstacle_features`` whether it also sees the obstacle features, which its observation's obstacle slots give
+    through the kinematic model (distances and ``J_dis`` rows, no optimisation: still the network alone).
     """
     return {
         "network_only": composition.is_plain and not composition.navigation_filter,
@@ -58,6 +60,7 @@ def run_time_record(composition: ActionComposition) -> dict[str, Any]:
         "safety_filter": composition.safety_filter,
         "navigation_filter": composition.navigation_filter,
         "memory": {"observations": composition.frame_stack, "actions": composition.action_history},
+        "obstacle_features": composition.obstacle_features,
     }
 
 

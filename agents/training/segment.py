@@ -179,6 +179,7 @@ class TrainingSegment:
             "navigation_filter": cfg.navigation_filter,
             "frame_stack": cfg.frame_stack,
             "action_history": cfg.action_history,
+            "obstacle_features": cfg.obstacle_features,
         }
         # the teacher labels training states only: the evaluation callback needs no labels
         train = self._factories(

@@ -264,7 +264,9 @@ def with_safety_filter(controller: Any, env: Any) -> Any:
 def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
     """An agent as it was trained: its residual base, safety filter and navigation filter, as recorded.
 
-    The residual base is added, then the safety filter if the agent was trained with one; an agent that observed
+    An agent that observes the obstacle features gets them computed from its observation
+    (``ObstacleFeatureController``, innermost). The residual base is added, then the safety filter if the agent was
+    trained with one; an agent that observed
     the navigation filter's estimate gets it as its input (``FilteredController``, outermost: the base and the
     safety filter see the estimate too, as in training).
 
@@ -281,10 +283,18 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
     Raises:
         ValueError: The recorded base is not a velocity-mode baseline, or an action-mode mismatch.
     """
-    from uvdms_gym.residual import ActionComposition, residual_features, residual_projection
+    from uvdms_gym.residual import (
+        ActionComposition,
+        ObstacleFeatureController,
+        ObstacleFeatures,
+        residual_features,
+        residual_projection,
+    )
 
     composition = getattr(agent, "composition", None) or ActionComposition()
     controller = agent
+    if composition.obstacle_features:
+        controller = ObstacleFeatureController(agent, ObstacleFeatures.for_env(env))
     if composition.is_residual:
         base = BaselineFactory(str(composition.residual_base))(env)
         controller = ResidualController(

@@ -216,7 +216,7 @@ def outer_distance_jacobian(kin, res: OuterDistances, obstacles: np.ndarray) -> 
     (:func:`part_frames`), as in :func:`uvdms_gym.distances.distance_jacobian`.
     """
     states = np.asarray(obstacles, dtype=float).reshape(-1, STATE_COLS)
-    masks = _part_masks(kin.model, "object" in res.parts[: res.n_parts])
+    masks = part_masks(kin.model, "object" in res.parts[: res.n_parts])
     sel = np.tile(masks, (states.shape[0], 1))
     jac = _distkernels.jdis_rows(sel, kin.data.J, res.p, res.e)
     v_obs = np.repeat(states[:, VEL], res.n_parts, axis=0)
@@ -226,7 +226,7 @@ def outer_distance_jacobian(kin, res: OuterDistances, obstacles: np.ndarray) -> 
 _MASKS: dict[tuple[int, bool], tuple[object, np.ndarray]] = {}
 
 
-def _part_masks(model, with_object: bool) -> np.ndarray:
+def part_masks(model, with_object: bool) -> np.ndarray:
     """Velocity columns of the joints supporting each part's frame, ``(n_parts, nv)`` (cached per model)."""
     hit = _MASKS.get((id(model), with_object))
     if hit is not None and hit[0] is model:

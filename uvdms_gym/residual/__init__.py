@@ -35,7 +35,8 @@ that the wrappers also build in ``SubprocVecEnv`` / hybrid workers. :class:`Acti
 composition from the record alone.
 
 Modules: :mod:`~uvdms_gym.residual.composition` (the record and the formula), :mod:`~uvdms_gym.residual.clearance`
-(the clearance features), :mod:`~uvdms_gym.residual.nullspace` (the null-space projection),
+(the clearance features), :mod:`~uvdms_gym.residual.obstacle_features` (the obstacle features of a policy that
+outputs the whole command), :mod:`~uvdms_gym.residual.nullspace` (the null-space projection),
 :mod:`~uvdms_gym.residual.wrappers` (the training wrappers and the evaluation controller); their public names are
 importable from here.
 """
@@ -69,6 +70,12 @@ from uvdms_gym.residual.nullspace import (
     NullspaceProjection,
     residual_projection,
 )
+from uvdms_gym.residual.obstacle_features import (
+    ObstacleFeatureController,
+    ObstacleFeatureObservation,
+    ObstacleFeatures,
+    obstacle_feature_space,
+)
 from uvdms_gym.residual.wrappers import (
     FilteredAction,
     ResidualAction,
@@ -95,6 +102,9 @@ __all__ = [
     "FilteredAction",
     "KinematicHelper",
     "NullspaceProjection",
+    "ObstacleFeatureController",
+    "ObstacleFeatureObservation",
+    "ObstacleFeatures",
     "ResidualAction",
     "ResidualController",
     "TeacherLabel",
@@ -102,6 +112,7 @@ __all__ = [
     "compose_residual",
     "is_residual_penalty",
     "is_residual_scale",
+    "obstacle_feature_space",
     "residual_features",
     "residual_observation",
     "residual_observation_space",

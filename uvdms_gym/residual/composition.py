@@ -34,6 +34,7 @@ RECORD_KEYS: tuple[str, ...] = (
     "navigation_filter",
     "frame_stack",
     "action_history",
+    "obstacle_features",
 )
 """The keys of an :class:`ActionComposition` in a run's config entry and in an export's ``agent.json``."""
 MAX_FRAME_STACK = 64
@@ -84,12 +85,17 @@ class ActionComposition:
         action_history: The policy also observes its own last ``action_history`` actions, oldest first, zeros
             before its first (0: none): under an action delay, the commands still on their way. Records written
             before this key existed are ``0``.
+        obstacle_features: The policy also observes the obstacle features of its observation
+            (:class:`uvdms_gym.residual.ObstacleFeatures`: each observed obstacle's nearest robot part, its gap, rates
+            and the action direction that opens it), computed from the observation with the environment's kinematic
+            model; only for an agent without a residual base. Records written before this key existed are ``False``.
 
     Raises:
         ValueError: A scale outside (0, 1], a scale without a base or a base without a scale, a base that is
             not a non-empty string, an unknown residual observation or space (or one other than ``"base"`` /
             ``"full"`` without a base), a ``navigation_filter`` that is not a bool, a ``frame_stack`` that is
-            not an integer in [1, :data:`MAX_FRAME_STACK`], or an ``action_history`` not in [0, it].
+            not an integer in [1, :data:`MAX_FRAME_STACK`], an ``action_history`` not in [0, it], or
+            ``obstacle_features`` that is not a bool or comes with a residual base.
     """
 
     residual_base: str | None = None
@@ -100,6 +106,7 @@ class ActionComposition:
     navigation_filter: bool = False
     frame_stack: int = 1
     action_history: int = 0
+    obstacle_features: bool = False
 
     def __post_init__(self) -> None:
         if self.residual_base is not None and (not isinstance(self.residual_base, str) or not self.residual_base):
@@ -131,12 +138,19 @@ class ActionComposition:
         self._check_memory()
 
     def _check_memory(self) -> None:
-        """The navigation filter's flag and the history lengths (see the class)."""
+        """The navigation filter's flag, the history lengths and the obstacle features' flag (see the class)."""
         if not isinstance(self.navigation_filter, bool):
             raise ValueError(f"navigation_filter must be true or false, got {self.navigation_filter!r}")
         check_frame_stack(self.frame_stack)
         if self.action_history != 0:
             check_frame_stack(self.action_history, "action_history")
+        if not isinstance(self.obstacle_features, bool):
+            raise ValueError(f"obstacle_features must be true or false, got {self.obstacle_features!r}")
+        if self.obstacle_features and self.residual_base is not None:
+            raise ValueError(
+                "obstacle_features is for a policy that outputs the whole command; a residual policy observes "
+                "residual_observation's features instead"
+            )
 
     @property
     def is_residual(self) -> bool:
@@ -160,6 +174,7 @@ class ActionComposition:
             "navigation_filter": self.navigation_filter,
             "frame_stack": self.frame_stack,
             "action_history": self.action_history,
+            "obstacle_features": self.obstacle_features,
         }
 
     @classmethod
@@ -177,6 +192,7 @@ class ActionComposition:
         navigation_filter = record.get("navigation_filter")
         frame_stack = record.get("frame_stack")
         action_history = record.get("action_history")
+        obstacle_features = record.get("obstacle_features")
         return cls(
             residual_base=record.get("residual_base"),
             residual_scale=float(scale) if is_residual_scale(scale) else scale,
@@ -186,6 +202,7 @@ class ActionComposition:
             navigation_filter=False if navigation_filter is None else navigation_filter,
             frame_stack=1 if frame_stack is None else frame_stack,
             action_history=0 if action_history is None else action_history,
+            obstacle_features=False if obstacle_features is None else obstacle_features,
         )
 
     def describe(self, name: str) -> str:
