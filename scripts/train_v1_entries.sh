@@ -87,6 +87,11 @@ DISTILLED_COOP="$DISTILLED teacher=campc-coop"
 # slots are the student's only view of the obstacles. Plain DAgger (margin 2 cm, no emphasis) met 0.55 / 0.45 of 20
 # validation draws at 60k steps and 0.60 / 0.60 at 80k (seeds 0 / 1), its failures contacts.
 DISTILLED_OBSTACLES="$DISTILLED teacher=campc teacher_margin=0.02 teacher_outer_margin=0.05 hard_fraction=0.25"
+# The same network alone with the obstacle features (uvdms_gym.residual.ObstacleFeatures, obstacle_features=true):
+# besides the raw observation it observes, for each obstacle slot, the nearest robot part's gap, the gap's rates and
+# the action direction that opens it, which the kinematic model computes from the observation (no optimisation; the
+# slots stay the policy's only view of the obstacles). The plain DAgger recipe: CAMPC with the 2 cm inner margin.
+DISTILLED_OBSTACLE_FEATURES="$DISTILLED teacher=campc teacher_margin=0.02 obstacle_features=true"
 # Under sensing and actuation realism (docs/realism.md), levels 2 and 3: a policy with memory distilled from the
 # privileged CAMPC (the true state, the delay predicted; it labels the training states only). The student sees what
 # the vehicle measures: the navigation filter's estimate (the vehicle's software, as campc uses it), its last 4
@@ -127,6 +132,7 @@ ENTRIES=(
   "distilled-dagger-residual-transport-v1|dagger|uvdms/Transport-v1|$TRANSPORT|$DISTILLED_TRANSPORT|150000"
   "distilled-dagger-coop-transport-v1|dagger|uvdms/CooperativeTransport-v1|$TRANSPORT|$DISTILLED_COOP|60000"
   "distilled-dagger-campc-obstacles-v1|dagger|uvdms/TransportObstacles-v1|$OBSTACLES|$DISTILLED_OBSTACLES|120000"
+  "distilled-features-dagger-campc-obstacles-v1|dagger|uvdms/TransportObstacles-v1|$OBSTACLES|$DISTILLED_OBSTACLE_FEATURES|250000"
   "memory-dagger-privileged-circle-realism-v1|dagger|uvdms/CircleTrack-v1|$CIRCLE|$MEMORY_REALISM|60000"
   "memory-dagger-privileged-transport-realism-v1|dagger|uvdms/Transport-v1|$TRANSPORT|$MEMORY_REALISM|60000"
   "finetuned-td3prior-distilled-circle-v1|td3_prior|uvdms/CircleTrack-v1|$CIRCLE_MIX|$FINETUNE_CIRCLE|40000"
