@@ -124,6 +124,7 @@ def test_uvdms_train_dagger_with_no_base_export_and_evaluate(tmp_path, capsys):
         "safety_filter": False,
         "navigation_filter": False,
         "memory": {"observations": 1, "actions": 0},
+        "obstacle_features": False,
     }
     assert (doc["navigation_filter"], doc["frame_stack"]) == (False, 1)
     out = tmp_path / "eval.json"
