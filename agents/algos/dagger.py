@@ -81,6 +81,18 @@ def hard_fraction(hyperparams: Mapping[str, Any]) -> float:
     return float(value)
 
 
+def evasion_weight(hyperparams: Mapping[str, Any]) -> float:
+    """The weight of the evasion term of the imitation loss (``evasion_weight``, default 0: none).
+
+    Raises:
+        ValueError: ``evasion_weight`` is not a finite number >= 0.
+    """
+    value = hyperparams.get("evasion_weight", 0.0)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
+        raise ValueError(f"evasion_weight must be a finite number >= 0, got {value!r}")
+    return float(value)
+
+
 def _metres(hyperparams: Mapping[str, Any], key: str) -> float:
     """``hyperparams[key]`` (default 0) as a finite number of metres >= 0."""
     value = hyperparams.get(key, 0.0)
@@ -186,6 +198,12 @@ class DAgger(TD3):
         hard_fraction: Hard-example emphasis of the imitation loss: the mean squared error over the batch plus the
             mean over its ``hard_fraction`` largest per-sample errors (0: plain least squares). The teacher's
             evasions are rare, sharp labels among many tracking states; plain least squares fits them last.
+        evasion_weight: Weight of the evasion term of the imitation loss (0: none; needs a policy that observes
+            the obstacle features, ``obstacle_features: true``, without ``frame_stack``). The term is the squared
+            error along each observed obstacle's weighted opening direction, ``sum_k (w_k u_k . (pi(s) -
+            a_teacher))^2`` (:func:`uvdms_gym.residual.opening_columns`): zero far from the obstacles, the error of
+            the commanded gap rate per unit of ``|G|`` near them. Least squares over 18 commands lets a student
+            track well and still miss the one direction that evades (``docs/challenged.md``).
 
     Raises:
         ValueError: ``teacher`` is not a non-empty string, ``teacher_margin`` or ``teacher_outer_margin`` not a
@@ -216,6 +234,7 @@ class DAgger(TD3):
         teacher_margin: float = 0.0,
         teacher_outer_margin: float = 0.0,
         hard_fraction: float = 0.0,
+        evasion_weight: float = 0.0,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
@@ -230,6 +249,7 @@ class DAgger(TD3):
                 "teacher_margin": teacher_margin,
                 "teacher_outer_margin": teacher_outer_margin,
                 "hard_fraction": hard_fraction,
+                "evasion_weight": evasion_weight,
             }
         )
         if replay_buffer_class not in (None, TeacherReplayBuffer):
@@ -240,6 +260,8 @@ class DAgger(TD3):
         self.teacher_margin = float(teacher_margin)
         self.teacher_outer_margin = float(teacher_outer_margin)
         self.hard_fraction = float(hard_fraction)
+        self.evasion_weight = float(evasion_weight)
+        self._opening: th.Tensor | None = None  # the feature columns of the evasion term (found at the first update)
         super().__init__(
             policy,
             env,
@@ -280,6 +302,7 @@ class DAgger(TD3):
         teacher_margin(hyperparams)
         teacher_outer_margin(hyperparams)
         hard_fraction(hyperparams)
+        evasion_weight(hyperparams)
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         """``gradient_steps`` least-squares steps of the actor toward the teacher's labels (the module's loss)."""
@@ -291,7 +314,10 @@ class DAgger(TD3):
         for _ in range(gradient_steps):
             self._n_updates += 1
             obs, labels = buffer.sample_labelled(batch_size, env=self._vec_normalize_env)
-            loss = self.imitation_loss(self.actor(obs), labels)
+            actions = self.actor(obs)
+            loss = self.imitation_loss(actions, labels)
+            if self.evasion_weight:
+                loss = loss + self.evasion_weight * self.evasion_loss(obs, actions, labels)
             losses.append(loss.item())
             self.actor.optimizer.zero_grad()
             loss.backward()
@@ -299,6 +325,34 @@ class DAgger(TD3):
         self.policy.set_training_mode(False)
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         self.logger.record("train/imitation_loss", float(np.mean(losses)))
+
+    def evasion_loss(self, obs: th.Tensor, actions: th.Tensor, labels: th.Tensor) -> th.Tensor:
+        """The evasion term (see the class): the batch mean of ``sum_k (w_k u_k . (actions - labels))^2``."""
+        columns = self._opening_index(obs.shape[1])
+        directions = obs[:, columns]  # (batch, slots, 18): w_k u_k, zero far from every obstacle
+        along = th.einsum("bkj,bj->bk", directions, actions - labels)
+        return (along**2).sum(dim=1).mean()
+
+    def _opening_index(self, obs_dim: int) -> th.Tensor:
+        """The observation columns of the opening directions (``ObstacleFeatureObservation.opening_index``).
+
+        Raises:
+            ValueError: The policy does not observe the obstacle features as the training wrapper gives them
+                (``obstacle_features: true``, no ``frame_stack`` or ``action_history`` around them).
+        """
+        if self._opening is None:
+            try:
+                index = self.env.get_attr("opening_index", [0])[0] if self.env is not None else None
+                featured_dim = self.env.get_attr("featured_dim", [0])[0] if self.env is not None else None
+            except AttributeError:
+                index = featured_dim = None
+            if index is None or featured_dim != obs_dim:
+                raise ValueError(
+                    "evasion_weight needs a policy that observes the obstacle features (obstacle_features: true) "
+                    "without frame_stack or action_history"
+                )
+            self._opening = th.as_tensor(np.asarray(index), device=self.device)
+        return self._opening
 
     def imitation_loss(self, actions: th.Tensor, labels: th.Tensor) -> th.Tensor:
         """The mean squared error, plus that of the batch's ``hard_fraction`` hardest samples (see the class)."""

@@ -75,6 +75,7 @@ from uvdms_gym.residual.obstacle_features import (
     ObstacleFeatureObservation,
     ObstacleFeatures,
     obstacle_feature_space,
+    opening_columns,
 )
 from uvdms_gym.residual.wrappers import (
     FilteredAction,
@@ -113,6 +114,7 @@ __all__ = [
     "is_residual_penalty",
     "is_residual_scale",
     "obstacle_feature_space",
+    "opening_columns",
     "residual_features",
     "residual_observation",
     "residual_observation_space",

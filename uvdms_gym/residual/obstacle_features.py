@@ -209,8 +209,23 @@ def with_features(obs: np.ndarray, features: ObstacleFeatures) -> np.ndarray:
     return np.concatenate([obs, features(obs).astype(obs.dtype)])
 
 
+def opening_columns(n_slots: int) -> np.ndarray:
+    """Where each slot's weighted opening direction ``w (-G) / |G|`` lies in the features, ``(n_slots, 18)``.
+
+    Indices into the :class:`ObstacleFeatures` vector (the last ``PER_SLOT * n_slots + 18`` values of an observation
+    with the features): the command directions along which a learner's error matters most near an obstacle.
+    """
+    return np.array([[PER_SLOT * k + 4 + j for j in range(18)] for k in range(n_slots)], dtype=np.int64)
+
+
 class ObstacleFeatureObservation(gym.ObservationWrapper):
     """Training wrapper: the observation followed by its :class:`ObstacleFeatures`.
+
+    Attributes:
+        features: The features it appends.
+        opening_index: The columns of each slot's opening direction in this wrapper's observation, ``(n_slots, 18)``
+            as nested lists (plain data, which a vectorised env's ``get_attr`` can report from a worker).
+        featured_dim: The size of this wrapper's observation.
 
     Raises:
         ValueError: ``env`` has no obstacle slots (:meth:`ObstacleFeatures.for_env`).
@@ -220,6 +235,9 @@ class ObstacleFeatureObservation(gym.ObservationWrapper):
         super().__init__(env)
         self.features = ObstacleFeatures.for_env(env)
         self.observation_space = obstacle_feature_space(env.observation_space, self.features)  # type: ignore[arg-type]
+        self.featured_dim = int(self.observation_space.shape[0])
+        first = self.featured_dim - self.features.size
+        self.opening_index = (first + opening_columns(self.features.n_slots)).tolist()
 
     def observation(self, observation: np.ndarray) -> np.ndarray:
         """``[obs; features(obs)]``."""
