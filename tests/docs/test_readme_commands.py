@@ -268,13 +268,16 @@ SHRUNK: dict[str, Shrunk] = {
     ),
     # a network alone with the obstacle features (docs/training/index.md)
     "uvdms train --algo dagger --env uvdms/TransportObstacles-v1 --env-kwargs obstacles=random current=random "
-    "--residual none --hyperparams teacher=campc teacher_margin=0.02 obstacle_features=true": Shrunk(
+    "--residual none --hyperparams teacher=campc teacher_margin=0.02 obstacle_features=true evasion_weight=2.0": Shrunk(
         "features",
         "uvdms train --algo dagger --env uvdms/TransportObstacles-v1 --env-kwargs obstacles=random current=random "
         "max_episode_steps=20 --residual none --hyperparams teacher=campc teacher_margin=0.02 obstacle_features=true "
-        "batch_size=32 eval_freq=0 checkpoint_freq=0 --total-timesteps 40 --no-progress",
+        "evasion_weight=2.0 batch_size=32 eval_freq=0 checkpoint_freq=0 --total-timesteps 40 --no-progress",
         creates=("runs/uvdms_TransportObstacles-v1/dagger_0/final_model.zip",),
-        contains=(("runs/uvdms_TransportObstacles-v1/dagger_0/config.yml", "obstacle_features: true"),),
+        contains=(
+            ("runs/uvdms_TransportObstacles-v1/dagger_0/config.yml", "obstacle_features: true"),
+            ("runs/uvdms_TransportObstacles-v1/dagger_0/config.yml", "evasion_weight: 2.0"),
+        ),
     ),
 }
 """README command (normalised: see :func:`readme_commands`) -> how it is run."""
