@@ -274,13 +274,17 @@ def _composition_items(document: Mapping[str, Any]) -> list[tuple[str, str]]:
 
 
 def _observation_terms(composition: Mapping[str, Any]) -> list[tuple[str, str]]:
-    """``(term, text)`` of what a policy observes beyond the environment's observation: the filter, its memory."""
+    """``(term, text)`` of what a policy observes beyond the environment's observation: the filter, memory, features."""
     terms = []
     if composition.get("navigation_filter"):
         terms.append(("Navigation filter", "the policy observes the filter's estimate where the measured state was"))
     k, m = composition.get("frame_stack") or 1, composition.get("action_history") or 0
     if k > 1 or m:
         terms.append(("Memory", f"its last {k} observations and its own last {m} actions"))
+    if composition.get("obstacle_features"):
+        terms.append(
+            ("Obstacle features", "each observed obstacle's nearest robot part, computed from the observation")
+        )
     return terms
 
 

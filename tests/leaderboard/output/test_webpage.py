@@ -279,4 +279,8 @@ def test_the_composition_names_the_navigation_filter_and_the_memory_of_an_agent_
     terms = dict(_composition_items({"composition": memory}))
     assert terms["Memory"] == "its last 4 observations and its own last 2 actions"
     assert "estimate" in terms["Navigation filter"]
-    assert {"Memory", "Navigation filter"}.isdisjoint(dict(_composition_items({"composition": plain})))
+    assert {"Memory", "Navigation filter", "Obstacle features"}.isdisjoint(
+        dict(_composition_items({"composition": plain}))
+    )
+    featured = dict(_composition_items({"composition": {**plain, "obstacle_features": True}}))
+    assert "nearest robot part" in featured["Obstacle features"]
