@@ -93,11 +93,11 @@ DISTILLED_OBSTACLES="$DISTILLED teacher=campc teacher_margin=0.02 teacher_outer_
 # slots stay the policy's only view of the obstacles). The plain DAgger recipe: CAMPC with the 2 cm inner margin.
 # Alone (no entry; 3 seeds stopped at 100k steps) it met 0.80 / 0.75 / 0.65 of 20 validation draws.
 DISTILLED_OBSTACLE_FEATURES="$DISTILLED teacher=campc teacher_margin=0.02 obstacle_features=true"
-# ... and the evasion term of the imitation loss (evasion_weight, agents/algos/dagger.py): the squared error along each
-# obstacle's weighted opening direction, twice. With least squares alone the students tracked well and missed the
-# evasions: in the failed validation episodes of the features alone (seed 0 at 80k steps) the student's command opened the
-# nearest gap at -0.25 to +0.07 m/s in the last second before the contact, where CAMPC, asked at the same states,
-# opened it at +0.1 to +0.4 m/s (docs/challenged.md).
+# ... and the evasion term of the imitation loss (evasion_weight, agents/algos/dagger.py): the squared error along
+# each obstacle's weighted opening direction, twice. With least squares alone the students tracked well and missed
+# the evasions: in the failed validation episodes of the features alone (seed 0 at 80k steps) the student's command
+# opened the nearest gap at -0.25 to +0.07 m/s in the last second before the contact, where CAMPC, asked at the same
+# states, opened it at +0.1 to +0.4 m/s (docs/challenged.md).
 DISTILLED_OBSTACLE_EVASION="$DISTILLED_OBSTACLE_FEATURES evasion_weight=2.0"
 # Under sensing and actuation realism (docs/realism.md), levels 2 and 3: a policy with memory distilled from the
 # privileged CAMPC (the true state, the delay predicted; it labels the training states only). The student sees what
