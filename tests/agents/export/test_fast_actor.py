@@ -1,7 +1,8 @@
 """The direct actor call (agents/export/fast_actor.py) gives SB3's ``policy.predict`` action, to the bit.
 
-Checked on a TD3 actor with ReLU and with Tanh hidden layers and on an asymmetric action box, on batches and on
-single observations; a policy it cannot call directly (SAC's Gaussian actor) is left to ``policy.predict``.
+Checked on a TD3 actor with ReLU and with Tanh hidden layers (applied layer by layer) and with another activation
+(called as a module), on an asymmetric action box, on batches and on single observations; a policy it cannot call
+directly (SAC's Gaussian actor) is left to ``policy.predict``.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ def test_the_direct_actor_matches_sb3_predict_to_the_bit(activation):
         for p in model.policy.actor.parameters():
             p.mul_(3.0)
     actor = FastActor.from_policy(model.policy)
-    assert actor is not None
+    assert actor is not None and actor.steps is not None and len(actor.steps) == 6  # 3 layers, 3 activations
     obs = np.random.default_rng(0).uniform(-5.0, 5.0, (200, 7)).astype(np.float32)
     expected, _ = model.policy.predict(obs, deterministic=True)
     got = actor(obs)
@@ -47,6 +48,14 @@ def test_the_direct_actor_matches_sb3_predict_to_the_bit(activation):
     controller = AgentController(model.policy, algo="td3")
     assert controller.fast_actor is not None
     np.testing.assert_array_equal(controller.predict(obs[0]), model.policy.predict(obs[0], deterministic=True)[0])
+
+
+def test_an_actor_with_another_activation_is_called_as_a_module_with_the_same_bits():
+    model = TD3("MlpPolicy", _BoxEnv(), seed=0, policy_kwargs={"net_arch": [16], "activation_fn": torch.nn.LeakyReLU})
+    actor = FastActor.from_policy(model.policy)
+    assert actor is not None and actor.steps is None
+    obs = np.random.default_rng(1).uniform(-5.0, 5.0, (50, 7)).astype(np.float32)
+    np.testing.assert_array_equal(actor(obs), model.policy.predict(obs, deterministic=True)[0])
 
 
 def test_a_policy_it_cannot_read_keeps_sb3_predict():
