@@ -266,9 +266,8 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
 
     An agent that observes the obstacle features gets them computed from its observation
     (``ObstacleFeatureController``, innermost). The residual base is added, then the safety filter if the agent was
-    trained with one; an agent that observed
-    the navigation filter's estimate gets it as its input (``FilteredController``, outermost: the base and the
-    safety filter see the estimate too, as in training).
+    trained with one; an agent that observed the navigation filter's estimate gets it as its input
+    (``FilteredController``, outermost: the base and the safety filter see the estimate too, as in training).
 
     Args:
         agent: A loaded agent (:class:`agents.export.AgentController`; its ``composition`` says what to add).
