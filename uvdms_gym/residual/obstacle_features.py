@@ -158,8 +158,11 @@ def _assemble(d, p, e, jac, states, used, zeta_max, zeta, n_parts, out):  # prag
     """The features of :meth:`ObstacleFeatures.__call__` from the pairs' gaps, points and ``J_dis`` rows."""
     n_rows = d.shape[0]
     total = out.shape[0] - 18
+    nearest = 0
     for r in range(n_rows):
         k = r // n_parts
+        if r % n_parts == 0:  # the first part of obstacle k: find its nearest part once
+            nearest = r + np.argmin(d[r : r + n_parts])
         n = e[r] - p[r]
         nrm = np.sqrt(n @ n)
         if nrm > 0.0:
@@ -172,8 +175,6 @@ def _assemble(d, p, e, jac, states, used, zeta_max, zeta, n_parts, out):  # prag
         x = min(max((d_pred - FEATURE_D1) / (FEATURE_D2 - FEATURE_D1), 0.0), 1.0)
         w = 1.0 - np.sin(0.5 * np.pi * x) ** 2
         out[total:] -= (w / g) * gain
-        first = r - (r % n_parts)
-        nearest = first + np.argmin(d[first : first + n_parts])
         if r != nearest:
             continue
         base = PER_SLOT * used[k]
