@@ -70,15 +70,21 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _package_version() -> str:
-    """The installed distribution's version (``uvdms_gym.__version__`` when running from a source tree)."""
+    """The version of the code that runs (``uvdms_gym.__version__``), as runs record it.
+
+    An editable install keeps the metadata of the version it was installed at; the running code's version is the
+    one a bug report needs. ``(not installed)`` marks a source tree run without an install.
+    """
     import importlib.metadata
 
-    try:
-        return importlib.metadata.version("uvdms-gym")
-    except importlib.metadata.PackageNotFoundError:
-        import uvdms_gym
+    from uvdms_gym.utils.provenance import package_versions
 
-        return f"{uvdms_gym.__version__} (not installed)"
+    version = package_versions({"uvdms_gym": "uvdms-gym"})["uvdms_gym"]
+    try:
+        importlib.metadata.version("uvdms-gym")
+    except importlib.metadata.PackageNotFoundError:
+        return f"{version} (not installed)"
+    return version
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -10,6 +10,7 @@ import csv
 import io
 import json
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -150,12 +151,15 @@ def test_demo_saves_a_frame_and_prints_the_trace(workspace):
     assert "pybullet build time" not in proc.stderr  # the import line is silenced
 
 
-def test_version_is_the_installed_distributions(workspace):
-    import importlib.metadata
-
+def test_version_is_the_running_codes(workspace):
+    """``uvdms --version`` names the code that runs, as the package's ``__init__`` states it (an editable install's
+    metadata keeps the version it was installed at)."""
+    init = (provenance.REPO_ROOT / "uvdms_gym" / "__init__.py").read_text()
+    (stated,) = re.findall(r'^__version__ = "([^"]+)"$', init, flags=re.M)
     proc = run_uvdms(["--version"], cwd=workspace)
     assert proc.returncode == 0
-    assert proc.stdout.strip() == f"uvdms {importlib.metadata.version('uvdms-gym')}"
+    assert proc.stdout.strip() == f"uvdms {stated}"
+    assert provenance.package_versions()["uvdms_gym"] == stated  # what every run's meta.json records
 
 
 # ------------------------------------------------------------------------------------------------------

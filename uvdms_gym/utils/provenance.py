@@ -41,9 +41,19 @@ PACKAGES: Mapping[str, str] = {
 
 
 def package_versions(packages: Mapping[str, str] = PACKAGES) -> dict[str, str]:
-    """Versions of Python and of ``packages`` (those not installed are left out)."""
+    """Versions of Python and of ``packages`` (those not installed are left out).
+
+    ``uvdms_gym`` reports the version of the code that runs (``uvdms_gym.__version__``), not its installed
+    metadata: an editable install keeps the metadata of the version it was installed at (a checkout installed
+    at 0.5.0 and updated since reported 0.5.0).
+    """
+    from uvdms_gym import __version__  # the package's own module, imported by the time anything runs
+
     versions = {"python": platform.python_version()}
     for key, dist in packages.items():
+        if key == "uvdms_gym":
+            versions[key] = __version__
+            continue
         try:
             versions[key] = importlib.metadata.version(dist)
         except importlib.metadata.PackageNotFoundError:
