@@ -15,6 +15,7 @@ import importlib.metadata
 import os
 import platform
 import subprocess
+import sys
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -47,12 +48,13 @@ def package_versions(packages: Mapping[str, str] = PACKAGES) -> dict[str, str]:
     metadata: an editable install keeps the metadata of the version it was installed at (a checkout installed
     at 0.5.0 and updated since reported 0.5.0).
     """
-    from uvdms_gym import __version__  # the package's own module, imported by the time anything runs
-
     versions = {"python": platform.python_version()}
     for key, dist in packages.items():
-        if key == "uvdms_gym":
-            versions[key] = __version__
+        # this package: Python imported it (this module's parent) before this module; importing it here would
+        # break the layers (its __init__ imports the physics)
+        running = getattr(sys.modules.get(key), "__version__", None) if key == "uvdms_gym" else None
+        if running is not None:
+            versions[key] = running
             continue
         try:
             versions[key] = importlib.metadata.version(dist)
