@@ -45,10 +45,16 @@ from stable_baselines3.common.vec_env import VecNormalize
 from stable_baselines3.td3.policies import TD3Policy
 from torch.nn import functional as F
 
+from uvdms_gym.envs.base import PREVIEW_TIMES
+
 TEACHER_INFO_KEY = "teacher_residual"
 """``info`` key of the label (``uvdms_gym.residual.TEACHER_KEY``; a test checks that they agree)."""
 DEFAULT_TEACHER = "campc"
 """The teacher ``uvdms train`` builds when the configuration names none."""
+PREVIEW_SIZE = 18
+"""Values of the reference preview at the start of every UVDMS observation (``uvdms_gym.envs.base``)."""
+REST_TOLERANCE = 1e-4
+"""Largest difference between preview rows (scaled as observed) of a reference at rest."""
 
 
 def teacher_margin(hyperparams: Mapping[str, Any]) -> float:
@@ -91,6 +97,29 @@ def evasion_weight(hyperparams: Mapping[str, Any]) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
         raise ValueError(f"evasion_weight must be a finite number >= 0, got {value!r}")
     return float(value)
+
+
+def hold_weight(hyperparams: Mapping[str, Any]) -> float:
+    """The extra weight of the samples whose reference is at rest (``hold_weight``, default 0: none).
+
+    Raises:
+        ValueError: ``hold_weight`` is not a finite number >= 0.
+    """
+    value = hyperparams.get("hold_weight", 0.0)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
+        raise ValueError(f"hold_weight must be a finite number >= 0, got {value!r}")
+    return float(value)
+
+
+def reference_at_rest(observations: np.ndarray) -> np.ndarray:
+    """Which observations (rows, as the environment gave them) see their reference at rest: a transport's hold.
+
+    Every UVDMS observation begins with its reference preview (``uvdms_gym.envs.base``): ``len(PREVIEW_TIMES)``
+    rows of ``y_ref(t + h) - y``. The reference is at rest over the preview when every row equals the first to
+    within :data:`REST_TOLERANCE` (a frame stack's first rows are its oldest frame's).
+    """
+    rows = np.asarray(observations)[:, :PREVIEW_SIZE].reshape(len(observations), len(PREVIEW_TIMES), -1)
+    return np.abs(rows - rows[:, :1]).max(axis=(1, 2)) <= REST_TOLERANCE
 
 
 def _metres(hyperparams: Mapping[str, Any], key: str) -> float:
@@ -168,8 +197,12 @@ class TeacherReplayBuffer(ReplayBuffer):
         self.labels[self.pos] = np.asarray(labels, dtype=np.float32)
         super().add(obs, next_obs, action, reward, done, infos)
 
-    def sample_labelled(self, batch_size: int, env: VecNormalize | None = None) -> tuple[th.Tensor, th.Tensor]:
-        """``batch_size`` stored observations (normalised as the policy sees them) and their labels.
+    def sample_labelled(
+        self, batch_size: int, env: VecNormalize | None = None
+    ) -> tuple[th.Tensor, th.Tensor, np.ndarray]:
+        """``batch_size`` stored observations (normalised as the policy sees them), their labels and their rest flags.
+
+        The flags are :func:`reference_at_rest` of the stored, unnormalised observations.
 
         Draws indices as SB3's ``ReplayBuffer.sample`` does (NumPy's global generator, which SB3 seeds).
         """
@@ -177,8 +210,9 @@ class TeacherReplayBuffer(ReplayBuffer):
         # SB3's buffers draw from NumPy's global generator, which SB3's set_random_seed seeds: the same here
         batch_inds = np.random.randint(0, upper, size=batch_size)  # noqa: NPY002
         env_inds = np.random.randint(0, high=self.n_envs, size=(batch_size,))  # noqa: NPY002
-        obs = self._normalize_obs(self.observations[batch_inds, env_inds, :], env)
-        return self.to_torch(obs), self.to_torch(self.labels[batch_inds, env_inds, :])
+        raw = self.observations[batch_inds, env_inds, :]
+        obs = self._normalize_obs(raw, env)
+        return self.to_torch(obs), self.to_torch(self.labels[batch_inds, env_inds, :]), reference_at_rest(raw)
 
 
 class DAgger(TD3):
@@ -204,10 +238,15 @@ class DAgger(TD3):
             a_teacher))^2`` (:func:`uvdms_gym.residual.opening_columns`): zero far from the obstacles, the error of
             the commanded gap rate per unit of ``|G|`` near them. Least squares over 18 commands lets a student
             track well and still miss the one direction that evades (``docs/challenged.md``).
+        hold_weight: Extra weight of the samples whose reference is at rest (:func:`reference_at_rest`: a
+            transport's hold, where success is judged): each counts ``1 + hold_weight`` times in a weighted mean
+            squared error (0: plain least squares). In the hold the commands are small, and an error a plain mean
+            weighs as small drifts the object out of the goal's 2 cm (``docs/challenged.md``).
 
     Raises:
         ValueError: ``teacher`` is not a non-empty string, ``teacher_margin`` or ``teacher_outer_margin`` not a
-            finite number >= 0, ``hard_fraction`` not in [0, 1], or another replay buffer class is requested.
+            finite number >= 0, ``hard_fraction`` not in [0, 1], ``evasion_weight`` or ``hold_weight`` not a finite
+            number >= 0, or another replay buffer class is requested.
     """
 
     def __init__(
@@ -235,6 +274,7 @@ class DAgger(TD3):
         teacher_outer_margin: float = 0.0,
         hard_fraction: float = 0.0,
         evasion_weight: float = 0.0,
+        hold_weight: float = 0.0,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
@@ -250,6 +290,7 @@ class DAgger(TD3):
                 "teacher_outer_margin": teacher_outer_margin,
                 "hard_fraction": hard_fraction,
                 "evasion_weight": evasion_weight,
+                "hold_weight": hold_weight,
             }
         )
         if replay_buffer_class not in (None, TeacherReplayBuffer):
@@ -261,6 +302,7 @@ class DAgger(TD3):
         self.teacher_outer_margin = float(teacher_outer_margin)
         self.hard_fraction = float(hard_fraction)
         self.evasion_weight = float(evasion_weight)
+        self.hold_weight = float(hold_weight)
         self._opening: th.Tensor | None = None  # the feature columns of the evasion term (found at the first update)
         super().__init__(
             policy,
@@ -296,13 +338,15 @@ class DAgger(TD3):
 
         Raises:
             ValueError: ``teacher`` is not a non-empty string, ``teacher_margin`` or ``teacher_outer_margin`` not a
-                finite number >= 0, or ``hard_fraction`` not in [0, 1].
+                finite number >= 0, ``hard_fraction`` not in [0, 1], or ``evasion_weight`` or ``hold_weight`` not a
+                finite number >= 0.
         """
         teacher_name(hyperparams)
         teacher_margin(hyperparams)
         teacher_outer_margin(hyperparams)
         hard_fraction(hyperparams)
         evasion_weight(hyperparams)
+        hold_weight(hyperparams)
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         """``gradient_steps`` least-squares steps of the actor toward the teacher's labels (the module's loss)."""
@@ -313,9 +357,10 @@ class DAgger(TD3):
         losses = []
         for _ in range(gradient_steps):
             self._n_updates += 1
-            obs, labels = buffer.sample_labelled(batch_size, env=self._vec_normalize_env)
+            obs, labels, at_rest = buffer.sample_labelled(batch_size, env=self._vec_normalize_env)
             actions = self.actor(obs)
-            loss = self.imitation_loss(actions, labels)
+            weights = th.as_tensor(1.0 + self.hold_weight * at_rest, device=self.device) if self.hold_weight else None
+            loss = self.imitation_loss(actions, labels, weights)
             if self.evasion_weight:
                 loss = loss + self.evasion_weight * self.evasion_loss(obs, actions, labels)
             losses.append(loss.item())
@@ -354,11 +399,18 @@ class DAgger(TD3):
             self._opening = th.as_tensor(np.asarray(index), device=self.device)
         return self._opening
 
-    def imitation_loss(self, actions: th.Tensor, labels: th.Tensor) -> th.Tensor:
-        """The mean squared error, plus that of the batch's ``hard_fraction`` hardest samples (see the class)."""
-        loss = F.mse_loss(actions, labels)
+    def imitation_loss(self, actions: th.Tensor, labels: th.Tensor, weights: th.Tensor | None = None) -> th.Tensor:
+        """The mean squared error, plus that of the batch's ``hard_fraction`` hardest samples (see the class).
+
+        With ``weights`` (one per sample) the first term is their weighted mean of the per-sample errors.
+        """
+        per_sample = ((actions - labels) ** 2).mean(dim=1)
+        if weights is None:
+            loss = F.mse_loss(actions, labels)
+        else:
+            weights = weights.to(per_sample.dtype)
+            loss = (weights * per_sample).sum() / weights.sum()
         n_hard = int(self.hard_fraction * actions.shape[0])
         if n_hard == 0:
             return loss
-        per_sample = ((actions - labels) ** 2).mean(dim=1)
         return loss + th.topk(per_sample, n_hard).values.mean()
