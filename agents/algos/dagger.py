@@ -117,8 +117,17 @@ def reference_at_rest(observations: np.ndarray) -> np.ndarray:
     Every UVDMS observation begins with its reference preview (``uvdms_gym.envs.base``): ``len(PREVIEW_TIMES)``
     rows of ``y_ref(t + h) - y``. The reference is at rest over the preview when every row equals the first to
     within :data:`REST_TOLERANCE` (a frame stack's first rows are its oldest frame's).
+
+    Raises:
+        ValueError: The observations are not rows of at least :data:`PREVIEW_SIZE` values.
     """
-    rows = np.asarray(observations)[:, :PREVIEW_SIZE].reshape(len(observations), len(PREVIEW_TIMES), -1)
+    observations = np.asarray(observations)
+    if observations.ndim != 2 or observations.shape[1] < PREVIEW_SIZE:
+        raise ValueError(
+            f"hold_weight needs the observations of a UVDMS environment, which begin with the {PREVIEW_SIZE} values "
+            f"of the reference preview; got observations of shape {observations.shape}"
+        )
+    rows = observations[:, :PREVIEW_SIZE].reshape(len(observations), len(PREVIEW_TIMES), -1)
     return np.abs(rows - rows[:, :1]).max(axis=(1, 2)) <= REST_TOLERANCE
 
 
@@ -198,11 +207,12 @@ class TeacherReplayBuffer(ReplayBuffer):
         super().add(obs, next_obs, action, reward, done, infos)
 
     def sample_labelled(
-        self, batch_size: int, env: VecNormalize | None = None
-    ) -> tuple[th.Tensor, th.Tensor, np.ndarray]:
-        """``batch_size`` stored observations (normalised as the policy sees them), their labels and their rest flags.
+        self, batch_size: int, env: VecNormalize | None = None, rest_flags: bool = False
+    ) -> tuple[th.Tensor, th.Tensor, np.ndarray | None]:
+        """``batch_size`` stored observations (normalised as the policy sees them), their labels and rest flags.
 
-        The flags are :func:`reference_at_rest` of the stored, unnormalised observations.
+        The flags (with ``rest_flags``, else None) are :func:`reference_at_rest` of the stored, unnormalised
+        observations.
 
         Draws indices as SB3's ``ReplayBuffer.sample`` does (NumPy's global generator, which SB3 seeds).
         """
@@ -212,7 +222,8 @@ class TeacherReplayBuffer(ReplayBuffer):
         env_inds = np.random.randint(0, high=self.n_envs, size=(batch_size,))  # noqa: NPY002
         raw = self.observations[batch_inds, env_inds, :]
         obs = self._normalize_obs(raw, env)
-        return self.to_torch(obs), self.to_torch(self.labels[batch_inds, env_inds, :]), reference_at_rest(raw)
+        flags = reference_at_rest(raw) if rest_flags else None
+        return self.to_torch(obs), self.to_torch(self.labels[batch_inds, env_inds, :]), flags
 
 
 class DAgger(TD3):
@@ -357,9 +368,9 @@ class DAgger(TD3):
         losses = []
         for _ in range(gradient_steps):
             self._n_updates += 1
-            obs, labels, at_rest = buffer.sample_labelled(batch_size, env=self._vec_normalize_env)
+            obs, labels, at_rest = buffer.sample_labelled(batch_size, self._vec_normalize_env, bool(self.hold_weight))
             actions = self.actor(obs)
-            weights = th.as_tensor(1.0 + self.hold_weight * at_rest, device=self.device) if self.hold_weight else None
+            weights = None if at_rest is None else th.as_tensor(1.0 + self.hold_weight * at_rest, device=self.device)
             loss = self.imitation_loss(actions, labels, weights)
             if self.evasion_weight:
                 loss = loss + self.evasion_weight * self.evasion_loss(obs, actions, labels)

@@ -220,6 +220,7 @@ RESIDUAL = ["--residual", "mpc", "--residual-scale", "0.5"]
         ([*RESIDUAL, "--hyperparams", "teacher_outer_margin=-1"], r"teacher_outer_margin must be a finite number >= 0"),
         ([*RESIDUAL, "--hyperparams", "hard_fraction=1.5"], r"hard_fraction must be a number in \[0, 1\], got 1.5"),
         ([*RESIDUAL, "--hyperparams", "evasion_weight=-1"], r"evasion_weight must be a finite number >= 0, got -1"),
+        ([*RESIDUAL, "--hyperparams", "hold_weight=-2"], r"hold_weight must be a finite number >= 0, got -2"),
         # with no base (a distilled controller, tests/agents/algos/test_dagger_no_base.py)
         (["--residual", "none", "--residual-scale", "0.5"], r"residual_scale 0.5 is given without a residual_base"),
         (
