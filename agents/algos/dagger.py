@@ -93,10 +93,7 @@ def evasion_weight(hyperparams: Mapping[str, Any]) -> float:
     Raises:
         ValueError: ``evasion_weight`` is not a finite number >= 0.
     """
-    value = hyperparams.get("evasion_weight", 0.0)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
-        raise ValueError(f"evasion_weight must be a finite number >= 0, got {value!r}")
-    return float(value)
+    return _non_negative(hyperparams, "evasion_weight")
 
 
 def hold_weight(hyperparams: Mapping[str, Any]) -> float:
@@ -105,10 +102,7 @@ def hold_weight(hyperparams: Mapping[str, Any]) -> float:
     Raises:
         ValueError: ``hold_weight`` is not a finite number >= 0.
     """
-    value = hyperparams.get("hold_weight", 0.0)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
-        raise ValueError(f"hold_weight must be a finite number >= 0, got {value!r}")
-    return float(value)
+    return _non_negative(hyperparams, "hold_weight")
 
 
 def reference_at_rest(observations: np.ndarray) -> np.ndarray:
@@ -133,9 +127,14 @@ def reference_at_rest(observations: np.ndarray) -> np.ndarray:
 
 def _metres(hyperparams: Mapping[str, Any], key: str) -> float:
     """``hyperparams[key]`` (default 0) as a finite number of metres >= 0."""
+    return _non_negative(hyperparams, key, " (metres)")
+
+
+def _non_negative(hyperparams: Mapping[str, Any], key: str, unit: str = "") -> float:
+    """``hyperparams[key]`` (default 0) as a finite number >= 0 (``unit`` names its unit in the error)."""
     value = hyperparams.get(key, 0.0)
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
-        raise ValueError(f"{key} must be a finite number >= 0 (metres), got {value!r}")
+        raise ValueError(f"{key} must be a finite number >= 0{unit}, got {value!r}")
     return float(value)
 
 
