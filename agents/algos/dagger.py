@@ -250,8 +250,8 @@ class DAgger(TD3):
             track well and still miss the one direction that evades (``docs/challenged.md``).
         hold_weight: Extra weight of the samples whose reference is at rest (:func:`reference_at_rest`: a
             transport's hold, where success is judged): each counts ``1 + hold_weight`` times in a weighted mean
-            squared error (0: plain least squares). In the hold the commands are small, and an error a plain mean
-            weighs as small drifts the object out of the goal's 2 cm (``docs/challenged.md``).
+            squared error (0: plain least squares). Tried on the obstacle task, it did not make the hold more
+            precise there (``docs/challenged.md``).
 
     Raises:
         ValueError: ``teacher`` is not a non-empty string, ``teacher_margin`` or ``teacher_outer_margin`` not a
