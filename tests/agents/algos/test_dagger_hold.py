@@ -1,7 +1,8 @@
 """DAgger's hold weight (``hold_weight``): the samples whose reference is at rest count more in the imitation loss.
 
-* :func:`reference_at_rest` flags exactly the observations a transport gives once its reference holds
-  (``t >= move_time``, the environment's own clock), and none while the reference moves.
+* :func:`reference_at_rest` flags every observation a transport gives once its reference holds (``t >= move_time``,
+  the environment's own clock), and none while the reference moves (up to 0.1 s before it stops, where the preview
+  rows differ by less than the tolerance).
 * The loss with weights is their weighted mean of the per-sample squared errors (numpy), without weights SB3's mean
   squared error, and the hard-example term adds to either.
 * ``sample_labelled`` flags the stored (unnormalised) observations it draws; a bad weight is refused by name.
