@@ -45,12 +45,13 @@ from stable_baselines3.common.vec_env import VecNormalize
 from stable_baselines3.td3.policies import TD3Policy
 from torch.nn import functional as F
 
-from uvdms_gym.envs.base import PREVIEW_TIMES
-
 TEACHER_INFO_KEY = "teacher_residual"
 """``info`` key of the label (``uvdms_gym.residual.TEACHER_KEY``; a test checks that they agree)."""
 DEFAULT_TEACHER = "campc"
 """The teacher ``uvdms train`` builds when the configuration names none."""
+PREVIEW_ROWS = 3
+"""Rows of the reference preview, one per ``uvdms_gym.envs.base.PREVIEW_TIMES`` (a test checks; importing the
+environments here would load PyBullet on every ``agents`` command)."""
 PREVIEW_SIZE = 18
 """Values of the reference preview at the start of every UVDMS observation (``uvdms_gym.envs.base``)."""
 REST_TOLERANCE = 1e-4
@@ -108,7 +109,7 @@ def hold_weight(hyperparams: Mapping[str, Any]) -> float:
 def reference_at_rest(observations: np.ndarray) -> np.ndarray:
     """Which observations (rows, as the environment gave them) see their reference at rest: a transport's hold.
 
-    Every UVDMS observation begins with its reference preview (``uvdms_gym.envs.base``): ``len(PREVIEW_TIMES)``
+    Every UVDMS observation begins with its reference preview (``uvdms_gym.envs.base``): :data:`PREVIEW_ROWS`
     rows of ``y_ref(t + h) - y``. The reference is at rest over the preview when every row equals the first to
     within :data:`REST_TOLERANCE` (a frame stack's first rows are its oldest frame's).
 
@@ -121,7 +122,7 @@ def reference_at_rest(observations: np.ndarray) -> np.ndarray:
             f"hold_weight needs the observations of a UVDMS environment, which begin with the {PREVIEW_SIZE} values "
             f"of the reference preview; got observations of shape {observations.shape}"
         )
-    rows = observations[:, :PREVIEW_SIZE].reshape(len(observations), len(PREVIEW_TIMES), -1)
+    rows = observations[:, :PREVIEW_SIZE].reshape(len(observations), PREVIEW_ROWS, -1)
     return np.abs(rows - rows[:, :1]).max(axis=(1, 2)) <= REST_TOLERANCE
 
 
@@ -293,25 +294,16 @@ class DAgger(TD3):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ) -> None:
-        self.check_hyperparams(
-            {
-                "teacher": teacher,
-                "teacher_margin": teacher_margin,
-                "teacher_outer_margin": teacher_outer_margin,
-                "hard_fraction": hard_fraction,
-                "evasion_weight": evasion_weight,
-                "hold_weight": hold_weight,
-            }
-        )
+        options = {"teacher": teacher, "teacher_margin": teacher_margin, "teacher_outer_margin": teacher_outer_margin}
+        options |= {"hard_fraction": hard_fraction, "evasion_weight": evasion_weight, "hold_weight": hold_weight}
+        self.check_hyperparams(options)
         if replay_buffer_class not in (None, TeacherReplayBuffer):
             raise ValueError(
                 f"DAgger stores its labels in TeacherReplayBuffer, got replay_buffer_class={replay_buffer_class}"
             )
         self.teacher = teacher
-        self.teacher_margin = float(teacher_margin)
-        self.teacher_outer_margin = float(teacher_outer_margin)
-        self.hard_fraction = float(hard_fraction)
-        self.evasion_weight = float(evasion_weight)
+        self.teacher_margin, self.teacher_outer_margin = float(teacher_margin), float(teacher_outer_margin)
+        self.hard_fraction, self.evasion_weight = float(hard_fraction), float(evasion_weight)
         self.hold_weight = float(hold_weight)
         self._opening: th.Tensor | None = None  # the feature columns of the evasion term (found at the first update)
         super().__init__(

@@ -16,7 +16,7 @@ import pytest
 import torch
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from agents.algos.dagger import PREVIEW_SIZE, DAgger, TeacherReplayBuffer, reference_at_rest
+from agents.algos.dagger import PREVIEW_ROWS, PREVIEW_SIZE, DAgger, TeacherReplayBuffer, reference_at_rest
 from uvdms_gym.envs.base import PREVIEW_TIMES
 
 MOVE_TIME = 1.0
@@ -29,7 +29,7 @@ def _model(**kwargs) -> DAgger:
 
 
 def test_the_rest_flags_are_the_transports_hold():
-    assert PREVIEW_SIZE == 6 * len(PREVIEW_TIMES)
+    assert (PREVIEW_ROWS, PREVIEW_SIZE) == (len(PREVIEW_TIMES), 6 * len(PREVIEW_TIMES))
     env = gym.make("uvdms/Transport-v1", action_mode="velocity", move_time=MOVE_TIME, max_episode_steps=60)
     obs, _ = env.reset(seed=4)
     observations, times = [obs], [env.unwrapped.t]
