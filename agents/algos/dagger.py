@@ -406,13 +406,13 @@ class DAgger(TD3):
 
         With ``weights`` (one per sample) the first term is their weighted mean of the per-sample errors.
         """
+        n_hard = int(self.hard_fraction * actions.shape[0])
+        if weights is None and n_hard == 0:
+            return F.mse_loss(actions, labels)
         per_sample = ((actions - labels) ** 2).mean(dim=1)
         if weights is None:
             loss = F.mse_loss(actions, labels)
         else:
             weights = weights.to(per_sample.dtype)
             loss = (weights * per_sample).sum() / weights.sum()
-        n_hard = int(self.hard_fraction * actions.shape[0])
-        if n_hard == 0:
-            return loss
-        return loss + th.topk(per_sample, n_hard).values.mean()
+        return loss if n_hard == 0 else loss + th.topk(per_sample, n_hard).values.mean()
