@@ -42,6 +42,7 @@ from uvdms_gym.residual import (
     ObstacleFeatureObservation,
     ResidualAction,
     TeacherLabel,
+    TrackingFeatureObservation,
 )
 from uvdms_gym.seeds import check_seeds
 
@@ -170,6 +171,8 @@ class EnvFactory:
         action_history: ... and its own last ``action_history`` actions (the same wrapper; 0: none).
         obstacle_features: The policy observes its observation followed by the obstacle features
             (:class:`uvdms_gym.residual.ObstacleFeatureObservation`, just inside :class:`FrameStack`).
+        tracking_features: ... then its tracking error magnified
+            (:class:`uvdms_gym.residual.TrackingFeatureObservation`, outside the obstacle features).
     """
 
     env_id: str
@@ -192,6 +195,7 @@ class EnvFactory:
     frame_stack: int = 1
     action_history: int = 0
     obstacle_features: bool = False
+    tracking_features: bool = False
 
     def __call__(self) -> gym.Env:
         """Create the environment wrapped in a ``Monitor`` (filter, residual, action scaling and alive bonus inside).
@@ -199,6 +203,7 @@ class EnvFactory:
         From the inside out: ``gymnasium.make``, :class:`agents.common.learning_curve.EpisodeMetrics` (evaluation envs),
         ``NavigationFilterWrapper``, :class:`FilteredAction`, :class:`ResidualAction` or :class:`TeacherLabel` (both
         see the full ``info``), ``ScaledAction``, ``AliveBonus``, ``ScalarInfo``, ``ObstacleFeatureObservation``,
+        ``TrackingFeatureObservation``,
         :class:`FrameStack`, ``Monitor``;
         so the policy's ``action_scale * a`` is the residual, and the filter gets the composed command.
 
@@ -224,6 +229,8 @@ class EnvFactory:
             env = ScalarInfo(env)
         if self.obstacle_features:
             env = ObstacleFeatureObservation(env)
+        if self.tracking_features:
+            env = TrackingFeatureObservation(env)
         if self.frame_stack > 1 or self.action_history:
             env = FrameStack(env, self.frame_stack, self.action_history)
         return Monitor(env, filename=self.monitor_file)

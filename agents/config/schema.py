@@ -170,6 +170,9 @@ class TrainConfig:
             observed obstacle's nearest robot part: the gap, its rates and the action direction that opens it;
             :class:`uvdms_gym.residual.ObstacleFeatures`): environments with obstacle slots, no residual base.
             Recorded in the export, whose evaluation computes the same features.
+        tracking_features: The policy also observes its current tracking error magnified to the scale of success
+            (:class:`uvdms_gym.residual.TrackingFeatures`: ``tanh`` of the error over 2 cm and 2 degrees), after the
+            obstacle features: UVDMS circle and transport environments, no residual base. Recorded in the export.
         env_variants: Keyword overrides of ``env_kwargs`` cycled over the training envs: training env ``i`` is
             made with ``{**env_kwargs, **env_variants[i % len(env_variants)]}`` and the evaluation envs with the
             first variant (empty: every env alike). Domain randomisation over settings that are fixed for an
@@ -207,6 +210,7 @@ class TrainConfig:
     frame_stack: int = 1
     action_history: int = 0
     obstacle_features: bool = False
+    tracking_features: bool = False
     env_variants: list[dict[str, Any]] = field(default_factory=list)
 
     # ----------------------------------------------------------------------------------------------
@@ -233,6 +237,7 @@ class TrainConfig:
             frame_stack=self.frame_stack,
             action_history=self.action_history,
             obstacle_features=self.obstacle_features,
+            tracking_features=self.tracking_features,
         )
 
     def variant_kwargs(self, rank: int) -> dict[str, Any]:

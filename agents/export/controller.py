@@ -22,7 +22,14 @@ from agents.common.history import PolicyMemory, unstacked_space
 from agents.common.wrappers import is_unit_scale
 from agents.export.fast_actor import FastActor
 from uvdms_gym.evaluation import check_action_mode
-from uvdms_gym.residual import ActionComposition, ObstacleFeatures, obstacle_feature_space, residual_observation_space
+from uvdms_gym.residual import (
+    ActionComposition,
+    ObstacleFeatures,
+    TrackingFeatures,
+    obstacle_feature_space,
+    residual_observation_space,
+    tracking_feature_space,
+)
 from uvdms_gym.utils.kwargs import env_family
 
 SHIPPED_MODEL = "model.zip"
@@ -233,28 +240,44 @@ def check_agent(agent: Any, env: Any, name: str = "agent") -> None:
     if hasattr(agent, "check_env_id") and env.spec is not None:
         agent.check_env_id(env.spec.id)  # warns (EnvMismatchWarning) on another env id
     composition = getattr(agent, "composition", None) or ActionComposition()
+    expected = _expected_observation_space(composition, env)
+    if tuple(agent.observation_space.shape) != tuple(expected.shape):
+        raise ValueError(
+            f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "
+            f"{expected.shape}{_observation_parts(composition, env)}"
+        )
+    if tuple(agent.action_space.shape) != tuple(env.action_space.shape):
+        raise ValueError(f"agent {name} outputs actions of shape {agent.action_space.shape}")
+
+
+def _expected_observation_space(composition: ActionComposition, env: Any) -> spaces.Box:
+    """The observation space a policy of ``composition`` was trained on, in ``env`` (one observation of its memory)."""
     expected = env.observation_space
     if composition.is_residual:
         expected = residual_observation_space(env.observation_space, env.action_space, composition.residual_observation)
     if composition.obstacle_features:
         expected = obstacle_feature_space(env.observation_space, ObstacleFeatures.for_env(env))
-    if tuple(agent.observation_space.shape) != tuple(expected.shape):
-        what = ""
-        if composition.is_residual:
-            what = f" (with the residual base's {env.action_space.shape[0]} actions"
-            if composition.residual_observation != "base":
-                what += f" and the {composition.residual_observation} features"
-            what += ")"
-        if composition.obstacle_features:
-            what += " (with the obstacle features)"
-        if composition.frame_stack > 1 or composition.action_history:
-            what += f" (each of the {composition.frame_stack} observations its memory holds)"
-        raise ValueError(
-            f"agent {name} expects observations of shape {agent.observation_space.shape}, the environment gives "
-            f"{expected.shape}{what}"
-        )
-    if tuple(agent.action_space.shape) != tuple(env.action_space.shape):
-        raise ValueError(f"agent {name} outputs actions of shape {agent.action_space.shape}")
+    if composition.tracking_features:
+        TrackingFeatures.for_env(env)  # a clear error on an environment without tracking rows
+        expected = tracking_feature_space(expected)
+    return expected
+
+
+def _observation_parts(composition: ActionComposition, env: Any) -> str:
+    """What a policy of ``composition`` observes besides the environment's observation (for an error message)."""
+    what = ""
+    if composition.is_residual:
+        what = f" (with the residual base's {env.action_space.shape[0]} actions"
+        if composition.residual_observation != "base":
+            what += f" and the {composition.residual_observation} features"
+        what += ")"
+    if composition.obstacle_features:
+        what += " (with the obstacle features)"
+    if composition.tracking_features:
+        what += " (with the tracking features)"
+    if composition.frame_stack > 1 or composition.action_history:
+        what += f" (each of the {composition.frame_stack} observations its memory holds)"
+    return what
 
 
 def recorded_composition(record: Mapping[str, Any], where: str) -> ActionComposition:

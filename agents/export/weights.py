@@ -52,7 +52,8 @@ def run_time_record(composition: ActionComposition) -> dict[str, Any]:
     network alone (a distilled controller: no QP, no distance query beyond its observation). ``memory`` is how
     many observations and own past actions the network sees (``frame_stack``, ``action_history``);
     ``obstacle_features`` whether it also sees the obstacle features, which its observation's obstacle slots give
-    through the kinematic model (distances and ``J_dis`` rows, no optimisation: still the network alone).
+    through the kinematic model (distances and ``J_dis`` rows, no optimisation: still the network alone);
+    ``tracking_features`` whether it sees its tracking error magnified (its observation rescaled).
     """
     return {
         "network_only": composition.is_plain and not composition.navigation_filter,
@@ -61,6 +62,7 @@ def run_time_record(composition: ActionComposition) -> dict[str, Any]:
         "navigation_filter": composition.navigation_filter,
         "memory": {"observations": composition.frame_stack, "actions": composition.action_history},
         "obstacle_features": composition.obstacle_features,
+        "tracking_features": composition.tracking_features,
     }
 
 

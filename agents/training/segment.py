@@ -180,6 +180,7 @@ class TrainingSegment:
             "frame_stack": cfg.frame_stack,
             "action_history": cfg.action_history,
             "obstacle_features": cfg.obstacle_features,
+            "tracking_features": cfg.tracking_features,
         }
         # the teacher labels training states only: the evaluation callback needs no labels
         train = self._factories(

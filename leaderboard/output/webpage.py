@@ -285,6 +285,8 @@ def _observation_terms(composition: Mapping[str, Any]) -> list[tuple[str, str]]:
         terms.append(
             ("Obstacle features", "each observed obstacle's nearest robot part, computed from the observation")
         )
+    if composition.get("tracking_features"):
+        terms.append(("Tracking features", "its tracking error now, magnified to the scale of success"))
     return terms
 
 

@@ -264,10 +264,11 @@ def with_safety_filter(controller: Any, env: Any) -> Any:
 def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
     """An agent as it was trained: its residual base, safety filter and navigation filter, as recorded.
 
-    An agent that observes the obstacle features gets them computed from its observation
-    (``ObstacleFeatureController``, innermost). The residual base is added, then the safety filter if the agent was
-    trained with one; an agent that observed the navigation filter's estimate gets it as its input
-    (``FilteredController``, outermost: the base and the safety filter see the estimate too, as in training).
+    An agent that observes the obstacle or tracking features gets them computed from its observation
+    (``FeatureController``, innermost; the tracking features inside, as the training wrappers nest them). The
+    residual base is added, then the safety filter if the agent was trained with one; an agent that observed the
+    navigation filter's estimate gets it as its input (``FilteredController``, outermost: the base and the safety
+    filter see the estimate too, as in training).
 
     Args:
         agent: A loaded agent (:class:`agents.export.AgentController`; its ``composition`` says what to add).
@@ -284,16 +285,19 @@ def compose_agent(agent: Any, env: Any, *, safety_filter: bool = False) -> Any:
     """
     from uvdms_gym.residual import (
         ActionComposition,
-        ObstacleFeatureController,
+        FeatureController,
         ObstacleFeatures,
+        TrackingFeatures,
         residual_features,
         residual_projection,
     )
 
     composition = getattr(agent, "composition", None) or ActionComposition()
     controller = agent
+    if composition.tracking_features:
+        controller = FeatureController(controller, TrackingFeatures.for_env(env))
     if composition.obstacle_features:
-        controller = ObstacleFeatureController(agent, ObstacleFeatures.for_env(env))
+        controller = FeatureController(controller, ObstacleFeatures.for_env(env))
     if composition.is_residual:
         base = BaselineFactory(str(composition.residual_base))(env)
         controller = ResidualController(

@@ -71,11 +71,19 @@ from uvdms_gym.residual.nullspace import (
     residual_projection,
 )
 from uvdms_gym.residual.obstacle_features import (
+    FeatureController,
     ObstacleFeatureController,
     ObstacleFeatureObservation,
     ObstacleFeatures,
     obstacle_feature_space,
     opening_columns,
+)
+from uvdms_gym.residual.tracking_features import (
+    TRACKING_ORIENTATION,
+    TRACKING_POSITION,
+    TrackingFeatureObservation,
+    TrackingFeatures,
+    tracking_feature_space,
 )
 from uvdms_gym.residual.wrappers import (
     FilteredAction,
@@ -96,9 +104,12 @@ __all__ = [
     "RESIDUAL_OBSERVATIONS",
     "RESIDUAL_SPACES",
     "TEACHER_KEY",
+    "TRACKING_ORIENTATION",
+    "TRACKING_POSITION",
     "ActionComposition",
     "ClearanceFeatures",
     "ControllerFactory",
+    "FeatureController",
     "FilterFactory",
     "FilteredAction",
     "KinematicHelper",
@@ -109,6 +120,8 @@ __all__ = [
     "ResidualAction",
     "ResidualController",
     "TeacherLabel",
+    "TrackingFeatureObservation",
+    "TrackingFeatures",
     "check_frame_stack",
     "compose_residual",
     "is_residual_penalty",
@@ -121,4 +134,5 @@ __all__ = [
     "residual_projection",
     "teacher_action",
     "teacher_residual",
+    "tracking_feature_space",
 ]

@@ -35,6 +35,7 @@ RECORD_KEYS: tuple[str, ...] = (
     "frame_stack",
     "action_history",
     "obstacle_features",
+    "tracking_features",
 )
 """The keys of an :class:`ActionComposition` in a run's config entry and in an export's ``agent.json``."""
 MAX_FRAME_STACK = 64
@@ -89,13 +90,16 @@ class ActionComposition:
             (:class:`uvdms_gym.residual.ObstacleFeatures`: each observed obstacle's nearest robot part, its gap, rates
             and the action direction that opens it), computed from the observation with the environment's kinematic
             model; only for an agent without a residual base. Records written before this key existed are ``False``.
+        tracking_features: The policy also observes its current tracking error magnified to the scale of success
+            (:class:`uvdms_gym.residual.TrackingFeatures`, after the obstacle features); only for an agent without a
+            residual base. Records written before this key existed are ``False``.
 
     Raises:
         ValueError: A scale outside (0, 1], a scale without a base or a base without a scale, a base that is
             not a non-empty string, an unknown residual observation or space (or one other than ``"base"`` /
             ``"full"`` without a base), a ``navigation_filter`` that is not a bool, a ``frame_stack`` that is
             not an integer in [1, :data:`MAX_FRAME_STACK`], an ``action_history`` not in [0, it], or
-            ``obstacle_features`` that is not a bool or comes with a residual base.
+            ``obstacle_features`` or ``tracking_features`` that is not a bool or comes with a residual base.
     """
 
     residual_base: str | None = None
@@ -107,6 +111,7 @@ class ActionComposition:
     frame_stack: int = 1
     action_history: int = 0
     obstacle_features: bool = False
+    tracking_features: bool = False
 
     def __post_init__(self) -> None:
         if self.residual_base is not None and (not isinstance(self.residual_base, str) or not self.residual_base):
@@ -138,19 +143,21 @@ class ActionComposition:
         self._check_memory()
 
     def _check_memory(self) -> None:
-        """The navigation filter's flag, the history lengths and the obstacle features' flag (see the class)."""
+        """The navigation filter's flag, the history lengths and the features' flags (see the class)."""
         if not isinstance(self.navigation_filter, bool):
             raise ValueError(f"navigation_filter must be true or false, got {self.navigation_filter!r}")
         check_frame_stack(self.frame_stack)
         if self.action_history != 0:
             check_frame_stack(self.action_history, "action_history")
-        if not isinstance(self.obstacle_features, bool):
-            raise ValueError(f"obstacle_features must be true or false, got {self.obstacle_features!r}")
-        if self.obstacle_features and self.residual_base is not None:
-            raise ValueError(
-                "obstacle_features is for a policy that outputs the whole command; a residual policy observes "
-                "residual_observation's features instead"
-            )
+        for key in ("obstacle_features", "tracking_features"):
+            value = getattr(self, key)
+            if not isinstance(value, bool):
+                raise ValueError(f"{key} must be true or false, got {value!r}")
+            if value and self.residual_base is not None:
+                raise ValueError(
+                    f"{key} is for a policy that outputs the whole command; a residual policy observes "
+                    "residual_observation's features instead"
+                )
 
     @property
     def is_residual(self) -> bool:
@@ -175,6 +182,7 @@ class ActionComposition:
             "frame_stack": self.frame_stack,
             "action_history": self.action_history,
             "obstacle_features": self.obstacle_features,
+            "tracking_features": self.tracking_features,
         }
 
     @classmethod
@@ -193,6 +201,7 @@ class ActionComposition:
         frame_stack = record.get("frame_stack")
         action_history = record.get("action_history")
         obstacle_features = record.get("obstacle_features")
+        tracking_features = record.get("tracking_features")
         return cls(
             residual_base=record.get("residual_base"),
             residual_scale=float(scale) if is_residual_scale(scale) else scale,
@@ -203,6 +212,7 @@ class ActionComposition:
             frame_stack=1 if frame_stack is None else frame_stack,
             action_history=0 if action_history is None else action_history,
             obstacle_features=False if obstacle_features is None else obstacle_features,
+            tracking_features=False if tracking_features is None else tracking_features,
         )
 
     def describe(self, name: str) -> str:

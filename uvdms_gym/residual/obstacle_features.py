@@ -30,7 +30,7 @@ obstacle (18): the direction that opens all the gaps closing in. Everything is c
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -204,7 +204,7 @@ def obstacle_feature_space(space: gym.spaces.Box, features: ObstacleFeatures) ->
     return gym.spaces.Box(low.astype(space.dtype), high.astype(space.dtype), dtype=space.dtype)
 
 
-def with_features(obs: np.ndarray, features: ObstacleFeatures) -> np.ndarray:
+def with_features(obs: np.ndarray, features: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
     """``[obs; features(obs)]`` in the observation's dtype."""
     obs = np.asarray(obs)
     return np.concatenate([obs, features(obs).astype(obs.dtype)])
@@ -245,15 +245,19 @@ class ObstacleFeatureObservation(gym.ObservationWrapper):
         return with_features(observation, self.features)
 
 
-class ObstacleFeatureController:
-    """Evaluation: a policy trained with ``obstacle_features=True`` receives ``[obs; features(obs)]``.
+class FeatureController:
+    """Evaluation: a policy trained with features of its observation receives ``[obs; features(obs)]``.
+
+    ``obstacle_features=True`` (:class:`ObstacleFeatures`) and ``tracking_features=True``
+    (:class:`~uvdms_gym.residual.TrackingFeatures`); with both, the tracking controller inside the obstacle one, as
+    the training wrappers nest.
 
     Args:
         policy: The trained policy's controller (``reset(seed)``, ``predict(obs, info)``).
-        features: The :class:`ObstacleFeatures` of the environment it drives.
+        features: The features of the environment it drives (a callable of one observation with a ``size``).
     """
 
-    def __init__(self, policy: Controller, features: ObstacleFeatures) -> None:
+    def __init__(self, policy: Controller, features: Callable[[np.ndarray], np.ndarray]) -> None:
         self.policy = policy
         self.features = features
 
@@ -264,3 +268,7 @@ class ObstacleFeatureController:
     def predict(self, obs: np.ndarray, info: Mapping[str, Any] | None = None) -> np.ndarray:
         """The policy's action on the observation with its features."""
         return self.policy.predict(with_features(obs, self.features), info)
+
+
+ObstacleFeatureController = FeatureController
+"""The name :class:`FeatureController` had when the obstacle features were the only ones (0.9.0-0.9.2)."""
