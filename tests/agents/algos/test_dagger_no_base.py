@@ -125,6 +125,7 @@ def test_uvdms_train_dagger_with_no_base_export_and_evaluate(tmp_path, capsys):
         "navigation_filter": False,
         "memory": {"observations": 1, "actions": 0},
         "obstacle_features": False,
+        "tracking_features": False,
     }
     assert (doc["navigation_filter"], doc["frame_stack"]) == (False, 1)
     out = tmp_path / "eval.json"

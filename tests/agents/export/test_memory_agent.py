@@ -64,6 +64,7 @@ def test_the_export_records_the_memory_and_the_filter(memory_export):
         "navigation_filter": True,
         "memory": {"observations": K, "actions": M},
         "obstacle_features": False,
+        "tracking_features": False,
     }
     agent = load_agent(export)
     assert (agent.composition.frame_stack, agent.composition.action_history, agent.composition.navigation_filter) == (
