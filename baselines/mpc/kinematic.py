@@ -153,11 +153,25 @@ class KinematicMPC:
         self.n_box_rows = 0 if cfg.box_constraints else self.n
         self.n_in = self.n_box_rows + self.n_pos + self.n_col
 
-        r0 = self._constant_rows()
-        # The QP's arrays, allocated once and rewritten in place by every build (ProxSuite copies them on
-        # ``update``). Only what depends on the step is written: the ``U`` block of ``H`` (``R`` on its diagonal),
-        # ``g[:n_u]``, the ``U`` part of the box, the bounds of the joint-position and collision rows, the
-        # ``J_dis`` blocks of ``C`` and the ``J_eq`` blocks of ``A``; the slack blocks are constant.
+        self._allocate_arrays(self._constant_rows())
+
+        self.qp = _dense_qp(cfg, self.n, self.n_eq, self.n_in)
+        # ``update(..., mu_in=...)`` overwrites ``settings.default_mu_in``: restored before every cold init so that
+        # a reset episode repeats bit for bit
+        self._default_mu = (self.qp.settings.default_mu_in, self.qp.settings.default_mu_eq)
+        self._initialised = False
+        self.n_steps = 0
+        self.n_cold_retries = 0
+        self.n_infeasible_retries = 0
+
+    def _allocate_arrays(self, r0: int) -> None:
+        """The QP's arrays, allocated once and rewritten in place by every build (ProxSuite copies them on ``update``).
+
+        Only what depends on the step is written: the ``U`` block of ``H`` (``R`` on its diagonal), ``g[:n_u]``, the
+        ``U`` part of the box, the bounds of the joint-position and collision rows, the ``J_dis`` blocks of ``C``
+        (from row ``r0``) and the ``J_eq`` blocks of ``A``; the slack blocks are constant.
+        """
+        cfg, nc = self.config, self.config.n_c
         self._H = np.zeros((self.n, self.n))
         if self.n_s:
             self._H[self.n_u :, self.n_u :] = cfg.slack_quadratic * np.eye(self.n_s)
@@ -185,15 +199,6 @@ class KinematicMPC:
         ne = cfg.n_eq_rows
         n_eq_blocks = nc if self.n_eq else 0
         self._eq_blocks = [self._A[ne * j : ne * (j + 1), N_DOF * j : N_DOF * (j + 1)] for j in range(n_eq_blocks)]
-
-        self.qp = _dense_qp(cfg, self.n, self.n_eq, self.n_in)
-        # ``update(..., mu_in=...)`` overwrites ``settings.default_mu_in``: restored before every cold init so that
-        # a reset episode repeats bit for bit
-        self._default_mu = (self.qp.settings.default_mu_in, self.qp.settings.default_mu_eq)
-        self._initialised = False
-        self.n_steps = 0
-        self.n_cold_retries = 0
-        self.n_infeasible_retries = 0
 
     def _constant_rows(self) -> int:
         """Allocate ``C``, its bounds and ``A``, ``b``, with their constant parts; return the first collision row.
