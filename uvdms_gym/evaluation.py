@@ -515,11 +515,7 @@ def evaluate_controller(
 
     import uvdms_gym  # noqa: F401  (registers the environments)
 
-    if episodes < 1:
-        raise ValueError(f"episodes must be >= 1, got {episodes}")
-    seeds = [int(seed) + i for i in range(episodes)] if seeds is None else [int(s) for s in seeds]
-    if len(seeds) != episodes:
-        raise ValueError(f"episodes={episodes} but {len(seeds)} seeds were given")
+    seeds = _episode_seeds(episodes, seed, seeds)
     kwargs = dict(env_kwargs or {})
     env = gym.make(env_id, **kwargs)
     try:
@@ -535,28 +531,40 @@ def evaluate_controller(
         settings = controller_settings(controller)
     finally:
         env.close()
-    result = {
-        "episodes": results,
-        "summary": summarize(results),
-        "meta": to_jsonable(
-            {
-                "controller": label,
-                "env_id": env_id,
-                "env_kwargs": kwargs,
-                "episodes": episodes,
-                "seeds": seeds,
-                "seed_protocol": seed_protocol(seeds),
-                "versions": package_versions(),
-                "git": git_info(),
-                "wall_s": wall_s,
-                "timing": timing,
-                "controller_settings": settings,
-            }
-        ),
-    }
+    meta = {"controller": label, "env_id": env_id, "env_kwargs": kwargs, "episodes": episodes, "seeds": seeds}
+    result = {"episodes": results, "summary": summarize(results), "meta": _run_meta(meta, wall_s, timing, settings)}
     if out is not None:
         write_json_atomic(out, result)
     return result
+
+
+def _episode_seeds(episodes: int, seed: int, seeds: Sequence[int] | None) -> list[int]:
+    """The episodes' seeds of :func:`evaluate_controller` (``seed, seed + 1, ...`` unless ``seeds`` names them).
+
+    Raises:
+        ValueError: ``episodes < 1`` or ``seeds`` of another length.
+    """
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    seeds = [int(seed) + i for i in range(episodes)] if seeds is None else [int(s) for s in seeds]
+    if len(seeds) != episodes:
+        raise ValueError(f"episodes={episodes} but {len(seeds)} seeds were given")
+    return seeds
+
+
+def _run_meta(meta: dict, wall_s: float, timing: dict, settings: Any) -> dict:
+    """``meta`` of :func:`evaluate_controller`: the run's identity, then its seed protocol, provenance and timing."""
+    return to_jsonable(
+        {
+            **meta,
+            "seed_protocol": seed_protocol(meta["seeds"]),
+            "versions": package_versions(),
+            "git": git_info(),
+            "wall_s": wall_s,
+            "timing": timing,
+            "controller_settings": settings,
+        }
+    )
 
 
 def check_action_mode(name: str, env: Any, required: str) -> None:
