@@ -25,7 +25,7 @@ own summary); every episode carries its ``seed_folder`` and ``training_seed``. `
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +57,10 @@ DRAW_RULES = {
     "every_seed": "every seed folder evaluates every draw",
 }
 """How a multi-seed evaluation gives the draws to the training seeds (``meta["draw_assignment"]["rule"]``)."""
+Factory = Callable[[Any], Any]
+"""Builds the controller for one episode's environment."""
+Check = Callable[[Any, Any], None]
+"""Checks a built controller against its environment (an agent's observation and action spaces)."""
 
 
 def evaluate(
@@ -106,40 +110,10 @@ def evaluate(
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     kwargs = dict(env_kwargs or {})
-    check = None
     if controller_spec in CONTROLLERS:
-        if safety_filter and TRACK_OF[controller_spec] != "velocity":
-            raise ValueError(
-                f"--safety-filter filters velocity commands, but {controller_spec} is a {TRACK_OF[controller_spec]}-"
-                "track controller (it commands forces and torques); evaluate it without the filter, or filter a "
-                f"velocity controller ({', '.join(n for n, track in TRACK_OF.items() if track == 'velocity')})"
-            )
-        kwargs.setdefault("action_mode", TRACK_OF[controller_spec])
-
-        def factory(env: Any) -> Any:
-            controller = make_controller(controller_spec, env, trust=trust)
-            return with_safety_filter(controller, env) if safety_filter else controller
-
+        factory, check = _baseline_parts(controller_spec, kwargs, trust, safety_filter)
     else:
-        path = Path(resolve_controller(controller_spec))
-        if not path.exists():
-            raise unknown_controller(controller_spec)
-        from agents.export import check_agent
-
-        agent = load_agent(path, trust)
-        kwargs.setdefault("action_mode", (agent.env_kwargs or {}).get("action_mode", "velocity"))
-        if safety_filter and kwargs["action_mode"] != "velocity":
-            raise ValueError(
-                f"--safety-filter filters velocity commands, but {controller_spec} acts in action_mode="
-                f"{kwargs['action_mode']!r}; evaluate it without the filter"
-            )
-
-        def factory(env: Any) -> Any:
-            return compose_agent(agent, env, safety_filter=safety_filter)
-
-        def check(controller: Any, env: Any) -> None:
-            check_agent(agent, env, controller_spec)  # the agent itself, filtered or not
-
+        factory, check = _agent_parts(controller_spec, kwargs, trust, safety_filter)
     return evaluate_controller(
         factory,
         env_id,
@@ -153,6 +127,47 @@ def evaluate(
         progress=progress,
         check=check,
     )
+
+
+def _baseline_parts(name: str, kwargs: dict, trust: bool, safety_filter: bool) -> tuple[Factory, Check | None]:
+    """The factory of a named baseline; fills its ``action_mode`` into ``kwargs`` (:func:`evaluate`)."""
+    if safety_filter and TRACK_OF[name] != "velocity":
+        raise ValueError(
+            f"--safety-filter filters velocity commands, but {name} is a {TRACK_OF[name]}-"
+            "track controller (it commands forces and torques); evaluate it without the filter, or filter a "
+            f"velocity controller ({', '.join(n for n, track in TRACK_OF.items() if track == 'velocity')})"
+        )
+    kwargs.setdefault("action_mode", TRACK_OF[name])
+
+    def factory(env: Any) -> Any:
+        controller = make_controller(name, env, trust=trust)
+        return with_safety_filter(controller, env) if safety_filter else controller
+
+    return factory, None
+
+
+def _agent_parts(controller_spec: str, kwargs: dict, trust: bool, safety_filter: bool) -> tuple[Factory, Check]:
+    """The factory and the space check of an agent; fills its training ``action_mode`` into ``kwargs``."""
+    path = Path(resolve_controller(controller_spec))
+    if not path.exists():
+        raise unknown_controller(controller_spec)
+    from agents.export import check_agent
+
+    agent = load_agent(path, trust)
+    kwargs.setdefault("action_mode", (agent.env_kwargs or {}).get("action_mode", "velocity"))
+    if safety_filter and kwargs["action_mode"] != "velocity":
+        raise ValueError(
+            f"--safety-filter filters velocity commands, but {controller_spec} acts in action_mode="
+            f"{kwargs['action_mode']!r}; evaluate it without the filter"
+        )
+
+    def factory(env: Any) -> Any:
+        return compose_agent(agent, env, safety_filter=safety_filter)
+
+    def check(controller: Any, env: Any) -> None:
+        check_agent(agent, env, controller_spec)  # the agent itself, filtered or not
+
+    return factory, check
 
 
 def evaluate_entry(
