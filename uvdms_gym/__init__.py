@@ -21,7 +21,7 @@ from gymnasium.envs.registration import register, registry
 from uvdms_gym.physics.params import UVDMSParams
 from uvdms_gym.utils.legacy import MOVED, REGROUPED, install_moved_finder, regrouped_message
 
-__version__ = "0.9.3"
+__version__ = "0.9.4"
 __all__ = ["ENV_IDS", "UVDMSParams", "__version__"]
 
 _REGISTRATIONS: tuple[tuple[str, str, int], ...] = (
